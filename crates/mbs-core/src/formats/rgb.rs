@@ -1,0 +1,111 @@
+//! 8-bit RGB views (PNG, PPM and anything else the `image` crate decodes).
+
+use std::path::Path;
+
+use image::ImageEncoder;
+
+use crate::atomic::write_atomic;
+use crate::error::{FormatError, Result};
+use crate::{MaskImage, RgbImage};
+
+/// Reads an image file as 8-bit RGB. Greyscale or 16-bit files are converted;
+/// use [`read_rgb8_strict`] to refuse them.
+pub fn read_rgb(path: &Path) -> Result<RgbImage> {
+    let image = image::open(path).map_err(|e| FormatError::image(path, e))?;
+    Ok(image.into_rgb8())
+}
+
+/// Reads an image file that must be 8-bit RGB (no alpha, no 16-bit, no grey):
+/// the encoding CARLA uses for depth.
+pub fn read_rgb8_strict(path: &Path) -> Result<RgbImage> {
+    let image = image::open(path).map_err(|e| FormatError::image(path, e))?;
+    match image {
+        image::DynamicImage::ImageRgb8(rgb) => Ok(rgb),
+        other => Err(FormatError::invalid(
+            path,
+            format!("expected 8-bit RGB, found {:?}", other.color()),
+        )),
+    }
+}
+
+/// Writes an 8-bit RGB PNG atomically.
+pub fn write_rgb_png(path: &Path, image: &RgbImage) -> Result<()> {
+    write_atomic(path, |w| {
+        image::codecs::png::PngEncoder::new(w)
+            .write_image(
+                image.as_raw(),
+                image.width(),
+                image.height(),
+                image::ExtendedColorType::Rgb8,
+            )
+            .map_err(std::io::Error::other)
+    })
+}
+
+/// Writes an 8-bit single-channel PNG (a mask) atomically.
+pub fn write_mask_png(path: &Path, mask: &MaskImage) -> Result<()> {
+    write_atomic(path, |w| {
+        image::codecs::png::PngEncoder::new(w)
+            .write_image(
+                mask.as_raw(),
+                mask.width(),
+                mask.height(),
+                image::ExtendedColorType::L8,
+            )
+            .map_err(std::io::Error::other)
+    })
+}
+
+/// Reads an 8-bit single-channel PNG mask.
+pub fn read_mask(path: &Path) -> Result<MaskImage> {
+    let image = image::open(path).map_err(|e| FormatError::image(path, e))?;
+    match image {
+        image::DynamicImage::ImageLuma8(mask) => Ok(mask),
+        other => Err(FormatError::invalid(
+            path,
+            format!(
+                "expected an 8-bit greyscale mask, found {:?}",
+                other.color()
+            ),
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rgb_png_round_trip_and_strict_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.png");
+        let img = RgbImage::from_fn(5, 3, |x, y| image::Rgb([x as u8, y as u8, 7]));
+        write_rgb_png(&path, &img).unwrap();
+        assert_eq!(read_rgb8_strict(&path).unwrap(), img);
+
+        let grey = dir.path().join("g.png");
+        write_mask_png(&grey, &MaskImage::new(2, 2)).unwrap();
+        let err = read_rgb8_strict(&grey).unwrap_err().to_string();
+        assert!(
+            err.contains("g.png") && err.contains("expected 8-bit RGB"),
+            "{err}"
+        );
+        assert_eq!(read_mask(&grey).unwrap().dimensions(), (2, 2));
+    }
+
+    #[test]
+    fn reads_real_middlebury_ppm() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../../shared/data/middlebury-tsukuba-row3/scene1.row3.col1.ppm");
+        let img = read_rgb(&path).unwrap();
+        assert_eq!(img.dimensions(), (384, 288));
+    }
+
+    #[test]
+    fn missing_file_error_names_it() {
+        let err = read_rgb(Path::new("/no/such/view.png"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("/no/such/view.png"), "{err}");
+    }
+}
