@@ -257,3 +257,57 @@ impl Scene {
         Scene::new(Some(ground), objects, rng.random())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn config_round_trips_and_fills_defaults() {
+        let config = SceneConfig {
+            boxes: 3,
+            ..SceneConfig::default()
+        };
+        let json = serde_json::to_string(&config).unwrap();
+        assert_eq!(serde_json::from_str::<SceneConfig>(&json).unwrap(), config);
+        let partial: SceneConfig = serde_json::from_str(r#"{"poles": 2}"#).unwrap();
+        assert_eq!(partial.poles, 2);
+        assert_eq!(
+            partial.street_width_m,
+            SceneConfig::default().street_width_m
+        );
+        assert!(serde_json::from_str::<SceneConfig>(r#"{"polls": 2}"#).is_err());
+    }
+
+    #[test]
+    fn degenerate_configs_do_not_panic() {
+        let config = SceneConfig {
+            street_width_m: -3.0,
+            sidewalk_width_m: 50.0,
+            min_depth_m: 80.0,
+            max_depth_m: 1.0,
+            ..SceneConfig::default()
+        };
+        let scene = Scene::generate(1, &config);
+        assert!(scene.ground().is_some());
+    }
+
+    #[test]
+    fn default_street_has_every_kind_of_object() {
+        let config = SceneConfig::default();
+        let scene = Scene::generate(2, &config);
+        let count = |f: fn(&Object) -> bool| scene.objects().iter().filter(|o| f(o)).count();
+        assert_eq!(
+            count(|o| matches!(o.shape, Shape::Cylinder { .. })),
+            config.poles
+        );
+        assert!(count(|o| matches!(o.material.pattern, Pattern::Facade { .. })) > 10);
+        // Nothing on the road nearer than min_depth_m.
+        for o in scene.objects() {
+            if let Shape::Cuboid { min, max } = o.shape {
+                let on_road = max[0] > config.centre_x_m - 5.0 && min[0] < config.centre_x_m + 5.0;
+                assert!(!on_road || min[2] >= config.min_depth_m || max[2] <= 0.0);
+            }
+        }
+    }
+}
