@@ -1,6 +1,6 @@
 //! Surface appearance: materials and their band-limited procedural textures,
 //! defined on the 3D surface point so that every camera sees the same
-//! surface. Detail finer than a few pixels is faded out (see [`Band`]).
+//! surface. Detail finer than a few pixels is faded out (see `noise::Band`).
 
 use serde::{Deserialize, Serialize};
 
@@ -92,7 +92,7 @@ fn noisy(m: &Material, p: Vec3, band: Band, contrast: f64) -> [f32; 3] {
         2,
         band,
     );
-    let detail = fbm(p, m.seed, m.detail_period_m, 0.9, 9, band);
+    let detail = fbm(p, m.seed, m.detail_period_m, 0.9, 7, band);
     scale(mix(m.base, m.accent, 0.5 + tint), 1.0 + contrast * detail)
 }
 
@@ -108,14 +108,17 @@ impl Material {
                 mix(noisy(self, p, band, 0.45), self.accent, 0.8 * stripe)
             }
             Pattern::Facade { cell_m, window } => {
-                let wall = noisy(self, p, band, 0.5);
-                if n.y.abs() > 0.5 {
-                    wall
+                let wall = || noisy(self, p, band, 0.5);
+                let h = if n.x.abs() > 0.5 { p.z } else { p.x };
+                let b = blur(band);
+                let win = if n.y.abs() > 0.5 {
+                    0.0
                 } else {
-                    let h = if n.x.abs() > 0.5 { p.z } else { p.x };
-                    let b = blur(band);
-                    let win =
-                        pulse(h, cell_m[0], window[0], b) * pulse(p.y, cell_m[1], window[1], b);
+                    pulse(h, cell_m[0], window[0], b) * pulse(p.y, cell_m[1], window[1], b)
+                };
+                if win <= 0.0 {
+                    wall()
+                } else {
                     let glass_shade = 0.5 + 0.25 * fbm(p, self.seed ^ 0x9e37, 2.0, 0.6, 4, band);
                     let glass = scale([0.16, 0.20, 0.26], glass_shade * 2.0);
                     if window_glow > 0.0 {
@@ -126,7 +129,11 @@ impl Material {
                             emission = [g, 0.8 * g, 0.5 * g];
                         }
                     }
-                    mix(wall, glass, win)
+                    if win >= 1.0 {
+                        glass
+                    } else {
+                        mix(wall(), glass, win)
+                    }
                 }
             }
         };
