@@ -33,7 +33,7 @@ pub fn read_gray16(path: &Path) -> Result<Gray16Image> {
 pub fn write_gray16(path: &Path, image: &Gray16Image) -> Result<()> {
     write_atomic(path, |w| {
         image
-            .write_with_encoder(image::codecs::png::PngEncoder::new(w))
+            .write_with_encoder(super::png_encoder(w))
             .map_err(std::io::Error::other)
     })
 }
@@ -59,15 +59,18 @@ pub fn decode_scaled(codes: &Gray16Image, scale: f32) -> FloatImage {
 /// negative, or too large for 16 bits) become `0`; valid values that would
 /// round to `0` are stored as `1` so they stay valid.
 pub fn encode_scaled(values: &FloatImage, scale: f32) -> Gray16Image {
+    let max = f32::from(u16::MAX) + 1.0;
     let data = values
         .as_raw()
         .iter()
         .map(|&x| {
-            let code = (x * scale).round();
-            if !x.is_finite() || x < 0.0 || code > f32::from(u16::MAX) {
-                0
+            // Adding 0.5 and truncating rounds the non-negative values that
+            // pass the check; NaN fails every comparison.
+            let scaled = x * scale + 0.5;
+            if x >= 0.0 && scaled < max {
+                (scaled as u16).max(1)
             } else {
-                (code as u16).max(1)
+                0
             }
         })
         .collect();

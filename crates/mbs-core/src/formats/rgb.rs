@@ -31,7 +31,7 @@ pub fn read_rgb8_strict(path: &Path) -> Result<RgbImage> {
 /// Writes an 8-bit RGB PNG atomically.
 pub fn write_rgb_png(path: &Path, image: &RgbImage) -> Result<()> {
     write_atomic(path, |w| {
-        image::codecs::png::PngEncoder::new(w)
+        super::png_encoder(w)
             .write_image(
                 image.as_raw(),
                 image.width(),
@@ -45,7 +45,7 @@ pub fn write_rgb_png(path: &Path, image: &RgbImage) -> Result<()> {
 /// Writes an 8-bit single-channel PNG (a mask) atomically.
 pub fn write_mask_png(path: &Path, mask: &MaskImage) -> Result<()> {
     write_atomic(path, |w| {
-        image::codecs::png::PngEncoder::new(w)
+        super::png_encoder(w)
             .write_image(
                 mask.as_raw(),
                 mask.width(),
