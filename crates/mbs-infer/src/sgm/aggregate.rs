@@ -1,0 +1,215 @@
+//! Semi-global cost aggregation over one band of rows: the path recurrence
+//!
+//! `L(p, d) = C(p, d) + min(L(p-r, d), L(p-r, d±1) + P1, min L(p-r) + P2) - min L(p-r)`
+//!
+//! along horizontal, vertical and diagonal paths, summed into `i16` costs
+//! with the disparity dimension contiguous so the inner loops vectorise.
+
+use std::ops::Range;
+
+use super::census::cost_row;
+
+/// Padding value around each pixel's path costs: large, but far enough from
+/// `i16::MAX` that adding `P1` cannot overflow.
+const BIG: i16 = i16::MAX / 2;
+
+/// What the aggregation of one band needs.
+pub struct BandInput<'a> {
+    /// Left census signatures, row-major.
+    pub left: &'a [u64],
+    /// Right census signatures, each row reversed.
+    pub right_reversed: &'a [u64],
+    /// Image width and height.
+    pub size: (usize, usize),
+    /// Number of disparities `D`.
+    pub num_disp: usize,
+    /// Cost of disparities past the left border.
+    pub invalid_cost: u8,
+    /// Small and large smoothness penalties.
+    pub penalties: (i16, i16),
+    /// Rows above (and below, with bottom-up paths) the band that warm up
+    /// the vertical and diagonal paths.
+    pub overlap: usize,
+    /// Whether to add the three bottom-up paths (8 paths instead of 5).
+    pub bottom_up: bool,
+}
+
+/// Aggregates the costs of the output `rows` into `sums`
+/// (`rows.len() * width * D`, zeroed here).
+pub fn aggregate_band(input: &BandInput, rows: Range<usize>, sums: &mut [i16]) {
+    let (w, h) = input.size;
+    let nd = input.num_disp;
+    let row_len = w * nd;
+    sums.fill(0);
+    let mut cost = vec![0u8; row_len];
+    let mut paths = Paths::new(w, nd, input.penalties);
+    let cost_of = |y: usize, cost: &mut [u8]| {
+        cost_row(
+            &input.left[y * w..][..w],
+            &input.right_reversed[y * w..][..w],
+            input.invalid_cost,
+            cost,
+        );
+    };
+    for y in rows.start.saturating_sub(input.overlap)..rows.end {
+        cost_of(y, &mut cost);
+        if y >= rows.start {
+            let out = &mut sums[(y - rows.start) * row_len..][..row_len];
+            paths.vertical::<true>(&cost, out);
+            paths.horizontal(&cost, out);
+        } else {
+            paths.vertical::<false>(&cost, &mut []);
+        }
+    }
+    if input.bottom_up {
+        paths.restart();
+        for y in (rows.start..(rows.end + input.overlap).min(h)).rev() {
+            cost_of(y, &mut cost);
+            if y < rows.end {
+                let out = &mut sums[(y - rows.start) * row_len..][..row_len];
+                paths.vertical::<true>(&cost, out);
+            } else {
+                paths.vertical::<false>(&cost, &mut []);
+            }
+        }
+    }
+}
+
+/// Path costs of one direction on the previous and the current row.
+struct RowPair {
+    prev: Vec<i16>,
+    prev_min: Vec<i16>,
+    cur: Vec<i16>,
+    cur_min: Vec<i16>,
+}
+
+/// State of the paths along one pass over the rows.
+struct Paths {
+    width: usize,
+    num_disp: usize,
+    penalties: (i16, i16),
+    /// The three vertical directions, from `x - 1`, `x` and `x + 1` on the
+    /// previous row.
+    rows: [RowPair; 3],
+    /// No previous row yet.
+    fresh: bool,
+    /// Path costs before the first pixel: zero, padded.
+    start: Vec<i16>,
+    /// Two pixels of horizontal path costs.
+    scratch: [Vec<i16>; 2],
+}
+
+impl Paths {
+    fn new(width: usize, num_disp: usize, penalties: (i16, i16)) -> Self {
+        let stride = num_disp + 2;
+        let pair = || RowPair {
+            prev: vec![BIG; width * stride],
+            prev_min: vec![0; width],
+            cur: vec![BIG; width * stride],
+            cur_min: vec![0; width],
+        };
+        let mut start = vec![0; stride];
+        start[0] = BIG;
+        start[stride - 1] = BIG;
+        Self {
+            width,
+            num_disp,
+            penalties,
+            rows: [pair(), pair(), pair()],
+            fresh: true,
+            scratch: [vec![BIG; stride], vec![BIG; stride]],
+            start,
+        }
+    }
+
+    /// Starts a new pass (the vertical paths forget the previous row).
+    fn restart(&mut self) {
+        self.fresh = true;
+    }
+
+    /// Advances the three vertical paths by one row of `cost`, adding them
+    /// into `sums` when `ADD`.
+    fn vertical<const ADD: bool>(&mut self, cost: &[u8], sums: &mut [i16]) {
+        let (w, nd) = (self.width, self.num_disp);
+        let stride = nd + 2;
+        for (k, pair) in self.rows.iter_mut().enumerate() {
+            for x in 0..w {
+                let from = (x + k).checked_sub(1).filter(|&p| p < w && !self.fresh);
+                let (prev, prev_min) = match from {
+                    Some(p) => (&pair.prev[p * stride..][..stride], pair.prev_min[p]),
+                    None => (&self.start[..], 0),
+                };
+                let sum = if ADD {
+                    &mut sums[x * nd..][..nd]
+                } else {
+                    &mut [][..]
+                };
+                pair.cur_min[x] = step::<ADD>(
+                    &cost[x * nd..][..nd],
+                    prev,
+                    prev_min,
+                    self.penalties,
+                    &mut pair.cur[x * stride..][..stride],
+                    sum,
+                );
+            }
+            std::mem::swap(&mut pair.prev, &mut pair.cur);
+            std::mem::swap(&mut pair.prev_min, &mut pair.cur_min);
+        }
+        self.fresh = false;
+    }
+
+    /// Runs the left-to-right and right-to-left paths of one row of `cost`,
+    /// adding them into `sums`.
+    fn horizontal(&mut self, cost: &[u8], sums: &mut [i16]) {
+        let nd = self.num_disp;
+        for reverse in [false, true] {
+            let [a, b] = &mut self.scratch;
+            a.copy_from_slice(&self.start);
+            let mut prev_min = 0;
+            for i in 0..self.width {
+                let x = if reverse { self.width - 1 - i } else { i };
+                prev_min = step::<true>(
+                    &cost[x * nd..][..nd],
+                    a,
+                    prev_min,
+                    self.penalties,
+                    b,
+                    &mut sums[x * nd..][..nd],
+                );
+                std::mem::swap(a, b);
+            }
+        }
+    }
+}
+
+/// One step of the path recurrence for all disparities: `prev` and `out`
+/// hold `D + 2` values (padding at both ends), `cost` and `sum` hold `D`.
+/// Returns the minimum of the new path costs.
+#[inline(always)]
+fn step<const ADD: bool>(
+    cost: &[u8],
+    prev: &[i16],
+    prev_min: i16,
+    (p1, p2): (i16, i16),
+    out: &mut [i16],
+    sum: &mut [i16],
+) -> i16 {
+    let n = cost.len();
+    let (lower, same, upper) = (&prev[..n], &prev[1..n + 1], &prev[2..n + 2]);
+    let out = &mut out[1..n + 1];
+    let jump = prev_min + p2;
+    let mut best = i16::MAX;
+    for d in 0..n {
+        let m = same[d].min(lower[d].min(upper[d]) + p1).min(jump);
+        let v = i16::from(cost[d]) + m - prev_min;
+        out[d] = v;
+        best = best.min(v);
+    }
+    if ADD {
+        for (s, &v) in sum[..n].iter_mut().zip(out.iter()) {
+            *s += v;
+        }
+    }
+    best
+}

@@ -1,0 +1,91 @@
+//! Census transform and the per-row census matching cost (Hamming distance).
+
+use rayon::prelude::*;
+
+/// Census signatures of a row-major luma image over a `win_w` x `win_h`
+/// window (odd sides, at most 65 samples): bit set where the neighbour is
+/// darker than the centre, neighbours in row-major order. Borders replicate
+/// the edge pixels.
+pub fn census(gray: &[u8], width: usize, win_w: usize, win_h: usize) -> Vec<u64> {
+    let height = gray.len() / width;
+    let (rx, ry) = (win_w / 2, win_h / 2);
+    let pw = width + 2 * rx;
+    let mut padded = vec![0u8; pw * (height + 2 * ry)];
+    for (py, row) in padded.chunks_exact_mut(pw).enumerate() {
+        let y = py.saturating_sub(ry).min(height - 1);
+        let src = &gray[y * width..][..width];
+        for (px, v) in row.iter_mut().enumerate() {
+            *v = src[px.saturating_sub(rx).min(width - 1)];
+        }
+    }
+    let mut out = vec![0u64; width * height];
+    out.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+        let centre = &padded[(y + ry) * pw + rx..][..width];
+        for dy in 0..win_h {
+            for dx in 0..win_w {
+                if dy == ry && dx == rx {
+                    continue;
+                }
+                let neighbour = &padded[(y + dy) * pw + dx..][..width];
+                for ((o, &n), &c) in row.iter_mut().zip(neighbour).zip(centre) {
+                    *o = (*o << 1) | u64::from(n < c);
+                }
+            }
+        }
+    });
+    out
+}
+
+/// Each row of `signatures` reversed, so that the right-view signatures at
+/// `x - d` for `d = 0, 1, …` lie contiguously (see [`cost_row`]).
+pub fn reverse_rows(signatures: &[u64], width: usize) -> Vec<u64> {
+    let mut out = signatures.to_vec();
+    out.chunks_exact_mut(width).for_each(|row| row.reverse());
+    out
+}
+
+/// Matching costs of one row, `out[x * D + d]` = Hamming distance between
+/// the left signature at `x` and the right one at `x - d`, for `D =
+/// out.len() / left.len()` disparities; `right_reversed` is the right row
+/// reversed. Disparities past the left border (`d > x`) cost `invalid`.
+pub fn cost_row(left: &[u64], right_reversed: &[u64], invalid: u8, out: &mut [u8]) {
+    let width = left.len();
+    let num_disp = out.len() / width;
+    for (x, (&l, costs)) in left.iter().zip(out.chunks_exact_mut(num_disp)).enumerate() {
+        let n = num_disp.min(x + 1);
+        let start = width - 1 - x;
+        let (matched, beyond) = costs.split_at_mut(n);
+        for (c, &r) in matched.iter_mut().zip(&right_reversed[start..start + n]) {
+            *c = (l ^ r).count_ones() as u8;
+        }
+        beyond.fill(invalid);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn census_bits_follow_the_neighbours() {
+        // 3x3 image, 3x3 window: centre 5, neighbours row-major.
+        let gray = [1, 9, 1, 9, 5, 1, 9, 9, 1];
+        let c = census(&gray, 3, 3, 3);
+        // Neighbours (1, 9, 1, 9, 1, 9, 9, 1); darker than 5 at positions
+        // 0, 2, 4, 7 -> bits 10101001, the first neighbour most significant.
+        assert_eq!(c[4], 0b1010_1001);
+    }
+
+    #[test]
+    fn cost_row_matches_shifted_signatures() {
+        let left = [0b0u64, 0b1, 0b11, 0b111];
+        let right = [0b1u64, 0b11, 0b111, 0b1111];
+        let rev = reverse_rows(&right, 4);
+        let mut out = vec![0u8; 8];
+        cost_row(&left, &rev, 99, &mut out);
+        // x = 0: d = 0 -> |0 ^ 1| = 1; d = 1 is past the border.
+        assert_eq!(&out[..2], &[1, 99]);
+        // x = 3: d = 0 -> 0b111 ^ 0b1111 = 1 bit; d = 1 -> 0b111 ^ 0b111 = 0.
+        assert_eq!(&out[6..], &[1, 0]);
+    }
+}

@@ -1,0 +1,118 @@
+//! Disparity selection from aggregated costs: winner-take-all with a
+//! uniqueness test and parabola sub-pixel refinement for the left view, and
+//! the right-view disparity read off the same costs (the minimum along each
+//! diagonal `x - d = const`).
+
+/// Disparity index and cost packed so that one integer `min` finds the
+/// lowest cost and, on ties, the smallest disparity.
+#[inline(always)]
+fn pack(cost: i16, d: usize) -> i32 {
+    (i32::from(cost) << 16) | d as i32
+}
+
+/// Selects the disparities of one row from its aggregated costs
+/// (`sums[x * D + d]`). `left` gets sub-pixel disparities (`+inf` where the
+/// uniqueness test fails), `right` integer right-view disparities (`+inf`
+/// where no left pixel maps). `uniqueness` is a percentage: the best cost
+/// must beat every cost more than one disparity away by that margin
+/// (0 disables the test). `scratch` is reused between rows.
+pub fn select_row(
+    sums: &[i16],
+    uniqueness: u32,
+    left: &mut [f32],
+    right: &mut [f32],
+    scratch: &mut Vec<i32>,
+) {
+    let width = left.len();
+    let num_disp = sums.len() / width;
+    scratch.clear();
+    scratch.resize(width, i32::MAX);
+    for (x, s) in sums.chunks_exact(num_disp).enumerate() {
+        // Only disparities that stay inside the right view.
+        let n = num_disp.min(x + 1);
+        let s = &s[..n];
+        let best = s
+            .iter()
+            .enumerate()
+            .fold(i32::MAX, |m, (d, &c)| m.min(pack(c, d)));
+        let (d, cost) = ((best & 0xFFFF) as usize, best >> 16);
+        let diagonal = &mut scratch[width - 1 - x..][..n];
+        for (k, (r, &c)) in diagonal.iter_mut().zip(s).enumerate() {
+            *r = (*r).min(pack(c, k));
+        }
+        if uniqueness > 0 {
+            let others = s[..d.saturating_sub(1)]
+                .iter()
+                .chain(s.get(d + 2..).unwrap_or(&[]));
+            let second = others.fold(i16::MAX, |m, &c| m.min(c));
+            if i64::from(second) * i64::from(100 - uniqueness.min(100)) < i64::from(cost) * 100 {
+                left[x] = f32::INFINITY;
+                continue;
+            }
+        }
+        left[x] = d as f32 + subpixel_offset(s, d);
+    }
+    for (xr, r) in right.iter_mut().enumerate() {
+        let packed = scratch[width - 1 - xr];
+        *r = if packed == i32::MAX {
+            f32::INFINITY
+        } else {
+            (packed & 0xFFFF) as f32
+        };
+    }
+}
+
+/// Offset in `(-0.5, 0.5)` of the minimum of the parabola through the costs
+/// at `d - 1`, `d`, `d + 1`; zero at the ends of the range or on a flat
+/// neighbourhood.
+fn subpixel_offset(costs: &[i16], d: usize) -> f32 {
+    if d == 0 || d + 1 >= costs.len() {
+        return 0.0;
+    }
+    let (a, b, c) = (
+        f32::from(costs[d - 1]),
+        f32::from(costs[d]),
+        f32::from(costs[d + 1]),
+    );
+    let curvature = a + c - 2.0 * b;
+    if curvature <= 0.0 {
+        0.0
+    } else {
+        ((a - c) / (2.0 * curvature)).clamp(-0.5, 0.5)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parabola_vertex_is_found() {
+        // Costs of (d - 1.25)^2 * 4 at d = 0, 1, 2: 6.25, 0.25, 2.25.
+        let costs = [625, 25, 225];
+        let off = subpixel_offset(&costs, 1);
+        assert!((off - 0.25).abs() < 1e-6, "{off}");
+        assert_eq!(subpixel_offset(&costs, 0), 0.0);
+    }
+
+    #[test]
+    fn winner_and_right_view_and_uniqueness() {
+        // Width 3, 3 disparities. x = 2 prefers d = 2 (right pixel 0),
+        // x = 1 prefers d = 0 (right pixel 1), x = 0 can only have d = 0.
+        let sums = [5, 9, 9, 1, 8, 9, 9, 9, 2];
+        let (mut left, mut right) = (vec![0.0; 3], vec![0.0; 3]);
+        select_row(&sums, 0, &mut left, &mut right, &mut Vec::new());
+        assert_eq!(left, vec![0.0, 0.0, 2.0]);
+        // Right pixel 0: candidates (x=0,d=0) cost 5, (x=1,d=1) cost 8 and
+        // (x=2,d=2) cost 2; right pixel 2 has only (x=2,d=0).
+        assert_eq!(right, vec![2.0, 0.0, 0.0]);
+        // x = 2: best 10 at d = 0, but 11 at d = 2 is within 10 %: rejected.
+        let sums = [0, 0, 0, 0, 0, 0, 10, 30, 11];
+        let (mut left, mut right) = (vec![0.0; 3], vec![0.0; 3]);
+        select_row(&sums, 10, &mut left, &mut right, &mut Vec::new());
+        assert_eq!(&left[..2], &[0.0, 0.0]);
+        assert!(left[2].is_infinite());
+        select_row(&sums, 5, &mut left, &mut right, &mut Vec::new());
+        assert_eq!(left[2], 0.0);
+    }
+}
