@@ -10,18 +10,23 @@
 pub fn left_right_check(left: &mut [f32], right: &[f32], width: usize, max_diff: f32) {
     for (row_l, row_r) in left.chunks_exact_mut(width).zip(right.chunks_exact(width)) {
         for (x, d) in row_l.iter_mut().enumerate() {
-            if !d.is_finite() {
+            let target = x as f32 - *d;
+            if !d.is_finite() || target < 0.0 {
                 continue;
             }
-            let target = x as f32 - *d;
-            let disagrees = |xr: f32| {
-                if xr < 0.0 || xr >= width as f32 {
-                    return false;
-                }
-                let r = row_r[xr as usize];
-                r.is_finite() && (r - *d).abs() > max_diff
+            // Truncation is the floor for non-negative values.
+            let floor = target as usize;
+            let ceil = if target > floor as f32 {
+                floor + 1
+            } else {
+                floor
             };
-            if disagrees(target.floor()) && disagrees(target.ceil()) {
+            let disagrees = |xr: usize| {
+                row_r
+                    .get(xr)
+                    .is_some_and(|r| r.is_finite() && (r - *d).abs() > max_diff)
+            };
+            if disagrees(floor) && disagrees(ceil) {
                 *d = f32::INFINITY;
             }
         }

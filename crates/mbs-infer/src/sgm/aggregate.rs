@@ -34,13 +34,17 @@ pub struct BandInput<'a> {
     pub bottom_up: bool,
 }
 
-/// Aggregates the costs of the output `rows` into `sums`
-/// (`rows.len() * width * D`, zeroed here).
-pub fn aggregate_band(input: &BandInput, rows: Range<usize>, sums: &mut [i16]) {
+/// Aggregates the costs of the output `rows` and hands each row's summed
+/// costs (`width * D`, `sums[x * D + d]`) to `emit` with its index in the
+/// band. With top-down paths only, rows are emitted as they are done and
+/// only one row of sums is kept; with bottom-up paths the band's sums are
+/// kept until the second pass ends.
+pub fn aggregate_band(input: &BandInput, rows: Range<usize>, mut emit: impl FnMut(usize, &[i16])) {
     let (w, h) = input.size;
     let nd = input.num_disp;
     let row_len = w * nd;
-    sums.fill(0);
+    let kept_rows = if input.bottom_up { rows.len() } else { 1 };
+    let mut sums = vec![0i16; kept_rows * row_len];
     let mut cost = vec![0u8; row_len];
     let mut paths = Paths::new(w, nd, input.penalties);
     let cost_of = |y: usize, cost: &mut [u8]| {
@@ -53,12 +57,21 @@ pub fn aggregate_band(input: &BandInput, rows: Range<usize>, sums: &mut [i16]) {
     };
     for y in rows.start.saturating_sub(input.overlap)..rows.end {
         cost_of(y, &mut cost);
-        if y >= rows.start {
-            let out = &mut sums[(y - rows.start) * row_len..][..row_len];
-            paths.vertical::<true>(&cost, out);
-            paths.horizontal(&cost, out);
-        } else {
+        if y < rows.start {
             paths.vertical::<false>(&cost, &mut []);
+            continue;
+        }
+        let i = y - rows.start;
+        let out = if input.bottom_up {
+            &mut sums[i * row_len..][..row_len]
+        } else {
+            sums.fill(0);
+            &mut sums[..]
+        };
+        paths.vertical::<true>(&cost, out);
+        paths.horizontal(&cost, out);
+        if !input.bottom_up {
+            emit(i, out);
         }
     }
     if input.bottom_up {
@@ -71,6 +84,9 @@ pub fn aggregate_band(input: &BandInput, rows: Range<usize>, sums: &mut [i16]) {
             } else {
                 paths.vertical::<false>(&cost, &mut []);
             }
+        }
+        for (i, row) in sums.chunks_exact(row_len).enumerate() {
+            emit(i, row);
         }
     }
 }

@@ -3,9 +3,10 @@
 use rayon::prelude::*;
 
 /// Census signatures of a row-major luma image over a `win_w` x `win_h`
-/// window (odd sides, at most 65 samples): bit set where the neighbour is
-/// darker than the centre, neighbours in row-major order. Borders replicate
-/// the edge pixels.
+/// window (odd sides, at most 65 samples): one bit per neighbour, set where
+/// it is darker than the centre. Byte `g` of a signature holds neighbours
+/// `8g..8g+8` in row-major order, the first in the most significant bit.
+/// Borders replicate the edge pixels.
 pub fn census(gray: &[u8], width: usize, win_w: usize, win_h: usize) -> Vec<u64> {
     let height = gray.len() / width;
     let (rx, ry) = (win_w / 2, win_h / 2);
@@ -18,19 +19,27 @@ pub fn census(gray: &[u8], width: usize, win_w: usize, win_h: usize) -> Vec<u64>
             *v = src[px.saturating_sub(rx).min(width - 1)];
         }
     }
+    // Offsets from the window's top-left corner, centre excluded.
+    let offsets: Vec<(usize, usize)> = (0..win_h)
+        .flat_map(|dy| (0..win_w).map(move |dx| (dy, dx)))
+        .filter(|&o| o != (ry, rx))
+        .collect();
     let mut out = vec![0u64; width * height];
     out.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
         let centre = &padded[(y + ry) * pw + rx..][..width];
-        for dy in 0..win_h {
-            for dx in 0..win_w {
-                if dy == ry && dx == rx {
-                    continue;
-                }
+        // Eight comparisons per byte, in 16-lane u8 loops; byte `g` of a
+        // signature holds offsets `8g..8g+8`.
+        let mut planes = vec![0u8; 8 * width];
+        for (group, plane) in offsets.chunks(8).zip(planes.chunks_exact_mut(width)) {
+            for &(dy, dx) in group {
                 let neighbour = &padded[(y + dy) * pw + dx..][..width];
-                for ((o, &n), &c) in row.iter_mut().zip(neighbour).zip(centre) {
-                    *o = (*o << 1) | u64::from(n < c);
+                for ((b, &n), &c) in plane.iter_mut().zip(neighbour).zip(centre) {
+                    *b = (*b << 1) | u8::from(n < c);
                 }
             }
+        }
+        for (x, o) in row.iter_mut().enumerate() {
+            *o = u64::from_le_bytes(std::array::from_fn(|g| planes[g * width + x]));
         }
     });
     out
@@ -72,7 +81,7 @@ mod tests {
         let gray = [1, 9, 1, 9, 5, 1, 9, 9, 1];
         let c = census(&gray, 3, 3, 3);
         // Neighbours (1, 9, 1, 9, 1, 9, 9, 1); darker than 5 at positions
-        // 0, 2, 4, 7 -> bits 10101001, the first neighbour most significant.
+        // 0, 2, 4, 7 -> byte 10101001, the first neighbour most significant.
         assert_eq!(c[4], 0b1010_1001);
     }
 

@@ -5,8 +5,8 @@
 //!
 //! Rows are processed in independent bands (in parallel with rayon), each
 //! with a few extra rows above (and below, for 8 paths) to warm up the
-//! vertical paths; memory is bounded by one band's `i16` costs, whatever
-//! the image height. The band layout is fixed by the configuration, so the
+//! vertical paths. Memory does not grow with the image height: 5-path
+//! aggregation keeps one row of `i16` costs per band, 8-path one band. The band layout is fixed by the configuration, so the
 //! result does not depend on the number of threads.
 
 mod aggregate;
@@ -188,20 +188,15 @@ impl Sgm {
             .for_each(|(b, (out_l, out_r))| {
                 let y0 = b * c.band_rows as usize;
                 let rows = y0..y0 + out_l.len() / w;
-                let mut sums = vec![0i16; rows.len() * w * num_disp];
-                aggregate_band(&input, rows, &mut sums);
                 let mut scratch = Vec::new();
-                for ((s, l), r) in sums
-                    .chunks_exact(w * num_disp)
-                    .zip(out_l.chunks_exact_mut(w))
-                    .zip(out_r.chunks_exact_mut(w))
-                {
-                    select::select_row(s, c.uniqueness, l, r, &mut scratch);
+                aggregate_band(&input, rows, |i, sums| {
+                    let (l, r) = (&mut out_l[i * w..][..w], &mut out_r[i * w..][..w]);
+                    select::select_row(sums, c.uniqueness, l, r, &mut scratch);
+                });
+                if let Some(max_diff) = c.lr_max_diff {
+                    left_right_check(out_l, out_r, w, max_diff);
                 }
             });
-        if let Some(max_diff) = c.lr_max_diff {
-            left_right_check(&mut disp_l, &disp_r, w, max_diff);
-        }
         Ok(disp_l)
     }
 }
@@ -227,7 +222,8 @@ impl StereoMatcher for Sgm {
             .map(|d| if d.is_finite() { 255 } else { 0 })
             .collect();
         if self.config.fill {
-            fill_background(&mut disp, w as usize);
+            disp.par_chunks_mut(w as usize)
+                .for_each(|row| fill_background(row, w as usize));
         }
         Ok(Disparity {
             // Both buffers hold one value per pixel of the w x h input.

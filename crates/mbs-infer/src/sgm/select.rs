@@ -31,21 +31,20 @@ pub fn select_row(
         // Only disparities that stay inside the right view.
         let n = num_disp.min(x + 1);
         let s = &s[..n];
-        let best = s
-            .iter()
-            .enumerate()
-            .fold(i32::MAX, |m, (d, &c)| m.min(pack(c, d)));
-        let (d, cost) = ((best & 0xFFFF) as usize, best >> 16);
+        // A vectorised minimum, then the first disparity that reaches it.
+        let cost = s.iter().fold(i16::MAX, |m, &c| m.min(c));
+        let d = s.iter().position(|&c| c == cost).unwrap_or(0);
         let diagonal = &mut scratch[width - 1 - x..][..n];
         for (k, (r, &c)) in diagonal.iter_mut().zip(s).enumerate() {
             *r = (*r).min(pack(c, k));
         }
         if uniqueness > 0 {
-            let others = s[..d.saturating_sub(1)]
-                .iter()
-                .chain(s.get(d + 2..).unwrap_or(&[]));
-            let second = others.fold(i16::MAX, |m, &c| m.min(c));
-            if i64::from(second) * i64::from(100 - uniqueness.min(100)) < i64::from(cost) * 100 {
+            let below = &s[..d.saturating_sub(1)];
+            let above = s.get(d + 2..).unwrap_or(&[]);
+            let min = |part: &[i16]| part.iter().fold(i16::MAX, |m, &c| m.min(c));
+            let second = min(below).min(min(above));
+            let margin = i64::from(100 - uniqueness.min(100));
+            if i64::from(second) * margin < i64::from(cost) * 100 {
                 left[x] = f32::INFINITY;
                 continue;
             }
