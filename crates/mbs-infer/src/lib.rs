@@ -17,4 +17,4 @@ pub mod sgm;
 pub use block::BlockMatcher;
 pub use error::InferError;
 pub use matcher::{Disparity, StereoMatcher};
-pub use sgm::{Sgm, SgmConfig, SgmPaths};
+pub use sgm::{Sgm, SgmConfig, SgmPaths, estimate_max_disparity};

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use mbs_core::metrics::{Metrics, evaluate};
 use mbs_core::{FloatImage, RgbImage};
-use mbs_infer::{BlockMatcher, Sgm, SgmConfig, SgmPaths, StereoMatcher};
+use mbs_infer::{BlockMatcher, Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max_disparity};
 
 fn data(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -103,4 +103,17 @@ fn tsukuba_sgm() {
     let (out1, out2) = (sgm.out(1.0).unwrap_or(100.0), sgm.out(2.0).unwrap_or(100.0));
     assert!(out1 < 12.0 && out2 < 5.7, "SGM: Out-1 {out1}, Out-2 {out2}");
     assert!(sgm.epe.is_some_and(|e| e < 0.65));
+}
+
+#[test]
+fn disparity_range_estimate_covers_teddy() {
+    let (l, r) = (
+        rgb("middlebury-teddy/im2.png"),
+        rgb("middlebury-teddy/im6.png"),
+    );
+    let estimate = estimate_max_disparity(&l, &r, 256).expect("same size");
+    println!("Teddy: estimated max disparity {estimate} (GT max 63.75)");
+    // GT disparities reach 63.75 px; the estimate must cover them cheaply.
+    assert!((64..=96).contains(&estimate), "{estimate}");
+    assert_eq!(estimate % 16, 0);
 }

@@ -11,7 +11,10 @@
 
 mod aggregate;
 mod census;
+mod estimate;
 mod select;
+
+pub use estimate::estimate_max_disparity;
 
 use mbs_core::{FloatImage, MaskImage, RgbImage};
 use rayon::prelude::*;
