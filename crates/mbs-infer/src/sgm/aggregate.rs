@@ -16,9 +16,9 @@ const BIG: i16 = i16::MAX / 2;
 /// What the aggregation of one band needs.
 pub struct BandInput<'a> {
     /// Left census signatures, row-major.
-    pub left: &'a [u64],
+    pub left: &'a [u32],
     /// Right census signatures, each row reversed.
-    pub right_reversed: &'a [u64],
+    pub right_reversed: &'a [u32],
     /// Image width and height.
     pub size: (usize, usize),
     /// Number of disparities `D`.

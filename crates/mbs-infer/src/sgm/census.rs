@@ -1,13 +1,27 @@
-//! Census transform and the per-row census matching cost (Hamming distance).
+//! Sparse census transform and the per-row census matching cost (Hamming
+//! distance). Sampling every other pixel of the window (a checkerboard)
+//! keeps the window's reach with half the bits: on Teddy and Tsukuba a
+//! sparse 9x7 census (32 bits) matches as well as the dense one (62 bits),
+//! and 32-bit signatures halve the cost of the Hamming distances.
 
 use rayon::prelude::*;
 
-/// Census signatures of a row-major luma image over a `win_w` x `win_h`
-/// window (odd sides, at most 65 samples): one bit per neighbour, set where
-/// it is darker than the centre. Byte `g` of a signature holds neighbours
-/// `8g..8g+8` in row-major order, the first in the most significant bit.
+/// The window offsets `(dy, dx)` a census samples: the cells of a
+/// `win_w` x `win_h` window whose `dx + dy` is even (corners included),
+/// centre excluded, in row-major order.
+pub fn samples(win_w: usize, win_h: usize) -> Vec<(usize, usize)> {
+    (0..win_h)
+        .flat_map(|dy| (0..win_w).map(move |dx| (dy, dx)))
+        .filter(|&(dy, dx)| (dy, dx) != (win_h / 2, win_w / 2) && (dx + dy) % 2 == 0)
+        .collect()
+}
+
+/// Census signatures of a row-major luma image over the [`samples`] of a
+/// `win_w` x `win_h` window (odd sides, at most 32 samples): one bit per
+/// sample, set where it is darker than the centre. Byte `g` of a signature
+/// holds samples `8g..8g+8`, the first in the most significant bit.
 /// Borders replicate the edge pixels.
-pub fn census(gray: &[u8], width: usize, win_w: usize, win_h: usize) -> Vec<u64> {
+pub fn census(gray: &[u8], width: usize, win_w: usize, win_h: usize) -> Vec<u32> {
     let height = gray.len() / width;
     let (rx, ry) = (win_w / 2, win_h / 2);
     let pw = width + 2 * rx;
@@ -19,17 +33,13 @@ pub fn census(gray: &[u8], width: usize, win_w: usize, win_h: usize) -> Vec<u64>
             *v = src[px.saturating_sub(rx).min(width - 1)];
         }
     }
-    // Offsets from the window's top-left corner, centre excluded.
-    let offsets: Vec<(usize, usize)> = (0..win_h)
-        .flat_map(|dy| (0..win_w).map(move |dx| (dy, dx)))
-        .filter(|&o| o != (ry, rx))
-        .collect();
-    let mut out = vec![0u64; width * height];
+    let offsets = samples(win_w, win_h);
+    let mut out = vec![0u32; width * height];
     out.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
         let centre = &padded[(y + ry) * pw + rx..][..width];
         // Eight comparisons per byte, in 16-lane u8 loops; byte `g` of a
         // signature holds offsets `8g..8g+8`.
-        let mut planes = vec![0u8; 8 * width];
+        let mut planes = vec![0u8; 4 * width];
         for (group, plane) in offsets.chunks(8).zip(planes.chunks_exact_mut(width)) {
             for &(dy, dx) in group {
                 let neighbour = &padded[(y + dy) * pw + dx..][..width];
@@ -39,7 +49,7 @@ pub fn census(gray: &[u8], width: usize, win_w: usize, win_h: usize) -> Vec<u64>
             }
         }
         for (x, o) in row.iter_mut().enumerate() {
-            *o = u64::from_le_bytes(std::array::from_fn(|g| planes[g * width + x]));
+            *o = u32::from_le_bytes(std::array::from_fn(|g| planes[g * width + x]));
         }
     });
     out
@@ -47,7 +57,7 @@ pub fn census(gray: &[u8], width: usize, win_w: usize, win_h: usize) -> Vec<u64>
 
 /// Each row of `signatures` reversed, so that the right-view signatures at
 /// `x - d` for `d = 0, 1, …` lie contiguously (see [`cost_row`]).
-pub fn reverse_rows(signatures: &[u64], width: usize) -> Vec<u64> {
+pub fn reverse_rows(signatures: &[u32], width: usize) -> Vec<u32> {
     let mut out = signatures.to_vec();
     out.chunks_exact_mut(width).for_each(|row| row.reverse());
     out
@@ -57,7 +67,7 @@ pub fn reverse_rows(signatures: &[u64], width: usize) -> Vec<u64> {
 /// the left signature at `x` and the right one at `x - d`, for `D =
 /// out.len() / left.len()` disparities; `right_reversed` is the right row
 /// reversed. Disparities past the left border (`d > x`) cost `invalid`.
-pub fn cost_row(left: &[u64], right_reversed: &[u64], invalid: u8, out: &mut [u8]) {
+pub fn cost_row(left: &[u32], right_reversed: &[u32], invalid: u8, out: &mut [u8]) {
     let width = left.len();
     let num_disp = out.len() / width;
     for (x, (&l, costs)) in left.iter().zip(out.chunks_exact_mut(num_disp)).enumerate() {
@@ -77,18 +87,19 @@ mod tests {
 
     #[test]
     fn census_bits_follow_the_neighbours() {
-        // 3x3 image, 3x3 window: centre 5, neighbours row-major.
-        let gray = [1, 9, 1, 9, 5, 1, 9, 9, 1];
+        // 3x3 image, 3x3 window: centre 5; the samples are the corners.
+        let gray = [1, 9, 9, 9, 5, 1, 9, 9, 1];
+        assert_eq!(samples(3, 3), vec![(0, 0), (0, 2), (2, 0), (2, 2)]);
         let c = census(&gray, 3, 3, 3);
-        // Neighbours (1, 9, 1, 9, 1, 9, 9, 1); darker than 5 at positions
-        // 0, 2, 4, 7 -> byte 10101001, the first neighbour most significant.
-        assert_eq!(c[4], 0b1010_1001);
+        // Corners (1, 9, 9, 1): darker than 5 at samples 0 and 3.
+        assert_eq!(c[4], 0b1001);
+        assert_eq!(samples(9, 7).len(), 32);
     }
 
     #[test]
     fn cost_row_matches_shifted_signatures() {
-        let left = [0b0u64, 0b1, 0b11, 0b111];
-        let right = [0b1u64, 0b11, 0b111, 0b1111];
+        let left = [0b0u32, 0b1, 0b11, 0b111];
+        let right = [0b1u32, 0b11, 0b111, 0b1111];
         let rev = reverse_rows(&right, 4);
         let mut out = vec![0u8; 8];
         cost_row(&left, &rev, 99, &mut out);

@@ -1,5 +1,5 @@
-//! The built-in semi-global matcher (Hirschmüller 2008): census matching
-//! cost, 5- or 8-path aggregation with penalties P1/P2, winner-take-all
+//! The built-in semi-global matcher (Hirschmüller 2008): sparse census
+//! matching cost, 5- or 8-path aggregation with penalties P1/P2, winner-take-all
 //! with parabola sub-pixel refinement, left-right consistency check,
 //! speckle removal and a background-side fill of the holes.
 //!
@@ -41,7 +41,8 @@ pub enum SgmPaths {
 pub struct SgmConfig {
     /// Number of disparities searched: `0..max_disparity` pixels.
     pub max_disparity: u32,
-    /// Census window width (odd); `width * height - 1 <= 64`.
+    /// Census window width (odd). The census samples every other pixel of
+    /// the window (see [`samples_of`]), at most 32 of them: 9x7 gives 32.
     pub census_width: u32,
     /// Census window height (odd).
     pub census_height: u32,
@@ -77,9 +78,9 @@ impl Default for SgmConfig {
             max_disparity: 128,
             census_width: 9,
             census_height: 7,
-            // Tuned on Middlebury Teddy and Tsukuba (census 9x7 costs 0..62).
-            p1: 10,
-            p2: 40,
+            // Tuned on Middlebury Teddy and Tsukuba (9x7 census costs 0..32).
+            p1: 5,
+            p2: 20,
             paths: SgmPaths::Five,
             uniqueness: 10,
             lr_max_diff: Some(1.0),
@@ -115,20 +116,21 @@ impl SgmConfig {
             ));
         }
         let (cw, ch) = (self.census_width, self.census_height);
-        if cw % 2 == 0 || ch % 2 == 0 || cw * ch > 65 || cw * ch < 2 {
+        let odd_and_small = |side: u32| side % 2 == 1 && side <= 15;
+        if !odd_and_small(cw) || !odd_and_small(ch) || !(1..=32).contains(&samples_of(cw, ch)) {
             return Err(invalid(
                 "census window",
                 format!("{cw}x{ch}"),
-                "odd sides with 2 to 65 pixels in all",
+                "odd sides giving 1 to 32 samples (3x3 to 9x7)",
             ));
         }
-        let bits = cw * ch - 1;
-        // Path costs stay below cost + P2; eight of them must fit in i16.
-        if self.p1 == 0 || self.p1 > self.p2 || 8 * (bits + u32::from(self.p2)) > 16000 {
+        // Path costs stay below cost + P2 <= 32 + P2; eight of them must fit
+        // in i16 next to the padding.
+        if self.p1 == 0 || self.p1 > self.p2 || self.p2 > 1900 {
             return Err(invalid(
                 "p1 / p2",
                 format!("{} / {}", self.p1, self.p2),
-                "0 < p1 <= p2 and p2 + census bits <= 2000",
+                "0 < p1 <= p2 <= 1900",
             ));
         }
         if self.band_rows == 0 {
@@ -136,6 +138,12 @@ impl SgmConfig {
         }
         Ok(())
     }
+}
+
+/// Number of pixels a census over a `width` x `height` window compares
+/// with its centre: every other pixel (a checkerboard with the corners).
+pub fn samples_of(width: u32, height: u32) -> usize {
+    census::samples(width as usize, height as usize).len()
 }
 
 /// Semi-global matching with census costs.
@@ -176,7 +184,7 @@ impl Sgm {
             right_reversed: &right_reversed,
             size: (w, h),
             num_disp,
-            invalid_cost: (cw * ch - 1) as u8,
+            invalid_cost: census::samples(cw, ch).len() as u8,
             penalties: (c.p1 as i16, c.p2 as i16),
             overlap: c.band_overlap as usize,
             bottom_up: c.paths == SgmPaths::Eight,
