@@ -73,8 +73,8 @@ fn teddy_sgm_beats_block_matching() {
     };
     let sgm8 = score(&Sgm::new(eight), l, r, &truth);
     let (epe, out2) = (sgm.epe.unwrap_or(f64::MAX), sgm.out(2.0).unwrap_or(100.0));
-    // Measured: EPE 0.889 px, Out-2 7.99 % (OpenCV StereoSGBM 3-way with the
-    // same fill: Out-2 15.0 %; block matching: 4.18 px, 25.7 %). The
+    // Measured: EPE 0.896 px, Out-2 7.94 % (OpenCV StereoSGBM 3-way with the
+    // same fill: 1.82 px, 15.0 %; block matching: 4.18 px, 25.7 %). The
     // bounds leave about 10 % slack.
     assert!(epe < 1.0 && out2 < 8.8, "SGM: EPE {epe}, Out-2 {out2}");
     assert!(
@@ -86,8 +86,9 @@ fn teddy_sgm_beats_block_matching() {
         "block matching is far worse"
     );
     assert!(bm.epe.unwrap_or(0.0) > 3.0 * epe);
-    // 8 paths: EPE 1.026 px, Out-2 8.29 %.
-    assert!(sgm8.out(2.0).is_some_and(|o| o < 9.2), "{sgm8:?}");
+    // 8 paths: EPE 0.711 px, Out-2 7.68 %.
+    assert!(sgm8.out(2.0).is_some_and(|o| o < 8.5), "{sgm8:?}");
+    assert!(sgm8.epe.is_some_and(|e| e < 0.8), "{sgm8:?}");
 }
 
 #[test]
@@ -99,10 +100,10 @@ fn tsukuba_sgm() {
     );
     println!("Tsukuba 384x288, 16 disparities, ALL valid GT pixels:");
     let sgm = score(&Sgm::new(SgmConfig::with_max_disparity(16)), l, r, &truth);
-    // Measured: Out-1 10.88 %, Out-2 5.15 %, EPE 0.580 px; ~10 % slack.
+    // Measured: Out-1 11.24 %, Out-2 5.30 %, EPE 0.600 px; ~7-10 % slack.
     let (out1, out2) = (sgm.out(1.0).unwrap_or(100.0), sgm.out(2.0).unwrap_or(100.0));
-    assert!(out1 < 12.0 && out2 < 5.7, "SGM: Out-1 {out1}, Out-2 {out2}");
-    assert!(sgm.epe.is_some_and(|e| e < 0.65));
+    assert!(out1 < 12.0 && out2 < 5.8, "SGM: Out-1 {out1}, Out-2 {out2}");
+    assert!(sgm.epe.is_some_and(|e| e < 0.66));
 }
 
 #[test]
