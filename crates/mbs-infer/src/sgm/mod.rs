@@ -87,7 +87,7 @@ impl Default for SgmConfig {
             speckle_size: 100,
             speckle_range: 2.0,
             fill: true,
-            band_rows: 64,
+            band_rows: 96,
             band_overlap: 16,
         }
     }
