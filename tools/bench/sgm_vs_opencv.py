@@ -98,12 +98,19 @@ def main():
     ap.add_argument("--rounds", type=int, default=5,
                     help="alternating rounds of OpenCV and SGM runs; the fastest run counts")
     ap.add_argument("--no-build", action="store_true", help="use the built binary")
+    ap.add_argument("--native", action="store_true",
+                    help="build SGM with RUSTFLAGS='-C target-cpu=native' (in target/native), "
+                         "as OpenCV picks AVX2/AVX-512 kernels at run time")
     args = ap.parse_args()
     cv2.setNumThreads(2)
+    target = ROOT / "target" / ("native" if args.native else "")
     if not args.no_build:
+        env = dict(os.environ)
+        if args.native:
+            env.update(CARGO_TARGET_DIR=str(target), RUSTFLAGS="-C target-cpu=native")
         subprocess.run(["cargo", "build", "--release", "-q", "-p", "mbs-infer",
-                        "--example", "sgm_bench"], check=True, cwd=ROOT)
-    binary = ROOT / "target" / "release" / "examples" / "sgm_bench"
+                        "--example", "sgm_bench"], check=True, cwd=ROOT, env=env)
+    binary = target / "release" / "examples" / "sgm_bench"
 
     tmp = Path(tempfile.mkdtemp(prefix="sgm_bench_"))
     left, right = cv2.imread(str(DATA / "im2.png")), cv2.imread(str(DATA / "im6.png"))

@@ -144,31 +144,42 @@ impl Paths {
     }
 
     /// Advances the three vertical paths by one row of `cost`, adding them
-    /// into `sums` when `ADD`.
+    /// into `sums` when `ADD` (one pass over `sums` for all three).
     fn vertical<const ADD: bool>(&mut self, cost: &[u8], sums: &mut [i16]) {
         let (w, nd) = (self.width, self.num_disp);
         let stride = nd + 2;
-        for (k, pair) in self.rows.iter_mut().enumerate() {
-            for x in 0..w {
-                let from = (x + k).checked_sub(1).filter(|&p| p < w && !self.fresh);
+        let fresh = self.fresh;
+        for x in 0..w {
+            let cost = &cost[x * nd..][..nd];
+            for (k, pair) in self.rows.iter_mut().enumerate() {
+                let from = (x + k).checked_sub(1).filter(|&p| p < w && !fresh);
                 let (prev, prev_min) = match from {
                     Some(p) => (&pair.prev[p * stride..][..stride], pair.prev_min[p]),
                     None => (&self.start[..], 0),
                 };
-                let sum = if ADD {
-                    &mut sums[x * nd..][..nd]
-                } else {
-                    &mut [][..]
-                };
-                pair.cur_min[x] = step::<ADD>(
-                    &cost[x * nd..][..nd],
+                pair.cur_min[x] = step::<false>(
+                    cost,
                     prev,
                     prev_min,
                     self.penalties,
                     &mut pair.cur[x * stride..][..stride],
-                    sum,
+                    &mut [],
                 );
             }
+            if ADD {
+                let [a, b, c] = &self.rows;
+                let start = x * stride + 1;
+                let (a, b, c) = (
+                    &a.cur[start..][..nd],
+                    &b.cur[start..][..nd],
+                    &c.cur[start..][..nd],
+                );
+                for (d, s) in sums[x * nd..][..nd].iter_mut().enumerate() {
+                    *s += a[d] + b[d] + c[d];
+                }
+            }
+        }
+        for pair in &mut self.rows {
             std::mem::swap(&mut pair.prev, &mut pair.cur);
             std::mem::swap(&mut pair.prev_min, &mut pair.cur_min);
         }
