@@ -199,7 +199,7 @@ impl Sgm {
             .for_each(|(b, (out_l, out_r))| {
                 let y0 = b * c.band_rows as usize;
                 let rows = y0..y0 + out_l.len() / w;
-                let mut scratch = Vec::new();
+                let mut scratch = select::Scratch::default();
                 aggregate_band(&input, rows, |i, sums| {
                     let (l, r) = (&mut out_l[i * w..][..w], &mut out_r[i * w..][..w]);
                     select::select_row(sums, c.uniqueness, l, r, &mut scratch);

@@ -3,11 +3,13 @@
 //! the right-view disparity read off the same costs (the minimum along each
 //! diagonal `x - d = const`).
 
-/// Disparity index and cost packed so that one integer `min` finds the
-/// lowest cost and, on ties, the smallest disparity.
-#[inline(always)]
-fn pack(cost: i16, d: usize) -> i32 {
-    (i32::from(cost) << 16) | d as i32
+/// Reused buffers: per right-view pixel (reversed), the lowest cost seen
+/// along its diagonal and its disparity; and the ramp `0, 1, …, D - 1`.
+#[derive(Debug, Default)]
+pub struct Scratch {
+    cost: Vec<i16>,
+    disparity: Vec<i16>,
+    ramp: Vec<i16>,
 }
 
 /// Selects the disparities of one row from its aggregated costs
@@ -21,12 +23,18 @@ pub fn select_row(
     uniqueness: u32,
     left: &mut [f32],
     right: &mut [f32],
-    scratch: &mut Vec<i32>,
+    scratch: &mut Scratch,
 ) {
     let width = left.len();
     let num_disp = sums.len() / width;
-    scratch.clear();
-    scratch.resize(width, i32::MAX);
+    scratch.cost.clear();
+    scratch.cost.resize(width, i16::MAX);
+    scratch.disparity.clear();
+    scratch.disparity.resize(width, -1);
+    if scratch.ramp.len() != num_disp {
+        // D <= 4096 (checked by the configuration), so it fits in i16.
+        scratch.ramp = (0..num_disp as i16).collect();
+    }
     for (x, s) in sums.chunks_exact(num_disp).enumerate() {
         // Only disparities that stay inside the right view.
         let n = num_disp.min(x + 1);
@@ -34,9 +42,16 @@ pub fn select_row(
         // A vectorised minimum, then the first disparity that reaches it.
         let cost = s.iter().fold(i16::MAX, |m, &c| m.min(c));
         let d = s.iter().position(|&c| c == cost).unwrap_or(0);
-        let diagonal = &mut scratch[width - 1 - x..][..n];
-        for (k, (r, &c)) in diagonal.iter_mut().zip(s).enumerate() {
-            *r = (*r).min(pack(c, k));
+        // Right pixel x - k sees cost s[k]; strict `<` keeps the smallest
+        // disparity on ties. Branch-free so that it vectorises.
+        let start = width - 1 - x;
+        let min_cost = &mut scratch.cost[start..][..n];
+        let min_disp = &mut scratch.disparity[start..][..n];
+        let ramp = &scratch.ramp[..n];
+        for k in 0..n {
+            let mask = -i16::from(s[k] < min_cost[k]);
+            min_disp[k] = (ramp[k] & mask) | (min_disp[k] & !mask);
+            min_cost[k] = min_cost[k].min(s[k]);
         }
         if uniqueness > 0 {
             let below = &s[..d.saturating_sub(1)];
@@ -51,13 +66,8 @@ pub fn select_row(
         }
         left[x] = d as f32 + subpixel_offset(s, d);
     }
-    for (xr, r) in right.iter_mut().enumerate() {
-        let packed = scratch[width - 1 - xr];
-        *r = if packed == i32::MAX {
-            f32::INFINITY
-        } else {
-            (packed & 0xFFFF) as f32
-        };
+    for (r, &d) in right.iter_mut().zip(scratch.disparity.iter().rev()) {
+        *r = if d < 0 { f32::INFINITY } else { f32::from(d) };
     }
 }
 
@@ -100,7 +110,7 @@ mod tests {
         // x = 1 prefers d = 0 (right pixel 1), x = 0 can only have d = 0.
         let sums = [5, 9, 9, 1, 8, 9, 9, 9, 2];
         let (mut left, mut right) = (vec![0.0; 3], vec![0.0; 3]);
-        select_row(&sums, 0, &mut left, &mut right, &mut Vec::new());
+        select_row(&sums, 0, &mut left, &mut right, &mut Scratch::default());
         assert_eq!(left, vec![0.0, 0.0, 2.0]);
         // Right pixel 0: candidates (x=0,d=0) cost 5, (x=1,d=1) cost 8 and
         // (x=2,d=2) cost 2; right pixel 2 has only (x=2,d=0).
@@ -108,10 +118,10 @@ mod tests {
         // x = 2: best 10 at d = 0, but 11 at d = 2 is within 10 %: rejected.
         let sums = [0, 0, 0, 0, 0, 0, 10, 30, 11];
         let (mut left, mut right) = (vec![0.0; 3], vec![0.0; 3]);
-        select_row(&sums, 10, &mut left, &mut right, &mut Vec::new());
+        select_row(&sums, 10, &mut left, &mut right, &mut Scratch::default());
         assert_eq!(&left[..2], &[0.0, 0.0]);
         assert!(left[2].is_infinite());
-        select_row(&sums, 5, &mut left, &mut right, &mut Vec::new());
+        select_row(&sums, 5, &mut left, &mut right, &mut Scratch::default());
         assert_eq!(left[2], 0.0);
     }
 }
