@@ -198,6 +198,51 @@ impl Manifest {
     }
 }
 
+/// The relative path that leads from folder `from` to folder `to` (both
+/// made absolute first), e.g. `../data` from `/a/out` to `/a/data`.
+pub fn relative_path(from: &Path, to: &Path) -> std::io::Result<PathBuf> {
+    let from = std::path::absolute(from)?;
+    let to = std::path::absolute(to)?;
+    let from: Vec<_> = from.components().collect();
+    let to: Vec<_> = to.components().collect();
+    let common = from.iter().zip(&to).take_while(|(a, b)| a == b).count();
+    let mut rel = PathBuf::new();
+    for _ in common..from.len() {
+        rel.push("..");
+    }
+    for c in &to[common..] {
+        rel.push(c);
+    }
+    Ok(rel)
+}
+
+impl Manifest {
+    /// Prefixes every file path with `prefix` (for a manifest moved to
+    /// another folder than the one its paths were relative to).
+    pub fn rebase(&mut self, prefix: &Path) {
+        if prefix.as_os_str().is_empty() {
+            return;
+        }
+        let join = |p: &mut String| *p = prefix.join(&*p).to_string_lossy().into_owned();
+        for s in &mut self.samples {
+            s.views.iter_mut().for_each(join);
+            s.depth.iter_mut().for_each(join);
+            for gt in &mut s.ground_truth {
+                join(&mut gt.disparity);
+                gt.occlusion.iter_mut().for_each(join);
+            }
+            s.synthesized_masks.iter_mut().flatten().for_each(join);
+            s.sha256 = std::mem::take(&mut s.sha256)
+                .into_iter()
+                .map(|(mut k, v)| {
+                    join(&mut k);
+                    (k, v)
+                })
+                .collect();
+        }
+    }
+}
+
 /// Resolves a manifest-relative path against the manifest's folder.
 pub fn resolve(manifest_path: &Path, relative: &str) -> PathBuf {
     manifest_path
@@ -209,6 +254,18 @@ pub fn resolve(manifest_path: &Path, relative: &str) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn relative_paths_between_folders() {
+        assert_eq!(
+            relative_path(Path::new("/a/out"), Path::new("/a/data/x")).unwrap(),
+            Path::new("../data/x")
+        );
+        assert_eq!(
+            relative_path(Path::new("/a"), Path::new("/a")).unwrap(),
+            Path::new("")
+        );
+    }
 
     #[test]
     fn round_trips_through_json_and_omits_defaults() {
