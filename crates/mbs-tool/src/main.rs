@@ -20,6 +20,10 @@ struct Cli {
 enum Command {
     /// Decode CARLA depth PNGs into metric depth and disparity maps.
     DecodeDepth(commands::decode_depth::Args),
+    /// Score predicted disparities against ground truth (EPE, Out-x, D1).
+    Eval(commands::eval::Args),
+    /// Compute disparity for rectified pairs with the built-in matcher.
+    Predict(commands::predict::Args),
     /// Scan an MBS20K folder into a manifest and print its statistics.
     Scan(commands::scan::Args),
     /// Check a dataset manifest against its schema and the files on disk.
@@ -30,6 +34,8 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::DecodeDepth(args) => commands::decode_depth::run(args),
+        Command::Eval(args) => commands::eval::run(args),
+        Command::Predict(args) => commands::predict::run(args),
         Command::Scan(args) => commands::scan::run(args),
         Command::Validate(args) => commands::validate::run(args),
     };

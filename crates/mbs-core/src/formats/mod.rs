@@ -48,3 +48,62 @@ pub fn read_float_map(path: &std::path::Path) -> crate::Result<crate::FloatImage
         )),
     }
 }
+
+/// Reads a disparity map whatever its encoding: `.pfm` / `.exr` floats
+/// (`+inf` or NaN = invalid), or a `.png` of integer codes `v` meaning
+/// `v / png_scale` pixels with `0` = invalid. `png_scale` defaults to 256
+/// (KITTI) for 16-bit PNGs and to 1 for 8-bit ones (Middlebury 2001/2003
+/// ground truth needs its own factor, e.g. 4 for quarter-size Teddy, 16
+/// for Tsukuba). Invalid pixels come back as `+inf`.
+pub fn read_disparity(
+    path: &std::path::Path,
+    png_scale: Option<f32>,
+) -> crate::Result<crate::FloatImage> {
+    let is_png = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    if !is_png {
+        let mut map = read_float_map(path)?;
+        map.iter_mut()
+            .filter(|v| v.is_nan())
+            .for_each(|v| *v = f32::INFINITY);
+        return Ok(map);
+    }
+    let image = image::open(path).map_err(|e| crate::FormatError::image(path, e))?;
+    let codes = match image {
+        image::DynamicImage::ImageLuma16(codes) => {
+            return Ok(png16::decode_scaled(
+                &codes,
+                png_scale.unwrap_or(png16::KITTI_DISPARITY_SCALE),
+            ));
+        }
+        image::DynamicImage::ImageLuma8(codes) => codes,
+        other => {
+            return Err(crate::FormatError::invalid(
+                path,
+                format!(
+                    "expected a greyscale disparity PNG, found {:?}",
+                    other.color()
+                ),
+            ));
+        }
+    };
+    let scale = png_scale.unwrap_or(1.0);
+    let data = codes
+        .as_raw()
+        .iter()
+        .map(|&v| {
+            if v == 0 {
+                f32::INFINITY
+            } else {
+                f32::from(v) / scale
+            }
+        })
+        .collect();
+    // One sample per pixel in both images, so the length matches.
+    Ok(
+        crate::FloatImage::from_raw(codes.width(), codes.height(), data)
+            .expect("same size as the codes"),
+    )
+}

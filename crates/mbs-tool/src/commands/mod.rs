@@ -1,5 +1,7 @@
 //! One module per subcommand: argument parsing (clap) and orchestration only.
 
 pub mod decode_depth;
+pub mod eval;
+pub mod predict;
 pub mod scan;
 pub mod validate;
