@@ -107,3 +107,43 @@ pub fn read_disparity(
             .expect("same size as the codes"),
     )
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn read_disparity_decodes_every_encoding() {
+        let dir = tempfile::tempdir().unwrap();
+        // 8-bit Middlebury-style PNG: value / scale, 0 = unknown.
+        let eight = dir.path().join("gt8.png");
+        image::GrayImage::from_raw(3, 1, vec![0, 4, 255])
+            .unwrap()
+            .save(&eight)
+            .unwrap();
+        let d = read_disparity(&eight, Some(4.0)).unwrap();
+        assert_eq!(d.as_raw(), &vec![f32::INFINITY, 1.0, 63.75]);
+        assert_eq!(read_disparity(&eight, None).unwrap().as_raw()[1], 4.0);
+        // 16-bit KITTI PNG: value / 256 by default.
+        let sixteen = dir.path().join("gt16.png");
+        let codes = png16::Gray16Image::from_raw(2, 1, vec![0, 512]).unwrap();
+        png16::write_gray16(&sixteen, &codes).unwrap();
+        assert_eq!(
+            read_disparity(&sixteen, None).unwrap().as_raw(),
+            &vec![f32::INFINITY, 2.0]
+        );
+        // PFM: NaN becomes +inf.
+        let float = dir.path().join("d.pfm");
+        let map = crate::FloatImage::from_raw(2, 1, vec![f32::NAN, 1.5]).unwrap();
+        pfm::write_pfm_grey(&float, &map, pfm::Endian::Little).unwrap();
+        assert_eq!(
+            read_disparity(&float, None).unwrap().as_raw(),
+            &vec![f32::INFINITY, 1.5]
+        );
+        // Colour PNGs are refused with the file's name.
+        let colour = dir.path().join("c.png");
+        image::RgbImage::new(1, 1).save(&colour).unwrap();
+        let err = read_disparity(&colour, None).unwrap_err();
+        assert!(err.to_string().contains("c.png"), "{err}");
+    }
+}
