@@ -58,7 +58,7 @@ pub fn aggregate_band(input: &BandInput, rows: Range<usize>, mut emit: impl FnMu
     for y in rows.start.saturating_sub(input.overlap)..rows.end {
         cost_of(y, &mut cost);
         if y < rows.start {
-            paths.vertical::<false>(&cost, &mut []);
+            paths.vertical::<false, false>(&cost, &mut []);
             continue;
         }
         let i = y - rows.start;
@@ -68,8 +68,8 @@ pub fn aggregate_band(input: &BandInput, rows: Range<usize>, mut emit: impl FnMu
             sums.fill(0);
             &mut sums[..]
         };
-        paths.vertical::<true>(&cost, out);
-        paths.horizontal(&cost, out);
+        paths.vertical::<true, true>(&cost, out);
+        paths.right_to_left(&cost, out);
         if !input.bottom_up {
             emit(i, out);
         }
@@ -80,9 +80,9 @@ pub fn aggregate_band(input: &BandInput, rows: Range<usize>, mut emit: impl FnMu
             cost_of(y, &mut cost);
             if y < rows.end {
                 let out = &mut sums[(y - rows.start) * row_len..][..row_len];
-                paths.vertical::<true>(&cost, out);
+                paths.vertical::<true, false>(&cost, out);
             } else {
-                paths.vertical::<false>(&cost, &mut []);
+                paths.vertical::<false, false>(&cost, &mut []);
             }
         }
         for (i, row) in sums.chunks_exact(row_len).enumerate() {
@@ -111,7 +111,7 @@ struct Paths {
     fresh: bool,
     /// Path costs before the first pixel: zero, padded.
     start: Vec<i16>,
-    /// Two pixels of horizontal path costs.
+    /// Two pixels of horizontal path costs (previous and current).
     scratch: [Vec<i16>; 2],
 }
 
@@ -143,12 +143,20 @@ impl Paths {
         self.fresh = true;
     }
 
-    /// Advances the three vertical paths by one row of `cost`, adding them
-    /// into `sums` when `ADD` (one pass over `sums` for all three).
-    fn vertical<const ADD: bool>(&mut self, cost: &[u8], sums: &mut [i16]) {
+    /// Advances the three vertical paths by one row of `cost`, with the
+    /// left-to-right path of the row when `LEFT_TO_RIGHT`, adding them into
+    /// `sums` when `ADD` (one pass over `sums` for all of them).
+    fn vertical<const ADD: bool, const LEFT_TO_RIGHT: bool>(
+        &mut self,
+        cost: &[u8],
+        sums: &mut [i16],
+    ) {
         let (w, nd) = (self.width, self.num_disp);
         let stride = nd + 2;
         let fresh = self.fresh;
+        let [lr_prev, lr_cur] = &mut self.scratch;
+        lr_prev.copy_from_slice(&self.start);
+        let mut lr_min = 0;
         for x in 0..w {
             let cost = &cost[x * nd..][..nd];
             for (k, pair) in self.rows.iter_mut().enumerate() {
@@ -166,6 +174,9 @@ impl Paths {
                     &mut [],
                 );
             }
+            if LEFT_TO_RIGHT {
+                lr_min = step::<false>(cost, lr_prev, lr_min, self.penalties, lr_cur, &mut []);
+            }
             if ADD {
                 let [a, b, c] = &self.rows;
                 let start = x * stride + 1;
@@ -174,9 +185,20 @@ impl Paths {
                     &b.cur[start..][..nd],
                     &c.cur[start..][..nd],
                 );
-                for (d, s) in sums[x * nd..][..nd].iter_mut().enumerate() {
-                    *s += a[d] + b[d] + c[d];
+                let sums = &mut sums[x * nd..][..nd];
+                if LEFT_TO_RIGHT {
+                    let lr = &lr_cur[1..][..nd];
+                    for (d, s) in sums.iter_mut().enumerate() {
+                        *s += a[d] + b[d] + c[d] + lr[d];
+                    }
+                } else {
+                    for (d, s) in sums.iter_mut().enumerate() {
+                        *s += a[d] + b[d] + c[d];
+                    }
                 }
+            }
+            if LEFT_TO_RIGHT {
+                std::mem::swap(lr_prev, lr_cur);
             }
         }
         for pair in &mut self.rows {
@@ -186,26 +208,23 @@ impl Paths {
         self.fresh = false;
     }
 
-    /// Runs the left-to-right and right-to-left paths of one row of `cost`,
-    /// adding them into `sums`.
-    fn horizontal(&mut self, cost: &[u8], sums: &mut [i16]) {
+    /// Runs the right-to-left path of one row of `cost`, adding it into
+    /// `sums`.
+    fn right_to_left(&mut self, cost: &[u8], sums: &mut [i16]) {
         let nd = self.num_disp;
-        for reverse in [false, true] {
-            let [a, b] = &mut self.scratch;
-            a.copy_from_slice(&self.start);
-            let mut prev_min = 0;
-            for i in 0..self.width {
-                let x = if reverse { self.width - 1 - i } else { i };
-                prev_min = step::<true>(
-                    &cost[x * nd..][..nd],
-                    a,
-                    prev_min,
-                    self.penalties,
-                    b,
-                    &mut sums[x * nd..][..nd],
-                );
-                std::mem::swap(a, b);
-            }
+        let [a, b] = &mut self.scratch;
+        a.copy_from_slice(&self.start);
+        let mut prev_min = 0;
+        for x in (0..self.width).rev() {
+            prev_min = step::<true>(
+                &cost[x * nd..][..nd],
+                a,
+                prev_min,
+                self.penalties,
+                b,
+                &mut sums[x * nd..][..nd],
+            );
+            std::mem::swap(a, b);
         }
     }
 }
