@@ -17,8 +17,8 @@ const BIG: i16 = i16::MAX / 2;
 pub struct BandInput<'a> {
     /// Left census signatures, row-major.
     pub left: &'a [u32],
-    /// Right census signatures, each row reversed.
-    pub right_reversed: &'a [u32],
+    /// Right census signatures as reversed byte planes.
+    pub right_planes: &'a [u8],
     /// Image width and height.
     pub size: (usize, usize),
     /// Number of disparities `D`.
@@ -50,7 +50,7 @@ pub fn aggregate_band(input: &BandInput, rows: Range<usize>, mut emit: impl FnMu
     let cost_of = |y: usize, cost: &mut [u8]| {
         cost_row(
             &input.left[y * w..][..w],
-            &input.right_reversed[y * w..][..w],
+            &input.right_planes[4 * y * w..][..4 * w],
             input.invalid_cost,
             cost,
         );

@@ -178,10 +178,10 @@ impl Sgm {
             || census::census(&gl, w, cw, ch),
             || census::census(&gr, w, cw, ch),
         );
-        let right_reversed = census::reverse_rows(&census_r, w);
+        let right_planes = census::reversed_planes(&census_r, w);
         let input = BandInput {
             left: &census_l,
-            right_reversed: &right_reversed,
+            right_planes: &right_planes,
             size: (w, h),
             num_disp,
             invalid_cost: census::samples(cw, ch).len() as u8,
