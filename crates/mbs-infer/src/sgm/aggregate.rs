@@ -246,15 +246,21 @@ fn step<const ADD: bool>(
     let out = &mut out[1..n + 1];
     let jump = prev_min + p2;
     let mut best = i16::MAX;
-    for d in 0..n {
-        let m = same[d].min(lower[d].min(upper[d]) + p1).min(jump);
-        let v = i16::from(cost[d]) + m - prev_min;
-        out[d] = v;
-        best = best.min(v);
-    }
     if ADD {
-        for (s, &v) in sum[..n].iter_mut().zip(out.iter()) {
-            *s += v;
+        let sum = &mut sum[..n];
+        for d in 0..n {
+            let m = same[d].min(lower[d].min(upper[d]) + p1).min(jump);
+            let v = i16::from(cost[d]) + m - prev_min;
+            out[d] = v;
+            sum[d] += v;
+            best = best.min(v);
+        }
+    } else {
+        for d in 0..n {
+            let m = same[d].min(lower[d].min(upper[d]) + p1).min(jump);
+            let v = i16::from(cost[d]) + m - prev_min;
+            out[d] = v;
+            best = best.min(v);
         }
     }
     best
