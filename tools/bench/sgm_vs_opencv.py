@@ -6,7 +6,10 @@ disp12MaxDiff 1, uniquenessRatio 10, speckle 100 / 2, cv2.setNumThreads(2).
 SGM: the release example `sgm_bench` (default settings) with
 RAYON_NUM_THREADS=2. Both run in alternating rounds on the same machine
 (each SGM process warms up once); the fastest run of each counts, the
-estimate least disturbed by other load on a shared machine.
+estimate least disturbed by other load on a shared machine. CPU time per
+pair (all threads, user + system; for SGM the difference between a run of
+2N and one of N pairs) is reported too: it measures the work done and is
+far less sensitive to other load than wall time.
 
 Pairs: Middlebury Teddy (450x375; 64 disparities, and 16 for timing only)
 and a KITTI-size pair (1242x375, 128 disparities) tiled from Teddy (views
@@ -23,6 +26,7 @@ repository root:  python3 tools/bench/sgm_vs_opencv.py
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -74,22 +78,34 @@ def opencv(left, right, ndisp, repeats):
         uniquenessRatio=10, speckleWindowSize=100, speckleRange=2,
         mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
     times = []
+    cpu = time.process_time()
     for _ in range(repeats):
         t = time.perf_counter()
         d = sgbm.compute(left, right)
         times.append(1e3 * (time.perf_counter() - t))
+    cpu_ms = 1e3 * (time.process_time() - cpu) / repeats
     d = d.astype(np.float32) / 16
     d[d < 0] = np.inf
-    return min(times), d
+    return min(times), cpu_ms, d
 
 
 def sgm(binary, left, right, ndisp, repeats, gt_path, gt_scale):
-    cmd = [str(binary), str(left), str(right), str(ndisp), str(repeats), "5"]
-    if gt_path is not None:
-        cmd += [str(gt_path), str(gt_scale)]
-    env = dict(os.environ, RAYON_NUM_THREADS="2")
-    out = subprocess.run(cmd, check=True, capture_output=True, text=True, env=env)
-    return json.loads(out.stdout)
+    """Runs sgm_bench twice (repeats and 2 x repeats): its JSON from the
+    longer run and the CPU time per pair from the difference of the two."""
+    results = []
+    for n in (repeats, 2 * repeats):
+        cmd = [str(binary), str(left), str(right), str(ndisp), str(n), "5"]
+        if gt_path is not None:
+            cmd += [str(gt_path), str(gt_scale)]
+        env = dict(os.environ, RAYON_NUM_THREADS="2")
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        out = subprocess.run(cmd, check=True, capture_output=True, text=True, env=env)
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+        results.append((json.loads(out.stdout), cpu))
+    res = results[1][0]
+    res["cpu_ms"] = 1e3 * (results[1][1] - results[0][1]) / repeats
+    return res
 
 
 def main():
@@ -129,15 +145,16 @@ def main():
         ("Teddy 450x375", DATA / "im2.png", DATA / "im6.png", left, right, 16, None, None),
         ("KITTI-size 1242x375 (tiled Teddy)", tmp / "kl.png", tmp / "kr.png", kl, kr, 128, tmp / "kgt.png", kgt),
     ]
-    print("| pair | disp | OpenCV ms | SGM ms | SGM / OpenCV | OpenCV EPE / Out-2 raw (density) "
-          "| OpenCV EPE / Out-2 filled | SGM EPE / Out-2 |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| pair | disp | OpenCV ms | SGM ms | SGM / OpenCV | OpenCV CPU ms | SGM CPU ms | CPU ratio "
+          "| OpenCV EPE / Out-2 raw (density) | OpenCV EPE / Out-2 filled | SGM EPE / Out-2 |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for name, lp, rp, l, r, nd, gp, g in cases:
-        cv_ms, sgm_ms = float("inf"), float("inf")
+        cv_ms, sgm_ms, cv_cpu, sgm_cpu = (float("inf"),) * 4
         for _ in range(args.rounds):
-            t, d = opencv(l, r, nd, args.repeats)
+            t, c, d = opencv(l, r, nd, args.repeats)
             res = sgm(binary, lp, rp, nd, args.repeats, gp, 4)
             cv_ms, sgm_ms = min(cv_ms, t), min(sgm_ms, res["min_ms"])
+            cv_cpu, sgm_cpu = min(cv_cpu, c), min(sgm_cpu, res["cpu_ms"])
         acc = ["n/a (timing only)"] * 3
         if g is not None:
             raw, filled = scores(d, g), scores(fill_background(d), g)
@@ -146,8 +163,8 @@ def main():
                 f"{filled['epe']:.2f} / {filled['out2']:.1f} %",
                 f"{res['epe']:.2f} / {res['out2']:.1f} %",
             ]
-        print(f"| {name} | {nd} | {cv_ms:.1f} | {sgm_ms:.1f} | "
-              f"{sgm_ms / cv_ms:.2f}x | " + " | ".join(acc) + " |")
+        print(f"| {name} | {nd} | {cv_ms:.1f} | {sgm_ms:.1f} | {sgm_ms / cv_ms:.2f}x | "
+              f"{cv_cpu:.1f} | {sgm_cpu:.1f} | {sgm_cpu / cv_cpu:.2f}x | " + " | ".join(acc) + " |")
         sys.stdout.flush()
 
 
