@@ -50,7 +50,7 @@ pub fn read_float_map(path: &std::path::Path) -> crate::Result<crate::FloatImage
 }
 
 /// Reads a disparity map whatever its encoding: `.pfm` / `.exr` floats
-/// (`+inf` or NaN = invalid), or a `.png` of integer codes `v` meaning
+/// (`+inf` or NaN = invalid), or a `.png` / `.pgm` of integer codes `v` meaning
 /// `v / png_scale` pixels with `0` = invalid. `png_scale` defaults to 256
 /// (KITTI) for 16-bit PNGs and to 1 for 8-bit ones (Middlebury 2001/2003
 /// ground truth needs its own factor, e.g. 4 for quarter-size Teddy, 16
@@ -59,11 +59,11 @@ pub fn read_disparity(
     path: &std::path::Path,
     png_scale: Option<f32>,
 ) -> crate::Result<crate::FloatImage> {
-    let is_png = path
+    let is_integer = path
         .extension()
         .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
-    if !is_png {
+        .is_some_and(|e| e.eq_ignore_ascii_case("png") || e.eq_ignore_ascii_case("pgm"));
+    if !is_integer {
         let mut map = read_float_map(path)?;
         map.iter_mut()
             .filter(|v| v.is_nan())
@@ -139,6 +139,16 @@ mod tests {
         assert_eq!(
             read_disparity(&float, None).unwrap().as_raw(),
             &vec![f32::INFINITY, 1.5]
+        );
+        // 8-bit PGM (Middlebury 2001 ground truth) decodes like 8-bit PNG.
+        let pgm = dir.path().join("gt.pgm");
+        image::GrayImage::from_raw(2, 1, vec![0, 32])
+            .unwrap()
+            .save(&pgm)
+            .unwrap();
+        assert_eq!(
+            read_disparity(&pgm, Some(16.0)).unwrap().as_raw(),
+            &vec![f32::INFINITY, 2.0]
         );
         // Colour PNGs are refused with the file's name.
         let colour = dir.path().join("c.png");

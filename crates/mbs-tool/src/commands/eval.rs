@@ -34,8 +34,8 @@ pub struct Args {
     /// training folder.
     #[arg(long, conflicts_with_all = ["gt", "manifest"])]
     pub kitti: Option<PathBuf>,
-    /// Ground truth of a single prediction: PFM/EXR (+inf = unknown) or PNG
-    /// (see --gt-scale).
+    /// Ground truth of a single prediction: PFM/EXR (+inf = unknown) or
+    /// PNG/PGM (see --gt-scale).
     #[arg(long, conflicts_with = "manifest")]
     pub gt: Option<PathBuf>,
     /// Non-occluded mask for --gt (non-zero = non-occluded), e.g.
@@ -48,8 +48,9 @@ pub struct Args {
     /// Camera pair of the manifest's ground truth, REFERENCE:TARGET.
     #[arg(long, default_value = "0:1", value_parser = parse_pair)]
     pub pair: (usize, usize),
-    /// GT PNG codes per pixel of disparity [default: 256 for 16-bit PNGs
-    /// (KITTI), 1 for 8-bit ones; Middlebury 2003 quarter size: 4, Tsukuba: 16].
+    /// GT PNG/PGM codes per pixel of disparity [default: 256 for 16-bit
+    /// images (KITTI), 1 for 8-bit ones; Middlebury 2003 quarter size: 4,
+    /// Tsukuba: 16].
     #[arg(long)]
     pub gt_scale: Option<f32>,
     /// Out-x thresholds in pixels, comma-separated.
@@ -130,6 +131,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 failed += 1;
             }
         }
+    }
+    if scored.is_empty() {
+        bail!("no image could be scored (see above)");
     }
     let report = Report::new(scored);
     if args.json {
