@@ -1,5 +1,5 @@
-//! Rig geometry, image / disparity / depth types, file formats and image-quality
-//! measures shared by every mbs crate.
+//! Rig geometry, image / disparity / depth types, file formats, disparity
+//! metrics and image-quality measures shared by every mbs crate.
 //!
 //! Conventions (see `SPEC.md` §2): cameras sit on one horizontal line, camera
 //! `k` at `x = k * B`; disparity is a non-negative magnitude on the reference
@@ -7,9 +7,11 @@
 //! and `0` in integer files.
 
 pub mod atomic;
+pub mod colormap;
 pub mod error;
 pub mod formats;
 pub mod geometry;
+pub mod metrics;
 pub mod quality;
 pub mod resample;
 

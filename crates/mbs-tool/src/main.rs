@@ -24,6 +24,10 @@ enum Command {
     Synth(commands::synth::Args),
     /// Decode CARLA depth PNGs into metric depth and disparity maps.
     DecodeDepth(commands::decode_depth::Args),
+    /// Score predicted disparities against ground truth (EPE, Out-x, D1).
+    Eval(commands::eval::Args),
+    /// Compute disparity for rectified pairs with the built-in matcher.
+    Predict(commands::predict::Args),
     /// Scan an MBS20K folder into a manifest and print its statistics.
     Scan(commands::scan::Args),
     /// Check a dataset manifest against its schema and the files on disk.
@@ -36,6 +40,8 @@ fn main() -> std::process::ExitCode {
         Command::Demo(args) => commands::demo::run(args),
         Command::Synth(args) => commands::synth::run(args),
         Command::DecodeDepth(args) => commands::decode_depth::run(args),
+        Command::Eval(args) => commands::eval::run(args),
+        Command::Predict(args) => commands::predict::run(args),
         Command::Scan(args) => commands::scan::run(args),
         Command::Validate(args) => commands::validate::run(args),
     };

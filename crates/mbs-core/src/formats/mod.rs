@@ -58,3 +58,112 @@ pub fn read_float_map(path: &std::path::Path) -> crate::Result<crate::FloatImage
         )),
     }
 }
+
+/// Reads a disparity map whatever its encoding: `.pfm` / `.exr` floats
+/// (`+inf` or NaN = invalid), or a `.png` / `.pgm` of integer codes `v` meaning
+/// `v / png_scale` pixels with `0` = invalid. `png_scale` defaults to 256
+/// (KITTI) for 16-bit PNGs and to 1 for 8-bit ones (Middlebury 2001/2003
+/// ground truth needs its own factor, e.g. 4 for quarter-size Teddy, 16
+/// for Tsukuba). Invalid pixels come back as `+inf`.
+pub fn read_disparity(
+    path: &std::path::Path,
+    png_scale: Option<f32>,
+) -> crate::Result<crate::FloatImage> {
+    let is_integer = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("png") || e.eq_ignore_ascii_case("pgm"));
+    if !is_integer {
+        let mut map = read_float_map(path)?;
+        map.iter_mut()
+            .filter(|v| v.is_nan())
+            .for_each(|v| *v = f32::INFINITY);
+        return Ok(map);
+    }
+    let image = image::open(path).map_err(|e| crate::FormatError::image(path, e))?;
+    let codes = match image {
+        image::DynamicImage::ImageLuma16(codes) => {
+            return Ok(png16::decode_scaled(
+                &codes,
+                png_scale.unwrap_or(png16::KITTI_DISPARITY_SCALE),
+            ));
+        }
+        image::DynamicImage::ImageLuma8(codes) => codes,
+        other => {
+            return Err(crate::FormatError::invalid(
+                path,
+                format!(
+                    "expected a greyscale disparity PNG, found {:?}",
+                    other.color()
+                ),
+            ));
+        }
+    };
+    let scale = png_scale.unwrap_or(1.0);
+    let data = codes
+        .as_raw()
+        .iter()
+        .map(|&v| {
+            if v == 0 {
+                f32::INFINITY
+            } else {
+                f32::from(v) / scale
+            }
+        })
+        .collect();
+    // One sample per pixel in both images, so the length matches.
+    Ok(
+        crate::FloatImage::from_raw(codes.width(), codes.height(), data)
+            .expect("same size as the codes"),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn read_disparity_decodes_every_encoding() {
+        let dir = tempfile::tempdir().unwrap();
+        // 8-bit Middlebury-style PNG: value / scale, 0 = unknown.
+        let eight = dir.path().join("gt8.png");
+        image::GrayImage::from_raw(3, 1, vec![0, 4, 255])
+            .unwrap()
+            .save(&eight)
+            .unwrap();
+        let d = read_disparity(&eight, Some(4.0)).unwrap();
+        assert_eq!(d.as_raw(), &vec![f32::INFINITY, 1.0, 63.75]);
+        assert_eq!(read_disparity(&eight, None).unwrap().as_raw()[1], 4.0);
+        // 16-bit KITTI PNG: value / 256 by default.
+        let sixteen = dir.path().join("gt16.png");
+        let codes = png16::Gray16Image::from_raw(2, 1, vec![0, 512]).unwrap();
+        png16::write_gray16(&sixteen, &codes).unwrap();
+        assert_eq!(
+            read_disparity(&sixteen, None).unwrap().as_raw(),
+            &vec![f32::INFINITY, 2.0]
+        );
+        // PFM: NaN becomes +inf.
+        let float = dir.path().join("d.pfm");
+        let map = crate::FloatImage::from_raw(2, 1, vec![f32::NAN, 1.5]).unwrap();
+        pfm::write_pfm_grey(&float, &map, pfm::Endian::Little).unwrap();
+        assert_eq!(
+            read_disparity(&float, None).unwrap().as_raw(),
+            &vec![f32::INFINITY, 1.5]
+        );
+        // 8-bit PGM (Middlebury 2001 ground truth) decodes like 8-bit PNG.
+        let pgm = dir.path().join("gt.pgm");
+        image::GrayImage::from_raw(2, 1, vec![0, 32])
+            .unwrap()
+            .save(&pgm)
+            .unwrap();
+        assert_eq!(
+            read_disparity(&pgm, Some(16.0)).unwrap().as_raw(),
+            &vec![f32::INFINITY, 2.0]
+        );
+        // Colour PNGs are refused with the file's name.
+        let colour = dir.path().join("c.png");
+        image::RgbImage::new(1, 1).save(&colour).unwrap();
+        let err = read_disparity(&colour, None).unwrap_err();
+        assert!(err.to_string().contains("c.png"), "{err}");
+    }
+}

@@ -1,0 +1,20 @@
+//! Stereo matching and inpainting behind traits, with built-in defaults:
+//! a semi-global matcher ([`Sgm`]) and a block-matching baseline
+//! ([`BlockMatcher`]).
+//!
+//! Matchers follow SPEC §2: they take a rectified pair whose target (right)
+//! camera lies right of the reference (left) one and return a non-negative
+//! disparity on the reference grid, `+inf` where there is none. The
+//! right-view disparity comes from mirroring
+//! ([`StereoMatcher::predict_right`]).
+
+pub mod block;
+pub mod error;
+pub mod matcher;
+pub mod postprocess;
+pub mod sgm;
+
+pub use block::BlockMatcher;
+pub use error::InferError;
+pub use matcher::{Disparity, StereoMatcher};
+pub use sgm::{Sgm, SgmConfig, SgmPaths, estimate_max_disparity};

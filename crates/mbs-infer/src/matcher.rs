@@ -1,0 +1,72 @@
+//! The [`StereoMatcher`] trait: a rectified pair in, a disparity on the
+//! reference grid out.
+
+use image::imageops;
+use mbs_core::{FloatImage, MaskImage, RgbImage};
+
+use crate::error::{InferError, Result};
+
+/// A disparity map with the pixels a matcher trusts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Disparity {
+    /// Disparity in pixels on the reference grid, `+inf` where there is no
+    /// value at all. Matchers that fill holes leave it finite everywhere.
+    pub disparity: FloatImage,
+    /// 255 where the value was matched and passed the matcher's checks, 0
+    /// where it was filled in or is missing.
+    pub valid: MaskImage,
+}
+
+impl Disparity {
+    /// The map mirrored horizontally (column `x` goes to `width - 1 - x`).
+    pub fn mirrored(&self) -> Disparity {
+        Disparity {
+            disparity: imageops::flip_horizontal(&self.disparity),
+            valid: imageops::flip_horizontal(&self.valid),
+        }
+    }
+}
+
+/// Dense stereo matching on rectified pairs.
+pub trait StereoMatcher: Send + Sync {
+    /// A short name for logs and tables.
+    fn name(&self) -> &str;
+
+    /// Disparity of the `left` view, with `right` as target: a left pixel at
+    /// column `x` is seen in `right` at `x - d` (SPEC §2). The views must
+    /// have the same size.
+    fn predict(&self, left: &RgbImage, right: &RgbImage) -> Result<Disparity>;
+
+    /// Disparity of the `right` view, with `left` as target (a right pixel
+    /// at `x` is seen in `left` at `x + d`): both views are mirrored, their
+    /// roles swapped, and the result mirrored back (SPEC §2).
+    fn predict_right(&self, left: &RgbImage, right: &RgbImage) -> Result<Disparity> {
+        check_same_size(left, right)?;
+        let mirrored_right = imageops::flip_horizontal(right);
+        let mirrored_left = imageops::flip_horizontal(left);
+        Ok(self.predict(&mirrored_right, &mirrored_left)?.mirrored())
+    }
+}
+
+/// An [`InferError::SizeMismatch`] unless both views have the same size.
+pub fn check_same_size(left: &RgbImage, right: &RgbImage) -> Result<()> {
+    if left.dimensions() == right.dimensions() {
+        Ok(())
+    } else {
+        Err(InferError::SizeMismatch {
+            left: left.dimensions(),
+            right: right.dimensions(),
+        })
+    }
+}
+
+/// The luma of an RGB image (ITU-R BT.601 weights, rounded), row-major.
+pub fn luma(image: &RgbImage) -> Vec<u8> {
+    image
+        .pixels()
+        .map(|p| {
+            let [r, g, b] = p.0.map(u32::from);
+            ((77 * r + 150 * g + 29 * b + 128) >> 8) as u8
+        })
+        .collect()
+}

@@ -1,0 +1,302 @@
+//! `mbs-tool predict`: disparity for rectified pairs with the built-in
+//! semi-global matcher.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use clap::{Parser, ValueEnum};
+use mbs_core::colormap::colorize_disparity;
+use mbs_core::formats::{pfm, png16, rgb};
+use mbs_dataset::Manifest;
+use mbs_dataset::manifest::resolve;
+use mbs_infer::{Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max_disparity};
+
+use crate::cli::batch::{self, Outcome};
+use crate::cli::shard::Shard;
+
+/// Arguments of `predict`.
+#[derive(Parser)]
+#[command(after_help = "Examples:
+  mbs-tool predict --left im2.png --right im6.png --max-disparity 64 --out pred --color
+  mbs-tool predict --kitti /data/kitti2015/training --format png16 --out pred/disp_0
+  mbs-tool predict --manifest mbs-demo/manifest.json --pair 2:1 --out pred
+
+Outputs: <out>/<name>.pfm (+inf = invalid) or <out>/<name>.png (KITTI 16-bit,
+value/256, 0 = invalid), where <name> is the left view's file stem (pairs and
+KITTI) or the sample id (manifests); with --color also <name>_color.png.
+Holes are filled from the background side, so every pixel has a value.
+Finished outputs are skipped, so an interrupted run resumes where it stopped.")]
+pub struct Args {
+    /// Left (reference) view of a single pair.
+    #[arg(long, requires = "right", conflicts_with_all = ["kitti", "manifest"])]
+    pub left: Option<PathBuf>,
+    /// Right (target) view of a single pair.
+    #[arg(long, requires = "left")]
+    pub right: Option<PathBuf>,
+    /// A KITTI 2015 (image_2, image_3) or 2012 (colored_0, colored_1)
+    /// training or testing folder; its *_10.png frames are matched.
+    #[arg(long, conflicts_with = "manifest")]
+    pub kitti: Option<PathBuf>,
+    /// A dataset manifest: every sample's --pair is matched.
+    #[arg(long)]
+    pub manifest: Option<PathBuf>,
+    /// Camera pair of manifest samples, REFERENCE:TARGET; a target left of
+    /// the reference is handled by mirroring.
+    #[arg(long, default_value = "0:1", value_parser = parse_pair)]
+    pub pair: (usize, usize),
+    /// Output folder.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// File format of the disparity maps.
+    #[arg(long, value_enum, default_value_t = Format::Pfm)]
+    pub format: Format,
+    /// Also write a colour-mapped PNG of each disparity map.
+    #[arg(long)]
+    pub color: bool,
+    /// Number of disparities searched (0 = estimate per pair, up to 256).
+    #[arg(long, default_value_t = 128)]
+    pub max_disparity: u32,
+    /// Aggregation paths of the semi-global matcher.
+    #[arg(long, value_enum, default_value_t = Paths::Five)]
+    pub paths: Paths,
+    /// Leave unmatched pixels invalid instead of filling them.
+    #[arg(long)]
+    pub no_fill: bool,
+    /// Recompute outputs that already exist.
+    #[arg(long)]
+    pub overwrite: bool,
+    /// Process only shard K of N (0-based), for cluster job arrays.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<Shard>,
+    /// Worker threads (0 = one per core).
+    #[arg(long, default_value_t = 0)]
+    pub jobs: usize,
+}
+
+/// Disparity file formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Format {
+    /// PFM float32, +inf = invalid.
+    Pfm,
+    /// KITTI 16-bit PNG, value / 256 px, 0 = invalid.
+    Png16,
+}
+
+impl Format {
+    fn extension(self) -> &'static str {
+        match self {
+            Format::Pfm => "pfm",
+            Format::Png16 => "png",
+        }
+    }
+}
+
+/// Aggregation paths (see `mbs_infer::SgmPaths`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Paths {
+    /// Horizontal and top-down paths: one pass, fastest.
+    #[value(name = "5")]
+    Five,
+    /// All eight directions: more accurate, about 1.6x the time.
+    #[value(name = "8")]
+    Eight,
+}
+
+fn parse_pair(s: &str) -> Result<(usize, usize), String> {
+    let usage = || format!("invalid pair {s:?}: expected REFERENCE:TARGET, e.g. 0:1");
+    let (r, t) = s.split_once(':').ok_or_else(usage)?;
+    let pair = (
+        r.trim().parse().map_err(|_| usage())?,
+        t.trim().parse().map_err(|_| usage())?,
+    );
+    if pair.0 == pair.1 {
+        return Err(format!(
+            "invalid pair {s:?}: reference and target must differ"
+        ));
+    }
+    Ok(pair)
+}
+
+/// One pair to match and where its outputs go.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Job {
+    /// The reference view (the disparity lives on its grid).
+    pub reference: PathBuf,
+    /// The target view.
+    pub target: PathBuf,
+    /// Whether the target camera lies left of the reference.
+    pub target_on_left: bool,
+    /// Output name without extension, relative to the output folder.
+    pub name: String,
+}
+
+/// Runs `predict`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    crate::cli::set_threads(args.jobs)?;
+    let jobs = if let (Some(left), Some(right)) = (&args.left, &args.right) {
+        vec![Job {
+            reference: left.clone(),
+            target: right.clone(),
+            target_on_left: false,
+            name: file_stem(left)?,
+        }]
+    } else if let Some(dir) = &args.kitti {
+        kitti_jobs(dir)?
+    } else if let Some(manifest) = &args.manifest {
+        manifest_jobs(manifest, args.pair)?
+    } else {
+        bail!("nothing to match: give --left and --right, --kitti DIR or --manifest FILE");
+    };
+    let jobs = match args.shard {
+        Some(shard) => shard.select(jobs),
+        None => jobs,
+    };
+    let summary = batch::run(
+        &jobs,
+        "pairs",
+        |j| j.reference.display().to_string(),
+        |j| predict_one(&args, j),
+    );
+    summary.finish("predict", "pairs")
+}
+
+fn file_stem(path: &Path) -> anyhow::Result<String> {
+    path.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .with_context(|| format!("{}: not a file name", path.display()))
+}
+
+/// The pairs of a KITTI folder: `*_10.png` of the left image folder with
+/// the same name in the right one.
+pub fn kitti_jobs(dir: &Path) -> anyhow::Result<Vec<Job>> {
+    let (left_dir, right_dir) = ["image_2", "colored_0"]
+        .into_iter()
+        .zip(["image_3", "colored_1"])
+        .map(|(l, r)| (dir.join(l), dir.join(r)))
+        .find(|(l, r)| l.is_dir() && r.is_dir())
+        .with_context(|| {
+            format!(
+                "{}: not a KITTI folder (expected image_2 and image_3, or colored_0 and colored_1)",
+                dir.display()
+            )
+        })?;
+    let mut names: Vec<String> = std::fs::read_dir(&left_dir)
+        .with_context(|| format!("cannot list {}", left_dir.display()))?
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with("_10.png"))
+        .collect();
+    names.sort();
+    if names.is_empty() {
+        bail!("{}: no *_10.png frames", left_dir.display());
+    }
+    names
+        .into_iter()
+        .map(|n| {
+            Ok(Job {
+                reference: left_dir.join(&n),
+                target: right_dir.join(&n),
+                target_on_left: false,
+                name: file_stem(Path::new(&n))?,
+            })
+        })
+        .collect()
+}
+
+/// The `(reference, target)` pair of every sample of a manifest.
+pub fn manifest_jobs(path: &Path, (reference, target): (usize, usize)) -> anyhow::Result<Vec<Job>> {
+    let manifest = Manifest::load(path)?;
+    let views = manifest.rig.num_views;
+    if reference >= views || target >= views {
+        bail!("pair {reference}:{target}: the manifest's rig has {views} cameras");
+    }
+    manifest
+        .samples
+        .iter()
+        .map(|s| {
+            let view = |k: usize| {
+                s.views
+                    .get(k)
+                    .map(|v| resolve(path, v))
+                    .with_context(|| format!("{}: sample {} has no view {k}", path.display(), s.id))
+            };
+            Ok(Job {
+                reference: view(reference)?,
+                target: view(target)?,
+                target_on_left: target < reference,
+                name: s.id.clone(),
+            })
+        })
+        .collect()
+}
+
+fn predict_one(args: &Args, job: &Job) -> anyhow::Result<Outcome> {
+    let out = args
+        .out
+        .join(format!("{}.{}", job.name, args.format.extension()));
+    let color = args.out.join(format!("{}_color.png", job.name));
+    if !args.overwrite && out.exists() && (!args.color || color.exists()) {
+        return Ok(Outcome::Skipped);
+    }
+    let reference = rgb::read_rgb(&job.reference)?;
+    let target = rgb::read_rgb(&job.target)?;
+    // The matcher wants the left view first; a left target is mirrored.
+    let (left, right) = if job.target_on_left {
+        (&target, &reference)
+    } else {
+        (&reference, &target)
+    };
+    let max_disparity = match args.max_disparity {
+        0 => estimate_max_disparity(left, right, 256)?,
+        n => n,
+    };
+    let sgm = Sgm::new(SgmConfig {
+        paths: match args.paths {
+            Paths::Five => SgmPaths::Five,
+            Paths::Eight => SgmPaths::Eight,
+        },
+        fill: !args.no_fill,
+        ..SgmConfig::with_max_disparity(max_disparity)
+    });
+    let prediction = if job.target_on_left {
+        sgm.predict_right(left, right)?
+    } else {
+        sgm.predict(left, right)?
+    };
+    let disparity = &prediction.disparity;
+    match args.format {
+        Format::Pfm => pfm::write_pfm_grey(&out, disparity, pfm::Endian::Little)?,
+        Format::Png16 => png16::write_kitti_disparity(&out, disparity)?,
+    }
+    if args.color {
+        rgb::write_rgb_png(&color, &colorize_disparity(disparity, max_disparity as f32))?;
+    }
+    Ok(Outcome::Done)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pairs_parse_and_must_differ() {
+        assert_eq!(parse_pair("2:1"), Ok((2, 1)));
+        assert!(parse_pair("1:1").is_err());
+        assert!(parse_pair("21").is_err());
+    }
+
+    #[test]
+    fn kitti_folders_need_both_views() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = kitti_jobs(dir.path()).unwrap_err().to_string();
+        assert!(err.contains("not a KITTI folder"), "{err}");
+        std::fs::create_dir_all(dir.path().join("colored_0")).unwrap();
+        std::fs::create_dir_all(dir.path().join("colored_1")).unwrap();
+        std::fs::write(dir.path().join("colored_0/000001_10.png"), b"").unwrap();
+        std::fs::write(dir.path().join("colored_0/000001_11.png"), b"").unwrap();
+        let jobs = kitti_jobs(dir.path()).unwrap();
+        assert_eq!(jobs.len(), 1);
+        assert_eq!(jobs[0].name, "000001_10");
+        assert_eq!(jobs[0].target, dir.path().join("colored_1/000001_10.png"));
+    }
+}
