@@ -1,0 +1,3 @@
+//! Stereo matching and inpainting behind traits, with built-in defaults and ONNX models.
+
+pub mod inpaint;

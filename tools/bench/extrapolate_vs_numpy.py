@@ -1,0 +1,144 @@
+#!/usr/bin/env python3
+"""Novel-view extrapolation: mbs (Rust) against a numpy/OpenCV peer, same run.
+
+Per KITTI-size frame (1242x375, tiled Tsukuba views with 3x their disparity):
+both forward warps (left view to -B, right view to +2B), hole masks,
+dilation and inpainting; disparity estimation excluded. Also the quality
+(PSNR/SSIM vs the real views) of both pipelines on Tsukuba: from (col3, col4)
+synthesise col2 and col5, with the same disparities for both pipelines.
+
+Peer: numpy z-buffer splat warp (each source pixel to the nearest target
+pixel, largest disparity wins), cv2.dilate with an elliptical element of the
+same radius as mbs's dilation, cv2.inpaint TELEA (radius 3).
+
+Needs numpy and opencv-python-headless (not a CI dependency). Run from the
+repository root:
+
+    python3 tools/bench/extrapolate_vs_numpy.py [--frames 30]
+"""
+
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+
+import cv2
+import numpy as np
+
+TSUKUBA = os.path.join(os.path.dirname(__file__), "../../../shared/data/middlebury-tsukuba-row3")
+
+
+def read_pfm(path):
+    with open(path, "rb") as f:
+        assert f.readline().strip() == b"Pf", path
+        width, height = map(int, f.readline().split())
+        scale = float(f.readline())
+        data = np.fromfile(f, dtype="<f4" if scale < 0 else ">f4")
+    return np.flipud(data.reshape(height, width)).astype(np.float32)
+
+
+def read_rgb(path):
+    return cv2.cvtColor(cv2.imread(path, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+
+
+def splat_warp(image, disp, sign):
+    """Forward warp x -> round(x + sign * d) with a z-buffer (largest d wins)."""
+    h, w = disp.shape
+    ys, xs = np.mgrid[0:h, 0:w]
+    valid = np.isfinite(disp)
+    tx = np.rint(xs + sign * np.where(valid, disp, 0)).astype(np.int64)
+    ok = valid & (tx >= 0) & (tx < w)
+    ys, tx, src_x, d = ys[ok], tx[ok], xs[ok], disp[ok]
+    order = np.argsort(d, kind="stable")  # ascending: nearest written last wins
+    ys, tx, src_x, d = ys[order], tx[order], src_x[order], d[order]
+    out = np.zeros_like(image)
+    zbuf = np.full((h, w), np.inf, np.float32)
+    out[ys, tx] = image[ys, src_x]
+    zbuf[ys, tx] = d
+    holes = np.where(np.isinf(zbuf), 255, 0).astype(np.uint8)
+    return out, holes, zbuf
+
+
+def peer_view(image, disp, sign, kernel):
+    warped, holes, _ = splat_warp(image, disp, sign)
+    mask = cv2.dilate(holes, kernel) if kernel is not None else holes
+    return cv2.inpaint(warped, mask, 3, cv2.INPAINT_TELEA), holes
+
+
+def psnr(a, b, mask=None):
+    diff = (a.astype(np.float64) - b.astype(np.float64)) ** 2
+    if mask is not None:
+        diff = diff[mask > 0]
+    return 10 * np.log10(255.0**2 / diff.mean())
+
+
+def ssim(a, b, mask=None):
+    """Gaussian 11x11 sigma 1.5 SSIM, channel mean: the same as mbs_core::quality::ssim."""
+    c1, c2 = (0.01 * 255) ** 2, (0.03 * 255) ** 2
+    maps = []
+    for c in range(3):
+        x, y = a[..., c].astype(np.float64), b[..., c].astype(np.float64)
+        blur = lambda p: cv2.GaussianBlur(p, (11, 11), 1.5)
+        mx, my = blur(x), blur(y)
+        vx, vy, cov = blur(x * x) - mx * mx, blur(y * y) - my * my, blur(x * y) - mx * my
+        maps.append((2 * mx * my + c1) * (2 * cov + c2) / ((mx * mx + my * my + c1) * (vx + vy + c2)))
+    m = np.mean(maps, axis=0)
+    return m[mask > 0].mean() if mask is not None else m.mean()
+
+
+def kernel_for(dilation):
+    match = re.fullmatch(r"(?:Square|Ellipse|BackgroundSide)\((\d+)\)", dilation)
+    if not match:
+        return None
+    r = int(match.group(1))
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--frames", type=int, default=30)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as out:
+        cmd = ["cargo", "run", "--release", "-q", "-p", "mbs-infer", "--example", "extrapolate_bench", "--", out, str(args.frames)]
+        rust = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1])
+        left, right = read_rgb(f"{out}/left.png"), read_rgb(f"{out}/right.png")
+        disp_left, disp_right = read_pfm(f"{out}/disp_left.pfm"), read_pfm(f"{out}/disp_right.pfm")
+        disp3, disp4 = read_pfm(f"{out}/tsukuba_disp3.pfm"), read_pfm(f"{out}/tsukuba_disp4.pfm")
+    kernel = kernel_for(rust["dilation"])
+
+    def frame():
+        return peer_view(left, disp_left, +1, kernel), peer_view(right, disp_right, -1, kernel)
+
+    frame()
+    times = []
+    for _ in range(args.frames):
+        start = time.perf_counter()
+        frame()
+        times.append((time.perf_counter() - start) * 1e3)
+    peer_ms = float(np.median(times))
+
+    views = [read_rgb(f"{TSUKUBA}/scene1.row3.col{k}.ppm") for k in range(1, 6)]
+    (col2, holes2), (col5, holes5) = peer_view(views[2], disp3, +1, kernel), peer_view(views[3], disp4, -1, kernel)
+    peer_q = {
+        "psnr_all": (psnr(col2, views[1]) + psnr(col5, views[4])) / 2,
+        "psnr_holes": (psnr(col2, views[1], holes2) + psnr(col5, views[4], holes5)) / 2,
+        "ssim_all": (ssim(col2, views[1]) + ssim(col5, views[4])) / 2,
+        "ssim_holes": (ssim(col2, views[1], holes2) + ssim(col5, views[4], holes5)) / 2,
+    }
+    print(f"frame 1242x375, {args.frames} frames, dilation {rust['dilation']}, "
+          f"mbs rayon threads {rust['threads']}, OpenCV threads {cv2.getNumThreads()}")
+    print(f"{'pipeline':<22} {'ms/frame':>9} {'PSNR':>7} {'holes':>7} {'SSIM':>7} {'holes':>7}")
+    print(f"{'mbs (Rust)':<22} {rust['ms_median']:>9.2f} {rust['tsukuba_psnr_all']:>7.2f} "
+          f"{rust['tsukuba_psnr_holes']:>7.2f} {rust['tsukuba_ssim_all']:>7.4f} {rust['tsukuba_ssim_holes']:>7.4f}")
+    print(f"{'numpy + OpenCV TELEA':<22} {peer_ms:>9.2f} {peer_q['psnr_all']:>7.2f} "
+          f"{peer_q['psnr_holes']:>7.2f} {peer_q['ssim_all']:>7.4f} {peer_q['ssim_holes']:>7.4f}")
+    print(f"speed-up: {peer_ms / rust['ms_median']:.1f}x")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
