@@ -5,7 +5,7 @@ use mbs_core::{FloatImage, MaskImage, RgbImage, Side};
 
 use crate::error::WarpError;
 use crate::forward::forward_warp;
-use crate::morph::{Shape, dilate, dilate_background_side};
+use crate::morph::{EdgeSide, Shape, dilate, dilate_one_side};
 
 /// How the hole mask is grown before inpainting, to also re-synthesise the
 /// pixels next to holes where an estimated disparity is doubtful.
@@ -18,9 +18,12 @@ pub enum Dilation {
     Square(u32),
     /// Dilation by a disc of this radius (OpenCV's elliptical element).
     Ellipse(u32),
-    /// Holes grow by this many pixels on their background side only
-    /// (see [`dilate_background_side`]).
+    /// Holes at depth edges grow by this many pixels on their background
+    /// side only (see [`dilate_one_side`]).
     BackgroundSide(u32),
+    /// Holes at depth edges grow by this many pixels on their foreground
+    /// side only, where pixels carried by a too-large disparity land.
+    ForegroundSide(u32),
 }
 
 impl Dilation {
@@ -31,7 +34,12 @@ impl Dilation {
             Dilation::None => holes.clone(),
             Dilation::Square(r) => dilate(holes, Shape::Square, r),
             Dilation::Ellipse(r) => dilate(holes, Shape::Ellipse, r),
-            Dilation::BackgroundSide(r) => dilate_background_side(holes, disparity, r)?,
+            Dilation::BackgroundSide(r) => {
+                dilate_one_side(holes, disparity, r, EdgeSide::Background)?
+            }
+            Dilation::ForegroundSide(r) => {
+                dilate_one_side(holes, disparity, r, EdgeSide::Foreground)?
+            }
         })
     }
 }

@@ -18,4 +18,4 @@ pub use error::WarpError;
 pub use extrapolate::{Dilation, WarpedView, extrapolate_view};
 pub use forward::{SAME_SURFACE_PX, Warped, forward_warp};
 pub use holes::fill_disparity_background;
-pub use morph::{Shape, dilate, dilate_background_side};
+pub use morph::{EdgeSide, Shape, dilate, dilate_one_side};

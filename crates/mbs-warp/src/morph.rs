@@ -1,5 +1,6 @@
 //! Binary mask dilation: square and elliptical structuring elements, and a
-//! one-sided horizontal dilation of hole runs towards their background side.
+//! one-sided horizontal dilation of hole runs towards the background or the
+//! foreground side of a depth edge.
 
 use mbs_core::{FloatImage, MaskImage};
 use rayon::prelude::*;
@@ -79,17 +80,28 @@ fn row_distance(row: &[u8], dist: &mut [u16], cap: u16) {
     }
 }
 
+/// Which side of a hole at a depth edge a one-sided dilation grows into.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EdgeSide {
+    /// The farther surface (smaller disparity) next to the hole.
+    Background,
+    /// The nearer surface (larger disparity) next to the hole. When an
+    /// estimated disparity is too large on background pixels next to a depth
+    /// edge ("edge fattening"), those pixels travel with the foreground and
+    /// land on this side of the disocclusion.
+    Foreground,
+}
+
 /// Grows each horizontal run of set pixels in `holes` by `radius` pixels on
-/// its background side only: the side whose neighbouring pixel has the
-/// smaller `disparity` (a warped disparity on the same grid). Runs between
-/// two pixels of one surface (disparities within [`SAME_SURFACE_PX`]) or
-/// touching the image border are not a depth discontinuity and stay as they
-/// are. This removes the pixels where an estimated disparity bled across a
-/// depth edge without eating into the foreground.
-pub fn dilate_background_side(
+/// one side only, chosen by `towards` from the warped `disparity` of the two
+/// pixels bordering the run. Runs between two pixels of one surface
+/// (disparities within [`SAME_SURFACE_PX`]) or touching the image border are
+/// not a depth discontinuity and stay as they are.
+pub fn dilate_one_side(
     holes: &MaskImage,
     disparity: &FloatImage,
     radius: u32,
+    towards: EdgeSide,
 ) -> Result<MaskImage, WarpError> {
     check_size("disparity", holes.dimensions(), disparity.dimensions())?;
     let mut out = holes.clone();
@@ -110,7 +122,8 @@ pub fn dilate_background_side(
                 {
                     continue;
                 }
-                if left < right {
+                let grow_left = (left < right) == (towards == EdgeSide::Background);
+                if grow_left {
                     dst[start.saturating_sub(r)..start].fill(255);
                 } else {
                     dst[end..(end + r).min(w)].fill(255);
@@ -185,7 +198,7 @@ mod tests {
     }
 
     #[test]
-    fn background_side_dilation_grows_towards_smaller_disparity() {
+    fn one_sided_dilation_grows_towards_the_chosen_surface() {
         // Row: background d = 2 | hole 4..6 | foreground d = 9.
         let holes = MaskImage::from_raw(10, 1, vec![0, 0, 0, 0, 255, 255, 0, 0, 0, 0]).unwrap();
         let disp = FloatImage::from_fn(10, 1, |x, _| {
@@ -197,13 +210,13 @@ mod tests {
                 9.0
             }])
         });
-        let out = dilate_background_side(&holes, &disp, 3).unwrap();
+        let out = dilate_one_side(&holes, &disp, 3, EdgeSide::Background).unwrap();
         assert_eq!(out.as_raw(), &vec![0, 255, 255, 255, 255, 255, 0, 0, 0, 0]);
         // Mirrored scene: the growth goes right.
         let mirrored = MaskImage::from_raw(10, 1, vec![0, 0, 0, 0, 255, 255, 0, 0, 0, 0]).unwrap();
         let disp_m =
             FloatImage::from_fn(10, 1, |x, _| image::Luma([if x < 4 { 9.0 } else { 2.0 }]));
-        let out_m = dilate_background_side(&mirrored, &disp_m, 3).unwrap();
+        let out_m = dilate_one_side(&mirrored, &disp_m, 3, EdgeSide::Background).unwrap();
         assert_eq!(
             out_m.as_raw(),
             &vec![0, 0, 0, 0, 255, 255, 255, 255, 255, 0]
@@ -211,11 +224,11 @@ mod tests {
     }
 
     #[test]
-    fn background_side_dilation_leaves_cracks_and_borders_alone() {
+    fn one_sided_dilation_leaves_cracks_and_borders_alone() {
         let holes = MaskImage::from_raw(8, 1, vec![255, 0, 0, 255, 0, 0, 0, 255]).unwrap();
         let disp =
             FloatImage::from_raw(8, 1, vec![5.0, 5.0, 5.2, 5.0, 5.4, 5.0, 5.0, 5.0]).unwrap();
-        let out = dilate_background_side(&holes, &disp, 2).unwrap();
+        let out = dilate_one_side(&holes, &disp, 2, EdgeSide::Foreground).unwrap();
         assert_eq!(out, holes);
     }
 }

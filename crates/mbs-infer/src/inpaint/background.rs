@@ -4,11 +4,17 @@
 //! their disparities agree (one surface, e.g. a crack or a dilated band), the
 //! run is interpolated linearly between them. Otherwise the run is a
 //! disocclusion and its true content is the farther surface: it is filled
-//! from the smaller-disparity side alone, by mirroring that side's pixels
-//! about the border (which continues the background texture instead of
-//! smearing one colour), stopping where the background surface ends. The
+//! from the smaller-disparity side alone, with the mean of the nearest
+//! background pixels (stopping where the background surface ends). The
 //! filled pixels are then smoothed across rows to remove row-to-row streaks.
 //! Without a disparity guide every run is interpolated between its borders.
+//!
+//! Measured on Tsukuba (col2/col5 from col3/col4, `tests/extrapolation_quality.rs`):
+//! averaging the 2 nearest background pixels beats repeating the border
+//! pixel (+0.25 dB) and beats mirroring the background texture into the
+//! hole (+0.4 dB; texture at the wrong phase costs more than it gains), and
+//! 2 smoothing passes beat none (+0.5 dB). The whole fill beats the
+//! isotropic rim fill by about 0.9 dB over the image and 2 dB in the holes.
 
 use mbs_core::{FloatImage, MaskImage, RgbImage};
 use rayon::prelude::*;
@@ -24,9 +30,9 @@ pub struct BackgroundFill {
     pub same_surface_px: f32,
     /// Passes of a vertical `[1, 2, 1] / 4` filter over the filled pixels.
     pub smoothing_passes: u32,
-    /// Mirror the background texture into the hole (`true`) or repeat the
-    /// border pixel (`false`).
-    pub mirror: bool,
+    /// How many background pixels, from the border outwards, are averaged
+    /// into the colour that fills a disocclusion run.
+    pub border_pixels: usize,
 }
 
 impl Default for BackgroundFill {
@@ -34,7 +40,7 @@ impl Default for BackgroundFill {
         BackgroundFill {
             same_surface_px: 1.0,
             smoothing_passes: 2,
-            mirror: true,
+            border_pixels: 2,
         }
     }
 }
@@ -141,10 +147,6 @@ impl BackgroundFill {
         end: usize,
         source: Source,
     ) {
-        // Is `s` a known pixel of the same surface as the border pixel `b`?
-        let same = |s: usize, b: usize, known: &[bool]| {
-            known[s] && guide.is_none_or(|g| (g[s] - g[b]).abs() < self.same_surface_px)
-        };
         match source {
             Source::Between(l, r) => {
                 let span = (r - l) as f32;
@@ -154,32 +156,49 @@ impl BackgroundFill {
                 }
             }
             Source::FromLeft(l) => {
-                let mut src = l;
-                for x in start..end {
-                    if self.mirror && x > start {
-                        // Pixel `start + j` mirrors `l - j`.
-                        if let Some(next) = src.checked_sub(1).filter(|&s| same(s, l, known)) {
-                            src = next;
-                        }
-                    }
-                    rgb[x] = rgb[src];
-                }
+                let value = self.background_colour(rgb, known, guide, l, |s| s.checked_sub(1));
+                rgb[start..end].fill(value);
             }
             Source::FromRight(r) => {
-                let mut src = r;
-                for x in (start..end).rev() {
-                    if self.mirror && x + 1 < end {
-                        if let Some(next) =
-                            Some(src + 1).filter(|&s| s < rgb.len() && same(s, r, known))
-                        {
-                            src = next;
-                        }
-                    }
-                    rgb[x] = rgb[src];
-                }
+                let w = rgb.len();
+                let value = self
+                    .background_colour(rgb, known, guide, r, |s| Some(s + 1).filter(|&n| n < w));
+                rgb[start..end].fill(value);
             }
         }
         known[start..end].fill(true);
+    }
+}
+
+impl BackgroundFill {
+    /// The mean colour of up to [`BackgroundFill::border_pixels`] known
+    /// pixels of the border pixel's surface, walking away from the hole
+    /// from `border` with `step`.
+    fn background_colour(
+        &self,
+        rgb: &[[f32; 3]],
+        known: &[bool],
+        guide: Option<&[f32]>,
+        border: usize,
+        step: impl Fn(usize) -> Option<usize>,
+    ) -> [f32; 3] {
+        let same = |s: usize| {
+            known[s] && guide.is_none_or(|g| (g[s] - g[border]).abs() < self.same_surface_px)
+        };
+        let mut sum = rgb[border];
+        let mut count = 1.0;
+        let mut at = border;
+        for _ in 1..self.border_pixels {
+            match step(at).filter(|&s| same(s)) {
+                Some(next) => at = next,
+                None => break,
+            }
+            for (s, v) in sum.iter_mut().zip(rgb[at]) {
+                *s += v;
+            }
+            count += 1.0;
+        }
+        sum.map(|s| s / count)
     }
 }
 
@@ -232,14 +251,14 @@ mod tests {
     }
 
     #[test]
-    fn disocclusion_is_filled_by_mirroring_the_background() {
+    fn disocclusion_is_filled_with_the_nearest_background() {
         let (image, mask, disp) = disocclusion();
         let out = BackgroundFill::default()
             .inpaint(&image, &mask, Some(&disp))
             .unwrap();
         for y in 0..3 {
             let row: Vec<u8> = (0..10).map(|x| out.get_pixel(x, y).0[0]).collect();
-            assert_eq!(row, vec![10, 30, 50, 70, 90, 90, 70, 50, 250, 250]);
+            assert_eq!(row, vec![10, 30, 50, 70, 90, 80, 80, 80, 250, 250]);
         }
     }
 
@@ -255,7 +274,7 @@ mod tests {
             )
             .unwrap();
         let row: Vec<u8> = (0..10).map(|x| out.get_pixel(x, 1).0[0]).collect();
-        assert_eq!(row, vec![250, 250, 50, 70, 90, 90, 70, 50, 30, 10]);
+        assert_eq!(row, vec![250, 250, 80, 80, 80, 90, 70, 50, 30, 10]);
     }
 
     #[test]
