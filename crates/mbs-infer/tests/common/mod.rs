@@ -55,28 +55,6 @@ pub fn load() -> Tsukuba {
     }
 }
 
-impl Tsukuba {
-    /// The same task with disparities that err at depth edges like an
-    /// estimated one: each pixel takes `reduce` of the disparities within
-    /// `radius` columns (max: the foreground grows, "edge fattening"; mean:
-    /// the edge is smoothed over, both sides bleed).
-    pub fn bleeding(&self, radius: u32, reduce: fn(&[f32]) -> f32) -> Tsukuba {
-        let blur = |d: &FloatImage| {
-            FloatImage::from_fn(d.width(), d.height(), |x, y| {
-                let lo = x.saturating_sub(radius);
-                let hi = (x + radius).min(d.width() - 1);
-                let window: Vec<f32> = (lo..=hi).map(|xx| d.get_pixel(xx, y).0[0]).collect();
-                image::Luma([reduce(&window)])
-            })
-        };
-        Tsukuba {
-            views: self.views.clone(),
-            disp3: blur(&self.disp3),
-            disp4: blur(&self.disp4),
-        }
-    }
-}
-
 /// One synthesised view with what was synthesised.
 pub struct Synth {
     /// The extrapolated, inpainted view.
