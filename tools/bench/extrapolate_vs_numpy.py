@@ -46,21 +46,28 @@ def read_rgb(path):
 
 
 def splat_warp(image, disp, sign):
-    """Forward warp x -> round(x + sign * d) with a z-buffer (largest d wins)."""
+    """Forward warp x -> round(x + sign * d) with a z-buffer (largest d wins).
+
+    Vectorised: sort the splats by (row, disparity) so that the nearest is
+    written last, and write them all with one fancy-indexed assignment.
+    """
     h, w = disp.shape
-    ys, xs = np.mgrid[0:h, 0:w]
     valid = np.isfinite(disp)
+    xs = np.arange(w, dtype=np.float32)[None, :]
     tx = np.rint(xs + sign * np.where(valid, disp, 0)).astype(np.int64)
     ok = valid & (tx >= 0) & (tx < w)
-    ys, tx, src_x, d = ys[ok], tx[ok], xs[ok], disp[ok]
-    order = np.argsort(d, kind="stable")  # ascending: nearest written last wins
-    ys, tx, src_x, d = ys[order], tx[order], src_x[order], d[order]
-    out = np.zeros_like(image)
-    zbuf = np.full((h, w), np.inf, np.float32)
-    out[ys, tx] = image[ys, src_x]
-    zbuf[ys, tx] = d
-    holes = np.where(np.isinf(zbuf), 255, 0).astype(np.uint8)
-    return out, holes, zbuf
+    src = np.flatnonzero(ok)
+    rows = src // w
+    d = disp.ravel()[src]
+    order = np.argsort(rows * 8192.0 + d)  # row-major keeps the gathers local
+    src, d = src[order], d[order]
+    dst = rows[order] * w + tx.ravel()[src]
+    out = np.zeros_like(image).reshape(-1, 3)
+    zbuf = np.full(h * w, np.inf, np.float32)
+    out[dst] = image.reshape(-1, 3)[src]
+    zbuf[dst] = d
+    holes = np.where(np.isinf(zbuf), 255, 0).astype(np.uint8).reshape(h, w)
+    return out.reshape(image.shape), holes, zbuf.reshape(h, w)
 
 
 def peer_view(image, disp, sign, kernel):
