@@ -91,73 +91,96 @@ impl RowSplat<'_> {
     /// Fills the target pixels `x` with `from.t <= x < to.t` (when `lerp`,
     /// interpolating between the ends; else with `from`'s values), keeping
     /// per pixel the largest disparity.
+    #[inline(always)]
     fn segment(&mut self, from: End, to: End, lerp: bool) {
-        let w = self.zbuf.len() as f32;
-        let start = from.t.ceil().max(0.0);
-        let stop = to.t.ceil().min(w);
+        let w = self.zbuf.len();
+        let start = ceil_index(from.t).max(0) as usize;
+        let stop = (ceil_index(to.t).max(0) as usize).min(w);
         if start >= stop {
             return;
         }
-        let span = to.t - from.t;
-        for x in start as usize..stop as usize {
-            let a = if lerp {
-                (x as f32 - from.t) / span
-            } else {
-                0.0
-            };
+        let inv_span = if lerp { 1.0 / (to.t - from.t) } else { 0.0 };
+        for x in start..stop {
+            let a = (x as f32 - from.t) * inv_span;
             let d = from.d + (to.d - from.d) * a;
             if d > self.zbuf[x] {
                 self.zbuf[x] = d;
-                for c in 0..3 {
-                    let v = from.rgb[c] + (to.rgb[c] - from.rgb[c]) * a;
-                    self.dst[x * 3 + c] = v.round().clamp(0.0, 255.0) as u8;
+                let px = &mut self.dst[x * 3..x * 3 + 3];
+                for ((o, f), t) in px.iter_mut().zip(from.rgb).zip(to.rgb) {
+                    // Rounds half up; a convex combination stays in 0..=255.
+                    *o = (f + (t - f) * a + 0.5) as u8;
                 }
             }
         }
     }
 }
 
+/// `ceil(t)` as an integer, without the libm call that `f32::ceil` costs
+/// on baseline x86-64 (`as` truncates towards zero and saturates).
+fn ceil_index(t: f32) -> i64 {
+    let i = t as i64;
+    if (i as f32) < t { i + 1 } else { i }
+}
+
 /// Splats one source row into `row`.
 fn warp_row(src: &[u8], disp: &[f32], side: Side, row: &mut RowSplat<'_>) {
-    let end = |i: usize| End {
-        t: i as f32 + side.shift(disp[i]),
-        rgb: [
-            f32::from(src[i * 3]),
-            f32::from(src[i * 3 + 1]),
-            f32::from(src[i * 3 + 2]),
-        ],
-        d: disp[i],
+    let sign = side.shift(1.0);
+    let mut here: Option<End> = None;
+    let mut x = 0usize;
+    let w = disp.len();
+    let rgb = |i: usize| {
+        let p = &src[i * 3..i * 3 + 3];
+        [f32::from(p[0]), f32::from(p[1]), f32::from(p[2])]
     };
-    let connected = |i: usize| {
-        i + 1 < disp.len()
-            && disp[i].is_finite()
-            && disp[i + 1].is_finite()
-            && (disp[i] - disp[i + 1]).abs() < SAME_SURFACE_PX
-    };
-    let mut joined_left = false;
-    for (i, d) in disp.iter().enumerate() {
+    while x < w {
+        let d = disp[x];
         if !d.is_finite() {
-            joined_left = false;
+            x += 1;
             continue;
         }
-        let here = end(i);
-        if !joined_left {
-            let edge = End {
-                t: here.t - 0.5,
-                ..here
-            };
-            row.segment(edge, here, false);
-        }
-        joined_left = connected(i);
-        if joined_left {
-            row.segment(here, end(i + 1), true);
+        let this = match here.take() {
+            Some(joined) => joined,
+            None => {
+                let this = End {
+                    t: x as f32 + sign * d,
+                    rgb: rgb(x),
+                    d,
+                };
+                row.segment(
+                    End {
+                        t: this.t - 0.5,
+                        ..this
+                    },
+                    this,
+                    false,
+                );
+                this
+            }
+        };
+        let next = if x + 1 < w {
+            disp[x + 1]
         } else {
-            let edge = End {
-                t: here.t + 0.5,
-                ..here
+            f32::INFINITY
+        };
+        if next.is_finite() && (d - next).abs() < SAME_SURFACE_PX {
+            let there = End {
+                t: (x + 1) as f32 + sign * next,
+                rgb: rgb(x + 1),
+                d: next,
             };
-            row.segment(here, edge, false);
+            row.segment(this, there, true);
+            here = Some(there);
+        } else {
+            row.segment(
+                this,
+                End {
+                    t: this.t + 0.5,
+                    ..this
+                },
+                false,
+            );
         }
+        x += 1;
     }
 }
 
@@ -276,6 +299,24 @@ mod tests {
                 let d = out.disparity.get_pixel(x, y).0[0];
                 assert!((d - 0.6 * x as f32 / 1.6).abs() < 1e-4, "x={x} d={d}");
             }
+        }
+    }
+
+    #[test]
+    fn ceil_index_matches_ceil() {
+        for t in [
+            -2.0f32,
+            -1.5,
+            -0.5,
+            -0.0,
+            0.0,
+            0.25,
+            1.0,
+            1.5,
+            2.999,
+            1e6 + 0.5,
+        ] {
+            assert_eq!(ceil_index(t), t.ceil() as i64, "t={t}");
         }
     }
 

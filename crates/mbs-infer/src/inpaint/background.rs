@@ -57,26 +57,39 @@ impl Inpainter for BackgroundFill {
         disparity: Option<&FloatImage>,
     ) -> Result<RgbImage, InpaintError> {
         check_inputs(image, mask, disparity)?;
-        let mut canvas = Canvas::new(image, mask);
-        let w = canvas.width;
-        if w == 0 || canvas.height == 0 {
-            return Ok(image.clone());
+        let mut out = image.clone();
+        let w = image.width() as usize;
+        if w == 0 || image.height() == 0 {
+            return Ok(out);
         }
-        let filled_before: Vec<bool> = canvas.known.iter().map(|k| !k).collect();
         let guide = disparity.map(|d| d.as_raw().as_slice());
-        canvas
-            .rgb
-            .par_chunks_mut(w)
-            .zip(canvas.known.par_chunks_mut(w))
+        let borderless: Vec<usize> = out
+            .par_chunks_mut(w * 3)
+            .zip(mask.par_chunks(w))
             .enumerate()
-            .for_each(|(y, (rgb, known))| {
+            .filter_map(|(y, (rgb, row_mask))| {
                 let guide_row = guide.map(|g| &g[y * w..(y + 1) * w]);
-                self.fill_row(rgb, known, guide_row);
+                (!self.fill_row(rgb, row_mask, guide_row)).then_some(y)
+            })
+            .collect();
+        if !borderless.is_empty() {
+            // Rows masked end to end have no border: fill them from the rows
+            // around, rim inwards.
+            let rest = MaskImage::from_fn(image.width(), image.height(), |_, y| {
+                image::Luma([if borderless.binary_search(&(y as usize)).is_ok() {
+                    255
+                } else {
+                    0
+                }])
             });
-        // Rows masked end to end have no border to fill from.
-        peel(&mut canvas)?;
-        smooth_vertically(&mut canvas, &filled_before, self.smoothing_passes);
-        Ok(canvas.into_image())
+            let mut canvas = Canvas::new(&out, &rest);
+            peel(&mut canvas)?;
+            out = canvas.into_image();
+        }
+        for _ in 0..self.smoothing_passes {
+            smooth_vertically(&mut out, mask);
+        }
+        Ok(out)
     }
 }
 
@@ -90,27 +103,41 @@ enum Source {
     FromRight(usize),
 }
 
+/// The colour of pixel `x` of an RGB row, as floats.
+fn colour(rgb: &[u8], x: usize) -> [f32; 3] {
+    std::array::from_fn(|c| f32::from(rgb[x * 3 + c]))
+}
+
+/// Writes `value` (rounded) to pixel `x` of an RGB row.
+fn put(rgb: &mut [u8], x: usize, value: [f32; 3]) {
+    for (o, v) in rgb[x * 3..x * 3 + 3].iter_mut().zip(value) {
+        *o = (v + 0.5) as u8; // rounds; `as` saturates
+    }
+}
+
 impl BackgroundFill {
-    /// Fills the masked runs of one row in place; marks them known.
-    fn fill_row(&self, rgb: &mut [[f32; 3]], known: &mut [bool], guide: Option<&[f32]>) {
-        let w = rgb.len();
+    /// Fills the masked runs of one RGB row in place. Returns false when the
+    /// row is masked end to end (nothing to fill it from).
+    fn fill_row(&self, rgb: &mut [u8], mask: &[u8], guide: Option<&[f32]>) -> bool {
+        let w = mask.len();
         let mut x = 0;
         while x < w {
-            if known[x] {
+            if mask[x] == 0 {
                 x += 1;
                 continue;
             }
             let start = x;
-            while x < w && !known[x] {
+            while x < w && mask[x] != 0 {
                 x += 1;
             }
             let left = start.checked_sub(1);
             let right = (x < w).then_some(x);
             let Some(source) = self.source(left, right, guide) else {
-                continue;
+                return false;
             };
-            self.fill_run(rgb, known, guide, start, x, source);
+            self.fill_run(rgb, mask, guide, start, x, source);
         }
+        true
     }
 
     /// Decides where the run between `left` and `right` is filled from.
@@ -137,11 +164,11 @@ impl BackgroundFill {
         })
     }
 
-    /// Fills `[start, end)` of a row from `source`.
+    /// Fills `[start, end)` of an RGB row from `source`.
     fn fill_run(
         &self,
-        rgb: &mut [[f32; 3]],
-        known: &mut [bool],
+        rgb: &mut [u8],
+        mask: &[u8],
         guide: Option<&[f32]>,
         start: usize,
         end: usize,
@@ -149,43 +176,41 @@ impl BackgroundFill {
     ) {
         match source {
             Source::Between(l, r) => {
+                let (cl, cr) = (colour(rgb, l), colour(rgb, r));
                 let span = (r - l) as f32;
                 for x in start..end {
                     let a = (x - l) as f32 / span;
-                    rgb[x] = std::array::from_fn(|c| rgb[l][c] + (rgb[r][c] - rgb[l][c]) * a);
+                    put(rgb, x, std::array::from_fn(|c| cl[c] + (cr[c] - cl[c]) * a));
                 }
             }
             Source::FromLeft(l) => {
-                let value = self.background_colour(rgb, known, guide, l, |s| s.checked_sub(1));
-                rgb[start..end].fill(value);
+                let value = self.background_colour(rgb, mask, guide, l, |s| s.checked_sub(1));
+                (start..end).for_each(|x| put(rgb, x, value));
             }
             Source::FromRight(r) => {
-                let w = rgb.len();
-                let value = self
-                    .background_colour(rgb, known, guide, r, |s| Some(s + 1).filter(|&n| n < w));
-                rgb[start..end].fill(value);
+                let w = mask.len();
+                let value =
+                    self.background_colour(rgb, mask, guide, r, |s| Some(s + 1).filter(|&n| n < w));
+                (start..end).for_each(|x| put(rgb, x, value));
             }
         }
-        known[start..end].fill(true);
     }
-}
 
-impl BackgroundFill {
-    /// The mean colour of up to [`BackgroundFill::border_pixels`] known
+    /// The mean colour of up to [`BackgroundFill::border_pixels`] unmasked
     /// pixels of the border pixel's surface, walking away from the hole
     /// from `border` with `step`.
     fn background_colour(
         &self,
-        rgb: &[[f32; 3]],
-        known: &[bool],
+        rgb: &[u8],
+        mask: &[u8],
         guide: Option<&[f32]>,
         border: usize,
         step: impl Fn(usize) -> Option<usize>,
     ) -> [f32; 3] {
         let same = |s: usize| {
-            known[s] && guide.is_none_or(|g| (g[s] - g[border]).abs() < self.same_surface_px)
+            mask[s] == 0 && guide.is_none_or(|g| (g[s] - g[border]).abs() < self.same_surface_px)
         };
-        let mut sum = rgb[border];
+        let mut sum = colour(rgb, border);
         let mut count = 1.0;
         let mut at = border;
         for _ in 1..self.border_pixels {
@@ -193,7 +218,7 @@ impl BackgroundFill {
                 Some(next) => at = next,
                 None => break,
             }
-            for (s, v) in sum.iter_mut().zip(rgb[at]) {
+            for (s, v) in sum.iter_mut().zip(colour(rgb, at)) {
                 *s += v;
             }
             count += 1.0;
@@ -202,26 +227,30 @@ impl BackgroundFill {
     }
 }
 
-/// Smooths the pixels flagged in `filled` with a vertical `[1, 2, 1] / 4`
-/// filter, `passes` times; known pixels only contribute.
-fn smooth_vertically(canvas: &mut Canvas, filled: &[bool], passes: u32) {
-    let (w, h) = (canvas.width, canvas.height);
-    for _ in 0..passes {
-        let before = canvas.rgb.clone();
-        canvas
-            .rgb
-            .par_chunks_mut(w)
-            .enumerate()
-            .for_each(|(y, row)| {
-                let up = y.saturating_sub(1);
-                let down = (y + 1).min(h - 1);
-                for (x, px) in row.iter_mut().enumerate() {
-                    if filled[y * w + x] {
-                        let (a, b) = (before[up * w + x], before[down * w + x]);
-                        *px = std::array::from_fn(|c| 0.25 * a[c] + 0.5 * px[c] + 0.25 * b[c]);
-                    }
+/// One pass of a vertical `[1, 2, 1] / 4` filter (rounded, clamped at the
+/// image border) over the pixels set in `mask`, reading only the values from
+/// before the pass.
+fn smooth_vertically(image: &mut RgbImage, mask: &MaskImage) {
+    let (w, h) = (image.width() as usize, image.height() as usize);
+    let stride = w * 3;
+    let rgb: &mut [u8] = image;
+    // Row y - 1 as it was before this pass (rows are updated top to bottom).
+    let mut above = rgb[..stride].to_vec();
+    let mut current = vec![0u8; stride];
+    for (y, row_mask) in mask.chunks(w).enumerate() {
+        let row = y * stride;
+        current.copy_from_slice(&rgb[row..row + stride]);
+        if row_mask.iter().any(|m| *m != 0) {
+            let below = if y + 1 < h { row + stride } else { row };
+            for (x, _) in row_mask.iter().enumerate().filter(|(_, m)| **m != 0) {
+                for c in x * 3..x * 3 + 3 {
+                    let sum =
+                        u16::from(above[c]) + 2 * u16::from(current[c]) + u16::from(rgb[below + c]);
+                    rgb[row + c] = ((sum + 2) / 4) as u8;
                 }
-            });
+            }
+        }
+        std::mem::swap(&mut above, &mut current);
     }
 }
 

@@ -100,7 +100,7 @@ impl Canvas {
         let raw = self
             .rgb
             .iter()
-            .flat_map(|p| p.map(|v| v.round().clamp(0.0, 255.0) as u8))
+            .flat_map(|p| p.map(|v| (v + 0.5) as u8)) // rounds; `as` saturates
             .collect();
         RgbImage::from_raw(self.width as u32, self.height as u32, raw)
             .expect("the buffer has width * height RGB pixels by construction")
