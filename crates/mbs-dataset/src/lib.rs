@@ -1,0 +1,13 @@
+//! Dataset layouts (MBS20K, KITTI), the manifest model with its JSON Schema,
+//! and the on-disk checks behind `mbs-tool validate`.
+
+pub mod checksum;
+pub mod error;
+pub mod manifest;
+pub mod mbs20k;
+pub mod probe;
+pub mod schema;
+pub mod validate;
+
+pub use error::DatasetError;
+pub use manifest::{Manifest, PairGroundTruth, Provenance, Sample, Split};

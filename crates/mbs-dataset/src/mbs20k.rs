@@ -1,0 +1,291 @@
+//! The MBS20K layout (SPEC §3): `<root>/<Town>/<Weather>/<frame>/rgb_0.png …
+//! rgb_{N-1}.png, depth_0.png`. Scanning it gives a manifest; the counts per
+//! town and weather print like the paper's statistics table.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use mbs_core::Rig;
+
+use crate::error::DatasetError;
+use crate::manifest::{DepthEncoding, DepthInfo, FORMAT, Manifest, Provenance, Sample, Split};
+
+/// The towns held out for testing by default.
+pub const DEFAULT_TEST_TOWNS: [&str; 1] = ["Town10"];
+/// The depth limit of the authors' loader, in metres.
+pub const DEFAULT_MAX_DEPTH_M: f64 = 200.0;
+
+/// The file name of view `k`.
+pub fn view_file(k: usize) -> String {
+    format!("rgb_{k}.png")
+}
+
+/// The file name of the depth image of camera 0.
+pub const DEPTH_FILE: &str = "depth_0.png";
+
+/// How to scan an MBS20K tree.
+#[derive(Debug, Clone)]
+pub struct ScanOptions {
+    /// The rig; its size is checked later by `validate`.
+    pub rig: Rig,
+    /// Towns whose samples go to the test split.
+    pub test_towns: Vec<String>,
+    /// Depth beyond this is invalid for disparity.
+    pub max_depth_m: f64,
+}
+
+impl Default for ScanOptions {
+    fn default() -> Self {
+        ScanOptions {
+            rig: Rig::mbs20k(),
+            test_towns: DEFAULT_TEST_TOWNS.iter().map(|t| t.to_string()).collect(),
+            max_depth_m: DEFAULT_MAX_DEPTH_M,
+        }
+    }
+}
+
+fn sorted_subdirs(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
+    let io = |source| DatasetError::Io {
+        path: dir.to_path_buf(),
+        source,
+    };
+    let mut dirs = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(io)? {
+        let entry = entry.map_err(io)?;
+        if entry.file_type().map_err(io)?.is_dir() {
+            dirs.push(entry.path());
+        }
+    }
+    dirs.sort();
+    Ok(dirs)
+}
+
+fn name_of(path: &Path) -> String {
+    path.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// Every frame folder of an MBS20K tree (a folder holding `rgb_0.png`, three
+/// levels below `root`), sorted.
+pub fn frame_dirs(root: &Path) -> Result<Vec<PathBuf>, DatasetError> {
+    let mut frames = Vec::new();
+    for town in sorted_subdirs(root)? {
+        for weather in sorted_subdirs(&town)? {
+            for frame in sorted_subdirs(&weather)? {
+                if frame.join(view_file(0)).is_file() {
+                    frames.push(frame);
+                }
+            }
+        }
+    }
+    Ok(frames)
+}
+
+/// Scans an MBS20K tree into a manifest whose paths are relative to `root`
+/// (save it as `<root>/manifest.json`). Views are listed as the rig expects
+/// them, present or not, so that `validate` reports missing ones.
+pub fn scan(root: &Path, options: &ScanOptions) -> Result<Manifest, DatasetError> {
+    let frames = frame_dirs(root)?;
+    if frames.is_empty() {
+        return Err(DatasetError::Layout {
+            path: root.to_path_buf(),
+            message: "no frames found: expected <root>/<Town>/<Weather>/<frame>/rgb_0.png".into(),
+        });
+    }
+    let samples = frames
+        .iter()
+        .map(|frame| {
+            let weather_dir = frame.parent().unwrap_or(root);
+            let town = name_of(weather_dir.parent().unwrap_or(root));
+            let weather = name_of(weather_dir);
+            let id = format!("{town}/{weather}/{}", name_of(frame));
+            let views = (0..options.rig.num_views)
+                .map(|k| format!("{id}/{}", view_file(k)))
+                .collect();
+            let depth = frame
+                .join(DEPTH_FILE)
+                .is_file()
+                .then(|| format!("{id}/{DEPTH_FILE}"));
+            let split = if options.test_towns.contains(&town) {
+                Split::Test
+            } else {
+                Split::Train
+            };
+            Sample {
+                id,
+                split,
+                town: Some(town),
+                weather: Some(weather),
+                sequence: None,
+                views,
+                depth,
+                ground_truth: Vec::new(),
+                synthesized_masks: Vec::new(),
+                sha256: BTreeMap::new(),
+            }
+        })
+        .collect::<Vec<_>>();
+    let has_depth = samples.iter().any(|s| s.depth.is_some());
+    Ok(Manifest {
+        format: FORMAT.into(),
+        name: name_of(root),
+        rig: options.rig,
+        depth: has_depth.then_some(DepthInfo {
+            encoding: DepthEncoding::CarlaRgb,
+            camera: 0,
+            max_depth_m: options.max_depth_m,
+        }),
+        samples,
+        provenance: Some(Provenance {
+            tool: "mbs-tool scan".into(),
+            version: env!("CARGO_PKG_VERSION").into(),
+            settings: serde_json::json!({ "test_towns": options.test_towns }),
+        }),
+    })
+}
+
+/// Sample counts per town (rows) and weather (columns).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Counts {
+    /// `(town, weather) -> count`.
+    pub cells: BTreeMap<(String, String), usize>,
+}
+
+impl Counts {
+    /// Counts the samples of a manifest (samples without town or weather
+    /// count under `-`).
+    pub fn of(manifest: &Manifest) -> Counts {
+        let mut cells = BTreeMap::new();
+        for s in &manifest.samples {
+            let key = (
+                s.town.clone().unwrap_or_else(|| "-".into()),
+                s.weather.clone().unwrap_or_else(|| "-".into()),
+            );
+            *cells.entry(key).or_insert(0) += 1;
+        }
+        Counts { cells }
+    }
+
+    /// The total number of samples.
+    pub fn total(&self) -> usize {
+        self.cells.values().sum()
+    }
+
+    /// A table like the paper's "Statistics of our MBS20K dataset": one row
+    /// per town, one column per weather, totals on the right and at the bottom.
+    pub fn table(&self) -> String {
+        let towns: BTreeSet<&String> = self.cells.keys().map(|(t, _)| t).collect();
+        let weathers: BTreeSet<&String> = self.cells.keys().map(|(_, w)| w).collect();
+        let width = weathers.iter().map(|w| w.len()).max().unwrap_or(0).max(6);
+        let town_width = towns.iter().map(|t| t.len()).max().unwrap_or(0).max(4);
+        let mut out = String::new();
+        // Writing to a String cannot fail.
+        let _ = write!(out, "{:<town_width$}", "#Set");
+        for w in &weathers {
+            let _ = write!(out, " {w:>width$}");
+        }
+        let _ = writeln!(out, " {:>width$}", "All");
+        for town in &towns {
+            let _ = write!(out, "{town:<town_width$}");
+            let mut row_total = 0;
+            for w in &weathers {
+                let n = self
+                    .cells
+                    .get(&((*town).clone(), (*w).clone()))
+                    .copied()
+                    .unwrap_or(0);
+                row_total += n;
+                let _ = write!(out, " {n:>width$}");
+            }
+            let _ = writeln!(out, " {row_total:>width$}");
+        }
+        let _ = write!(out, "{:<town_width$}", "All");
+        for w in &weathers {
+            let n: usize = self
+                .cells
+                .iter()
+                .filter(|((_, cw), _)| cw == *w)
+                .map(|(_, n)| n)
+                .sum();
+            let _ = write!(out, " {n:>width$}");
+        }
+        let _ = writeln!(out, " {:>width$}", self.total());
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn touch(path: &Path) {
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(path, b"").unwrap();
+    }
+
+    #[test]
+    fn scans_layout_assigns_test_split_and_counts() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path();
+        for (town, weather, frame) in [
+            ("Town01", "ClearNoon", "000001"),
+            ("Town01", "ClearNoon", "000002"),
+            ("Town01", "ClearNight", "000001"),
+            ("Town10", "ClearNoon", "000007"),
+        ] {
+            touch(&root.join(town).join(weather).join(frame).join("rgb_0.png"));
+        }
+        touch(&root.join("Town01/ClearNoon/000001/depth_0.png"));
+        std::fs::create_dir_all(root.join("Town01/ClearNoon/empty")).unwrap();
+
+        let manifest = scan(root, &ScanOptions::default()).unwrap();
+        let ids: Vec<&str> = manifest.samples.iter().map(|s| s.id.as_str()).collect();
+        assert_eq!(
+            ids,
+            [
+                "Town01/ClearNight/000001",
+                "Town01/ClearNoon/000001",
+                "Town01/ClearNoon/000002",
+                "Town10/ClearNoon/000007"
+            ]
+        );
+        assert_eq!(manifest.samples[3].split, Split::Test);
+        assert_eq!(manifest.samples[0].split, Split::Train);
+        assert_eq!(
+            manifest.samples[1].depth.as_deref(),
+            Some("Town01/ClearNoon/000001/depth_0.png")
+        );
+        assert_eq!(manifest.samples[0].views.len(), 5);
+
+        let counts = Counts::of(&manifest);
+        assert_eq!(counts.total(), 4);
+        let table = counts.table();
+        let lines: Vec<&str> = table.lines().collect();
+        assert_eq!(
+            lines[0].split_whitespace().collect::<Vec<_>>(),
+            ["#Set", "ClearNight", "ClearNoon", "All"]
+        );
+        assert_eq!(
+            lines[1].split_whitespace().collect::<Vec<_>>(),
+            ["Town01", "1", "2", "3"]
+        );
+        assert_eq!(
+            lines[3].split_whitespace().collect::<Vec<_>>(),
+            ["All", "1", "3", "4"]
+        );
+    }
+
+    #[test]
+    fn empty_tree_is_a_layout_error_naming_the_root() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = scan(dir.path(), &ScanOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("no frames found") && err.contains(&*dir.path().to_string_lossy()),
+            "{err}"
+        );
+    }
+}

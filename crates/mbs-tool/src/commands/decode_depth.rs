@@ -1,0 +1,322 @@
+//! `mbs-tool decode-depth`: CARLA depth PNGs -> metric depth and disparity.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use clap::{Parser, ValueEnum};
+use mbs_core::formats::{carla, exr, pfm, png16, rgb};
+use mbs_core::geometry::depth_to_disparity;
+use mbs_core::{FloatImage, Rig};
+use mbs_dataset::Manifest;
+use mbs_dataset::manifest::resolve;
+
+use crate::cli::batch::{self, Outcome};
+use crate::cli::shard::Shard;
+
+/// Arguments of `decode-depth`.
+#[derive(Parser)]
+#[command(after_help = "Examples:
+  mbs-tool decode-depth /data/MBS20K --out /data/MBS20K-depth --all-pairs
+  mbs-tool decode-depth mbs-demo/manifest.json --pairs 0:1,0:4 --disparity-format pfm
+  mbs-tool decode-depth /data/MBS20K --shard $SLURM_ARRAY_TASK_ID/16
+
+Outputs per frame: depth_0.exr (or .pfm, or depth_0_mm.png) and disp_0_T.png
+(KITTI 16-bit, value/256) or disp_0_T.pfm for each requested pair 0:T.
+Invalid pixels (depth beyond --max-depth) are +inf in EXR/PFM and 0 in PNGs.
+Finished outputs are skipped, so an interrupted run resumes where it stopped.")]
+pub struct Args {
+    /// An MBS20K folder (searched recursively for depth_0.png) or a manifest (.json).
+    pub input: PathBuf,
+    /// Output folder, mirroring the input's layout [default: beside each depth_0.png].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// File format of the depth maps.
+    #[arg(long, value_enum, default_value_t = DepthFormat::Exr)]
+    pub depth_format: DepthFormat,
+    /// Also write disparity for these camera pairs, REFERENCE:TARGET, comma-separated.
+    #[arg(long, value_delimiter = ',', value_parser = parse_pair, conflicts_with = "all_pairs")]
+    pub pairs: Vec<(usize, usize)>,
+    /// Write disparity for the depth camera against every other camera.
+    #[arg(long)]
+    pub all_pairs: bool,
+    /// File format of the disparity maps.
+    #[arg(long, value_enum, default_value_t = DisparityFormat::Png16)]
+    pub disparity_format: DisparityFormat,
+    /// Depth beyond this many metres is invalid [default: the manifest's, else 200].
+    #[arg(long)]
+    pub max_depth: Option<f64>,
+    /// Focal length in pixels for folder input (MBS20K: 480).
+    #[arg(long, default_value_t = 480.0)]
+    pub focal: f64,
+    /// Baseline between neighbouring cameras in metres for folder input (MBS20K: 0.5).
+    #[arg(long, default_value_t = 0.5)]
+    pub baseline: f64,
+    /// Number of cameras for folder input (MBS20K: 5).
+    #[arg(long, default_value_t = 5)]
+    pub views: usize,
+    /// Process only shard K of N (0-based), for cluster job arrays.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<Shard>,
+    /// Worker threads (0 = one per core).
+    #[arg(long, default_value_t = 0)]
+    pub jobs: usize,
+}
+
+/// Depth map file formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DepthFormat {
+    /// OpenEXR float32, one channel `Y`, metres.
+    Exr,
+    /// PFM float32, metres.
+    Pfm,
+    /// 16-bit PNG in millimetres (at most 65.535 m).
+    Png16,
+}
+
+/// Disparity map file formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DisparityFormat {
+    /// KITTI 16-bit PNG, value / 256 px, 0 = invalid.
+    Png16,
+    /// PFM float32, +inf = invalid.
+    Pfm,
+}
+
+fn parse_pair(s: &str) -> Result<(usize, usize), String> {
+    let usage = || format!("invalid pair {s:?}: expected REFERENCE:TARGET, e.g. 0:4");
+    let (r, t) = s.split_once(':').ok_or_else(usage)?;
+    Ok((
+        r.trim().parse().map_err(|_| usage())?,
+        t.trim().parse().map_err(|_| usage())?,
+    ))
+}
+
+/// One depth image and where its outputs go.
+struct Job {
+    depth_png: PathBuf,
+    out_dir: PathBuf,
+}
+
+/// What to write for every job.
+struct Plan {
+    rig: Rig,
+    camera: usize,
+    targets: Vec<usize>,
+    max_depth_m: f32,
+    depth_format: DepthFormat,
+    disparity_format: DisparityFormat,
+}
+
+impl Plan {
+    fn depth_name(&self) -> String {
+        let c = self.camera;
+        match self.depth_format {
+            DepthFormat::Exr => format!("depth_{c}.exr"),
+            DepthFormat::Pfm => format!("depth_{c}.pfm"),
+            DepthFormat::Png16 => format!("depth_{c}_mm.png"),
+        }
+    }
+
+    fn disparity_name(&self, target: usize) -> String {
+        let ext = match self.disparity_format {
+            DisparityFormat::Png16 => "png",
+            DisparityFormat::Pfm => "pfm",
+        };
+        format!("disp_{}_{target}.{ext}", self.camera)
+    }
+
+    fn run(&self, job: &Job) -> anyhow::Result<Outcome> {
+        let depth_path = job.out_dir.join(self.depth_name());
+        let disparity_paths: Vec<(usize, PathBuf)> = self
+            .targets
+            .iter()
+            .map(|&t| (t, job.out_dir.join(self.disparity_name(t))))
+            .collect();
+        let depth_missing = !depth_path.exists();
+        let missing: Vec<&(usize, PathBuf)> = disparity_paths
+            .iter()
+            .filter(|(_, p)| !p.exists())
+            .collect();
+        if !depth_missing && missing.is_empty() {
+            return Ok(Outcome::Skipped);
+        }
+        let encoded = rgb::read_rgb8_strict(&job.depth_png)?;
+        let depth = carla::decode_depth(&encoded);
+        if depth_missing {
+            let mut valid_depth = depth.clone();
+            let max = self.max_depth_m;
+            valid_depth
+                .iter_mut()
+                .filter(|z| **z > max)
+                .for_each(|z| *z = f32::INFINITY);
+            self.write_depth(&depth_path, &valid_depth)?;
+        }
+        for (target, path) in missing {
+            let disparity =
+                depth_to_disparity(&depth, &self.rig, self.camera, *target, self.max_depth_m);
+            match self.disparity_format {
+                DisparityFormat::Png16 => png16::write_kitti_disparity(path, &disparity)?,
+                DisparityFormat::Pfm => pfm::write_pfm_grey(path, &disparity, pfm::Endian::Little)?,
+            }
+        }
+        Ok(Outcome::Done)
+    }
+
+    fn write_depth(&self, path: &Path, depth: &FloatImage) -> mbs_core::Result<()> {
+        match self.depth_format {
+            DepthFormat::Exr => exr::write_exr(path, depth),
+            DepthFormat::Pfm => pfm::write_pfm_grey(path, depth, pfm::Endian::Little),
+            DepthFormat::Png16 => png16::write_depth_mm(path, depth),
+        }
+    }
+}
+
+/// Runs `decode-depth`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    crate::cli::set_threads(args.jobs)?;
+    let (jobs, rig, camera, manifest_max) = if args.input.is_dir() {
+        let rig = Rig {
+            num_views: args.views,
+            baseline_m: args.baseline,
+            focal_px: args.focal,
+            ..Rig::mbs20k()
+        };
+        (
+            jobs_from_folder(&args.input, args.out.as_deref())?,
+            rig,
+            0,
+            None,
+        )
+    } else {
+        let manifest = Manifest::load(&args.input)?;
+        let depth = manifest.depth.as_ref();
+        let camera = depth.map_or(0, |d| d.camera);
+        let jobs = jobs_from_manifest(&args.input, &manifest, args.out.as_deref())?;
+        (jobs, manifest.rig, camera, depth.map(|d| d.max_depth_m))
+    };
+    let max_depth_m = args
+        .max_depth
+        .or(manifest_max)
+        .unwrap_or(mbs_dataset::mbs20k::DEFAULT_MAX_DEPTH_M);
+    if args.depth_format == DepthFormat::Png16 && max_depth_m > 65.535 {
+        bail!(
+            "--depth-format png16 stores millimetres in 16 bits (at most 65.535 m) but --max-depth is {max_depth_m} m: \
+             pass --max-depth 65 or less, or use exr or pfm"
+        );
+    }
+    let targets = requested_targets(&args.pairs, args.all_pairs, camera, rig.num_views)?;
+    let plan = Plan {
+        rig,
+        camera,
+        targets,
+        max_depth_m: max_depth_m as f32,
+        depth_format: args.depth_format,
+        disparity_format: args.disparity_format,
+    };
+    let jobs = match args.shard {
+        Some(shard) => shard.select(jobs),
+        None => jobs,
+    };
+    let summary = batch::run(
+        &jobs,
+        "images",
+        |j| j.depth_png.display().to_string(),
+        |j| plan.run(j),
+    );
+    summary.finish("decode-depth", "images")
+}
+
+fn requested_targets(
+    pairs: &[(usize, usize)],
+    all_pairs: bool,
+    camera: usize,
+    num_views: usize,
+) -> anyhow::Result<Vec<usize>> {
+    if all_pairs {
+        return Ok((0..num_views).filter(|&t| t != camera).collect());
+    }
+    pairs
+        .iter()
+        .map(|&(r, t)| {
+            if r != camera {
+                bail!("pair {r}:{t}: depth exists for camera {camera} only, so the reference must be {camera}");
+            }
+            if t == r || t >= num_views {
+                bail!("pair {r}:{t}: the target must be another camera of the {num_views}-camera rig");
+            }
+            Ok(t)
+        })
+        .collect()
+}
+
+fn jobs_from_folder(root: &Path, out: Option<&Path>) -> anyhow::Result<Vec<Job>> {
+    let mut jobs = Vec::new();
+    for entry in walkdir::WalkDir::new(root).sort_by_file_name() {
+        let entry = entry.with_context(|| format!("cannot list {}", root.display()))?;
+        if entry.file_type().is_file() && entry.file_name() == mbs_dataset::mbs20k::DEPTH_FILE {
+            let frame_dir = entry.path().parent().unwrap_or(root);
+            let relative = frame_dir.strip_prefix(root).unwrap_or(Path::new(""));
+            jobs.push(Job {
+                depth_png: entry.path().to_path_buf(),
+                out_dir: out.map_or_else(|| frame_dir.to_path_buf(), |o| o.join(relative)),
+            });
+        }
+    }
+    if jobs.is_empty() {
+        bail!(
+            "{}: no {} found in this folder or below",
+            root.display(),
+            mbs_dataset::mbs20k::DEPTH_FILE
+        );
+    }
+    Ok(jobs)
+}
+
+fn jobs_from_manifest(
+    manifest_path: &Path,
+    manifest: &Manifest,
+    out: Option<&Path>,
+) -> anyhow::Result<Vec<Job>> {
+    let jobs: Vec<Job> = manifest
+        .samples
+        .iter()
+        .filter_map(|s| s.depth.as_deref())
+        .map(|rel| {
+            let depth_png = resolve(manifest_path, rel);
+            let rel_dir = Path::new(rel).parent().unwrap_or(Path::new(""));
+            let out_dir = match out {
+                Some(o) => o.join(rel_dir),
+                None => depth_png.parent().unwrap_or(Path::new("")).to_path_buf(),
+            };
+            Job { depth_png, out_dir }
+        })
+        .collect();
+    if jobs.is_empty() {
+        bail!("{}: no sample has a depth image", manifest_path.display());
+    }
+    Ok(jobs)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pairs_must_start_at_the_depth_camera() {
+        assert_eq!(
+            requested_targets(&[(0, 1), (0, 4)], false, 0, 5).unwrap(),
+            vec![1, 4]
+        );
+        assert_eq!(requested_targets(&[], true, 0, 3).unwrap(), vec![1, 2]);
+        let err = requested_targets(&[(1, 2)], false, 0, 5)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("reference must be 0"), "{err}");
+        let err = requested_targets(&[(0, 5)], false, 0, 5)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("5-camera rig"), "{err}");
+        assert_eq!(parse_pair("0:3"), Ok((0, 3)));
+        assert!(parse_pair("03").is_err());
+    }
+}

@@ -1,0 +1,5 @@
+//! One module per subcommand: argument parsing (clap) and orchestration only.
+
+pub mod decode_depth;
+pub mod scan;
+pub mod validate;

@@ -1,0 +1,78 @@
+//! `mbs-tool scan`: an MBS20K folder -> a manifest, with its statistics.
+
+use std::path::PathBuf;
+
+use clap::Parser;
+use mbs_core::Rig;
+use mbs_dataset::mbs20k::{Counts, ScanOptions, scan};
+
+/// Arguments of `scan`.
+#[derive(Parser)]
+#[command(after_help = "Examples:
+  mbs-tool scan /data/MBS20K                      # writes /data/MBS20K/manifest.json
+  mbs-tool scan /data/MBS20K --test-towns Town10,Town05 --out mbs20k.json
+
+Expects <root>/<Town>/<Weather>/<frame>/rgb_0.png … rgb_4.png, depth_0.png and
+prints the number of sets per town and weather. Check the result with
+`mbs-tool validate`.")]
+pub struct Args {
+    /// The MBS20K root folder.
+    pub root: PathBuf,
+    /// Where to write the manifest [default: ROOT/manifest.json]; its paths
+    /// are relative to its own folder.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Towns whose samples form the test split.
+    #[arg(long, value_delimiter = ',', default_value = "Town10")]
+    pub test_towns: Vec<String>,
+    /// Image width in pixels.
+    #[arg(long, default_value_t = 960)]
+    pub width: u32,
+    /// Image height in pixels.
+    #[arg(long, default_value_t = 540)]
+    pub height: u32,
+    /// Focal length in pixels.
+    #[arg(long, default_value_t = 480.0)]
+    pub focal: f64,
+    /// Baseline between neighbouring cameras in metres.
+    #[arg(long, default_value_t = 0.5)]
+    pub baseline: f64,
+    /// Number of cameras.
+    #[arg(long, default_value_t = 5)]
+    pub views: usize,
+    /// Depth beyond this many metres is invalid for disparity.
+    #[arg(long, default_value_t = 200.0)]
+    pub max_depth: f64,
+}
+
+/// Runs `scan`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let options = ScanOptions {
+        rig: Rig::centred(
+            args.views,
+            args.baseline,
+            args.focal,
+            args.width,
+            args.height,
+        ),
+        test_towns: args.test_towns,
+        max_depth_m: args.max_depth,
+    };
+    let mut manifest = scan(&args.root, &options)?;
+    let out = args.out.unwrap_or_else(|| args.root.join("manifest.json"));
+    let out_dir = out.parent().unwrap_or(std::path::Path::new(""));
+    let out_dir = if out_dir.as_os_str().is_empty() {
+        std::path::Path::new(".")
+    } else {
+        out_dir
+    };
+    manifest.rebase(&mbs_dataset::manifest::relative_path(out_dir, &args.root)?);
+    manifest.save(&out)?;
+    print!("{}", Counts::of(&manifest).table());
+    eprintln!(
+        "scan: {} samples -> {}",
+        manifest.samples.len(),
+        out.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,43 @@
+//! The `mbs-tool` command line: a thin layer over the mbs library crates, one
+//! module per subcommand, no algorithms here.
+
+mod cli;
+mod commands;
+
+use clap::{Parser, Subcommand};
+
+/// Multi-baseline stereo toolkit: build training data for stereo networks
+/// (CARLA depth decoding, synthetic scenes, dataset manifests) and check it.
+#[derive(Parser)]
+#[command(name = "mbs-tool", version, propagate_version = true)]
+#[command(after_help = "Start with `mbs-tool demo`, then `mbs-tool <COMMAND> --help`.")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Decode CARLA depth PNGs into metric depth and disparity maps.
+    DecodeDepth(commands::decode_depth::Args),
+    /// Scan an MBS20K folder into a manifest and print its statistics.
+    Scan(commands::scan::Args),
+    /// Check a dataset manifest against its schema and the files on disk.
+    Validate(commands::validate::Args),
+}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::DecodeDepth(args) => commands::decode_depth::run(args),
+        Command::Scan(args) => commands::scan::run(args),
+        Command::Validate(args) => commands::validate::run(args),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
