@@ -38,7 +38,8 @@ fn validate_json(manifest: &Path, deep: bool) -> (bool, Value) {
         args.push("--deep");
     }
     let output = run(&args);
-    let report: Value = serde_json::from_slice(&output.stdout).unwrap_or_else(|_| panic!("{}", text(&output)));
+    let report: Value =
+        serde_json::from_slice(&output.stdout).unwrap_or_else(|_| panic!("{}", text(&output)));
     (output.status.success(), report)
 }
 
@@ -57,7 +58,11 @@ fn clean_synthetic_dataset_passes_fast_and_deep() {
     }
     let output = run(&["validate", manifest.to_str().unwrap()]);
     assert!(output.status.success(), "{}", text(&output));
-    assert!(String::from_utf8_lossy(&output.stderr).contains("0 problem(s)"), "{}", text(&output));
+    assert!(
+        String::from_utf8_lossy(&output.stderr).contains("0 problem(s)"),
+        "{}",
+        text(&output)
+    );
 }
 
 #[test]
@@ -66,7 +71,8 @@ fn every_kind_of_corruption_is_reported_for_its_sample() {
     let root = dir.path();
     synth(root, "5");
     let manifest_path = root.join("manifest.json");
-    let mut manifest: Value = serde_json::from_str(&std::fs::read_to_string(&manifest_path).unwrap()).unwrap();
+    let mut manifest: Value =
+        serde_json::from_str(&std::fs::read_to_string(&manifest_path).unwrap()).unwrap();
     let ids: Vec<String> = manifest["samples"]
         .as_array()
         .unwrap()
@@ -90,13 +96,20 @@ fn every_kind_of_corruption_is_reported_for_its_sample() {
     // 6: invalid schema field.
     manifest["samples"][6]["split"] = Value::String("training".into());
     // 7: wrong number of views.
-    manifest["samples"][7]["views"].as_array_mut().unwrap().pop();
+    manifest["samples"][7]["views"]
+        .as_array_mut()
+        .unwrap()
+        .pop();
     // 8: checksum mismatch: a valid image of the right size with other pixels.
     let view = file(8, "rgb_0.png");
     let mut img = rgb::read_rgb(&view).unwrap();
     img.get_pixel_mut(3, 3).0[0] ^= 0xff;
     rgb::write_rgb_png(&view, &img).unwrap();
-    std::fs::write(&manifest_path, serde_json::to_string_pretty(&manifest).unwrap()).unwrap();
+    std::fs::write(
+        &manifest_path,
+        serde_json::to_string_pretty(&manifest).unwrap(),
+    )
+    .unwrap();
 
     for deep in [false, true] {
         let (ok, report) = validate_json(&manifest_path, deep);
@@ -104,7 +117,9 @@ fn every_kind_of_corruption_is_reported_for_its_sample() {
         let problems = report["problems"].as_array().unwrap();
         let found = |sample: &str, kind: &str, path_end: &str| {
             problems.iter().any(|p| {
-                p["sample"] == sample && p["kind"] == kind && p["path"].as_str().unwrap_or("").ends_with(path_end)
+                p["sample"] == sample
+                    && p["kind"] == kind
+                    && p["path"].as_str().unwrap_or("").ends_with(path_end)
             })
         };
         let expectations = [
@@ -118,10 +133,17 @@ fn every_kind_of_corruption_is_reported_for_its_sample() {
             (8, "checksum_mismatch", "rgb_0.png"),
         ];
         for (i, kind, path) in expectations {
-            assert!(found(&ids[i], kind, path), "deep={deep}: no {kind} for {} in {problems:#?}", ids[i]);
+            assert!(
+                found(&ids[i], kind, path),
+                "deep={deep}: no {kind} for {} in {problems:#?}",
+                ids[i]
+            );
         }
         // Nothing is reported for the untouched sample 9.
-        assert!(!problems.iter().any(|p| p["sample"] == ids[9].as_str()), "{problems:#?}");
+        assert!(
+            !problems.iter().any(|p| p["sample"] == ids[9].as_str()),
+            "{problems:#?}"
+        );
     }
 
     // The line report names the sample and the file, and the exit code is non-zero.
@@ -139,8 +161,16 @@ fn unreadable_manifest_is_one_clear_problem() {
     std::fs::write(&path, "{ not json").unwrap();
     let output = run(&["validate", path.to_str().unwrap()]);
     assert!(!output.status.success());
-    assert!(String::from_utf8_lossy(&output.stdout).contains("not valid JSON"), "{}", text(&output));
+    assert!(
+        String::from_utf8_lossy(&output.stdout).contains("not valid JSON"),
+        "{}",
+        text(&output)
+    );
     let output = run(&["validate", dir.path().join("none.json").to_str().unwrap()]);
     assert!(!output.status.success());
-    assert!(String::from_utf8_lossy(&output.stderr).contains("none.json"), "{}", text(&output));
+    assert!(
+        String::from_utf8_lossy(&output.stderr).contains("none.json"),
+        "{}",
+        text(&output)
+    );
 }

@@ -20,6 +20,8 @@ struct Cli {
 enum Command {
     /// Decode CARLA depth PNGs into metric depth and disparity maps.
     DecodeDepth(commands::decode_depth::Args),
+    /// Synthesise two extra views of stereo pairs (one baseline further left and right).
+    Extrapolate(commands::extrapolate::Args),
     /// Scan an MBS20K folder into a manifest and print its statistics.
     Scan(commands::scan::Args),
     /// Check a dataset manifest against its schema and the files on disk.
@@ -30,6 +32,7 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::DecodeDepth(args) => commands::decode_depth::run(args),
+        Command::Extrapolate(args) => commands::extrapolate::run(args),
         Command::Scan(args) => commands::scan::run(args),
         Command::Validate(args) => commands::validate::run(args),
     };
