@@ -1,5 +1,7 @@
 //! End-to-end tests of `mbs-tool decode-depth` on CARLA depth PNGs on disk.
 
+#![allow(clippy::unwrap_used)] // test code: a panic is the failure report
+
 mod common;
 
 use std::time::{Duration, Instant};

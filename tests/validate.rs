@@ -1,6 +1,8 @@
 //! End-to-end tests of `mbs-tool validate` on a synthetic dataset with each
 //! kind of corruption a real dataset suffers.
 
+#![allow(clippy::unwrap_used)] // test code: a panic is the failure report
+
 mod common;
 
 use std::path::Path;

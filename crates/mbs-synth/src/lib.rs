@@ -23,6 +23,7 @@
 //! ```
 
 mod bvh;
+pub mod dataset;
 mod generate;
 mod noise;
 mod occlusion;

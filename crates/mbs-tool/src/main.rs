@@ -18,6 +18,10 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Run the whole pipeline on built-in synthetic data and show the outputs.
+    Demo(commands::demo::Args),
+    /// Render synthetic multi-camera street scenes with exact ground truth.
+    Synth(commands::synth::Args),
     /// Decode CARLA depth PNGs into metric depth and disparity maps.
     DecodeDepth(commands::decode_depth::Args),
     /// Synthesise two extra views of stereo pairs (one baseline further left and right).
@@ -31,6 +35,8 @@ enum Command {
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Demo(args) => commands::demo::run(args),
+        Command::Synth(args) => commands::synth::run(args),
         Command::DecodeDepth(args) => commands::decode_depth::run(args),
         Command::Extrapolate(args) => commands::extrapolate::run(args),
         Command::Scan(args) => commands::scan::run(args),

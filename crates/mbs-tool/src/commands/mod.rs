@@ -1,6 +1,8 @@
 //! One module per subcommand: argument parsing (clap) and orchestration only.
 
 pub mod decode_depth;
+pub mod demo;
 pub mod extrapolate;
 pub mod scan;
+pub mod synth;
 pub mod validate;
