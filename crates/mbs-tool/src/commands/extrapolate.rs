@@ -62,7 +62,7 @@ pub struct Args {
     #[arg(long, requires = "kitti", conflicts_with = "disparity_dir")]
     pub right_disparity_dir: Option<PathBuf>,
     /// How the hole masks are grown before inpainting (none measured best on
-    /// Middlebury Tsukuba with accurate disparities; grow for bleeding ones).
+    /// Middlebury Tsukuba, also with disparities that bleed across edges).
     #[arg(long, value_enum, default_value_t = DilationKind::None)]
     pub dilation: DilationKind,
     /// Radius in pixels of the dilation.
