@@ -119,7 +119,7 @@ impl RowSplat<'_> {
 /// on baseline x86-64 (`as` truncates towards zero and saturates).
 fn ceil_index(t: f32) -> i64 {
     let i = t as i64;
-    if (i as f32) < t { i + 1 } else { i }
+    if (i as f32) < t { i.saturating_add(1) } else { i }
 }
 
 /// Splats one source row into `row`: each valid pixel covers half a pixel
@@ -321,6 +321,16 @@ mod tests {
             1e6 + 0.5,
         ] {
             assert_eq!(ceil_index(t), t.ceil() as i64, "t={t}");
+        }
+    }
+
+    #[test]
+    fn absurd_disparities_leave_the_image_without_panicking() {
+        let img = ramp(4, 1);
+        let disp = FloatImage::from_raw(4, 1, vec![1e30, -1e30, f32::NAN, f32::MAX]).unwrap();
+        for side in [Side::Left, Side::Right] {
+            let out = forward_warp(&img, &disp, side).unwrap();
+            assert!(out.holes.as_raw().iter().all(|h| *h == 255));
         }
     }
 
