@@ -119,7 +119,11 @@ impl RowSplat<'_> {
 /// on baseline x86-64 (`as` truncates towards zero and saturates).
 fn ceil_index(t: f32) -> i64 {
     let i = t as i64;
-    if (i as f32) < t { i.saturating_add(1) } else { i }
+    if (i as f32) < t {
+        i.saturating_add(1)
+    } else {
+        i
+    }
 }
 
 /// Splats one source row into `row`: each valid pixel covers half a pixel
