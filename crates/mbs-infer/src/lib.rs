@@ -1,6 +1,7 @@
 //! Stereo matching and inpainting behind traits, with built-in defaults:
-//! a semi-global matcher ([`Sgm`]) and a block-matching baseline
-//! ([`BlockMatcher`]).
+//! a semi-global matcher ([`Sgm`]), a block-matching baseline
+//! ([`BlockMatcher`]) and background-side inpainting
+//! ([`inpaint::BackgroundFill`]).
 //!
 //! Matchers follow SPEC §2: they take a rectified pair whose target (right)
 //! camera lies right of the reference (left) one and return a non-negative
@@ -10,6 +11,7 @@
 
 pub mod block;
 pub mod error;
+pub mod inpaint;
 pub mod matcher;
 pub mod postprocess;
 pub mod sgm;

@@ -28,6 +28,8 @@ enum Command {
     Eval(commands::eval::Args),
     /// Compute disparity for rectified pairs with the built-in matcher.
     Predict(commands::predict::Args),
+    /// Synthesise two extra views of stereo pairs (one baseline further left and right).
+    Extrapolate(commands::extrapolate::Args),
     /// Scan an MBS20K folder into a manifest and print its statistics.
     Scan(commands::scan::Args),
     /// Check a dataset manifest against its schema and the files on disk.
@@ -42,6 +44,7 @@ fn main() -> std::process::ExitCode {
         Command::DecodeDepth(args) => commands::decode_depth::run(args),
         Command::Eval(args) => commands::eval::run(args),
         Command::Predict(args) => commands::predict::run(args),
+        Command::Extrapolate(args) => commands::extrapolate::run(args),
         Command::Scan(args) => commands::scan::run(args),
         Command::Validate(args) => commands::validate::run(args),
     };

@@ -4,6 +4,7 @@ pub mod decode_depth;
 pub mod demo;
 pub mod eval;
 pub mod predict;
+pub mod extrapolate;
 pub mod scan;
 pub mod synth;
 pub mod validate;
