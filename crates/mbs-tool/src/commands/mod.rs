@@ -3,8 +3,8 @@
 pub mod decode_depth;
 pub mod demo;
 pub mod eval;
-pub mod predict;
 pub mod extrapolate;
+pub mod predict;
 pub mod scan;
 pub mod synth;
 pub mod validate;
