@@ -31,6 +31,9 @@ pub enum InferError {
         /// What is accepted.
         expected: &'static str,
     },
+    /// A model backend (ONNX Runtime) failed; the message names the model.
+    #[error("{0}")]
+    Backend(String),
 }
 
 /// Result of a matcher.

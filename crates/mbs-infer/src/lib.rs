@@ -1,7 +1,9 @@
 //! Stereo matching and inpainting behind traits, with built-in defaults:
 //! a semi-global matcher ([`Sgm`]), a block-matching baseline
 //! ([`BlockMatcher`]) and background-side inpainting
-//! ([`inpaint::BackgroundFill`]).
+//! ([`inpaint::BackgroundFill`]); with the default `onnx` feature, ONNX
+//! networks through ONNX Runtime ([`onnx::OnnxStereo`],
+//! [`onnx::OnnxInpainter`]).
 //!
 //! Matchers follow SPEC §2: they take a rectified pair whose target (right)
 //! camera lies right of the reference (left) one and return a non-negative
@@ -13,6 +15,8 @@ pub mod block;
 pub mod error;
 pub mod inpaint;
 pub mod matcher;
+#[cfg(feature = "onnx")]
+pub mod onnx;
 pub mod postprocess;
 pub mod sgm;
 

@@ -34,6 +34,9 @@ pub enum InpaintError {
     /// Every pixel is masked: there is nothing to fill from.
     #[error("the mask covers the whole {0}x{1} image: no pixel to fill from")]
     NothingKnown(u32, u32),
+    /// A model backend (ONNX Runtime) failed; the message names the model.
+    #[error("{0}")]
+    Backend(String),
 }
 
 /// Replaces the masked pixels of an image.
@@ -55,7 +58,7 @@ pub trait Inpainter: Send + Sync {
 }
 
 /// Checks that `mask` and `disparity` are on `image`'s grid.
-fn check_inputs(
+pub(crate) fn check_inputs(
     image: &RgbImage,
     mask: &MaskImage,
     disparity: Option<&FloatImage>,

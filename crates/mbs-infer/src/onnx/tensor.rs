@@ -1,0 +1,358 @@
+//! Images to input tensors and output tensors back to images, following a
+//! model card: padding, layout, colour order, normalisation.
+
+use mbs_core::{MaskImage, RgbImage};
+
+use super::card::{ColorOrder, Layout, MaskSpec, ModelCard, PadMode, PadSide, SizePolicy};
+
+/// Pixels added around an image before inference.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Padding {
+    /// Columns added on the left.
+    pub left: u32,
+    /// Columns added on the right.
+    pub right: u32,
+    /// Rows added on top.
+    pub top: u32,
+    /// Rows added at the bottom.
+    pub bottom: u32,
+}
+
+impl Padding {
+    /// The padding that brings a `width` x `height` image to the card's
+    /// multiple (none for fixed-size cards, whose inputs are resized).
+    pub fn for_card(width: u32, height: u32, size: &SizePolicy) -> Padding {
+        let SizePolicy::Dynamic {
+            multiple,
+            horizontal,
+            vertical,
+            ..
+        } = *size
+        else {
+            return Padding::default();
+        };
+        let (left, right) = split(width.next_multiple_of(multiple) - width, horizontal);
+        let (top, bottom) = split(height.next_multiple_of(multiple) - height, vertical);
+        Padding {
+            left,
+            right,
+            top,
+            bottom,
+        }
+    }
+
+    /// The padded size of a `width` x `height` image.
+    pub fn padded(&self, width: u32, height: u32) -> (u32, u32) {
+        (
+            width + self.left + self.right,
+            height + self.top + self.bottom,
+        )
+    }
+}
+
+fn split(total: u32, side: PadSide) -> (u32, u32) {
+    match side {
+        PadSide::Start => (total, 0),
+        PadSide::End => (0, total),
+        PadSide::Both => (total / 2, total - total / 2),
+    }
+}
+
+/// An element type of model tensors.
+pub trait Element:
+    ort::value::PrimitiveTensorElementType + Copy + Default + std::fmt::Debug + Send + Sync + 'static
+{
+    /// The nearest value of this type.
+    fn from_f32(v: f32) -> Self;
+    /// The value as a float.
+    fn to_f32(self) -> f32;
+}
+
+impl Element for f32 {
+    fn from_f32(v: f32) -> f32 {
+        v
+    }
+    fn to_f32(self) -> f32 {
+        self
+    }
+}
+
+impl Element for u8 {
+    fn from_f32(v: f32) -> u8 {
+        v.round().clamp(0.0, 255.0) as u8
+    }
+    fn to_f32(self) -> f32 {
+        f32::from(self)
+    }
+}
+
+/// One image going into a tensor: its raw channels and the value each of
+/// the 256 levels of each channel becomes.
+pub struct Source<'a> {
+    /// Interleaved 8-bit pixels, `channels` per pixel, row-major.
+    raw: &'a [u8],
+    /// Channels per pixel of `raw`.
+    channels: usize,
+    /// Per tensor channel: (channel of `raw`, level -> value).
+    maps: Vec<(usize, [f32; 256])>,
+    /// Value of zero-filled padding, per tensor channel.
+    zero: f32,
+}
+
+impl<'a> Source<'a> {
+    /// A colour image normalised as the card says, in its colour order.
+    pub fn rgb(image: &'a RgbImage, card: &ModelCard) -> Source<'a> {
+        let order = match card.color_order {
+            ColorOrder::Rgb => [0, 1, 2],
+            ColorOrder::Bgr => [2, 1, 0],
+        };
+        let maps = (0..3)
+            .map(|c| {
+                let level = |v: usize| (v as f32 * card.scale - card.mean[c]) / card.std[c];
+                (order[c], std::array::from_fn(level))
+            })
+            .collect();
+        Source {
+            raw: image.as_raw(),
+            channels: 3,
+            maps,
+            zero: 0.0,
+        }
+    }
+
+    /// A hole mask (non-zero = fill) as the card's hole and keep values.
+    pub fn mask(mask: &'a MaskImage, spec: MaskSpec) -> Source<'a> {
+        let level = |v: usize| if v == 0 { spec.keep } else { spec.hole };
+        Source {
+            raw: mask.as_raw(),
+            channels: 1,
+            maps: vec![(0, std::array::from_fn(level))],
+            zero: spec.keep,
+        }
+    }
+
+    /// Number of tensor channels this source fills.
+    pub fn channels(&self) -> usize {
+        self.maps.len()
+    }
+}
+
+/// Writes one batch item from `sources` (their channels one after the
+/// other) of size `width` x `height`, padded by `pad`, into `out`, which
+/// holds `channels * padded width * padded height` values in `layout`.
+pub fn write_item<T: Element>(
+    out: &mut [T],
+    sources: &[Source<'_>],
+    (width, height): (u32, u32),
+    pad: Padding,
+    fill: PadMode,
+    layout: Layout,
+) {
+    let (pw, ph) = pad.padded(width, height);
+    let (pw, ph) = (pw as usize, ph as usize);
+    let channels: usize = sources.iter().map(Source::channels).sum();
+    // Source column / row of every padded one; None = zero padding.
+    let index = |n: u32, before: u32, len: usize| -> Vec<Option<usize>> {
+        (0..len)
+            .map(|i| {
+                let i = i as i64 - i64::from(before);
+                match fill {
+                    PadMode::Replicate => Some(i.clamp(0, i64::from(n) - 1) as usize),
+                    PadMode::Zero => (0..i64::from(n)).contains(&i).then_some(i as usize),
+                }
+            })
+            .collect()
+    };
+    let xs = index(width, pad.left, pw);
+    let ys = index(height, pad.top, ph);
+    let w = width as usize;
+    let mut c0 = 0;
+    for source in sources {
+        for (k, (raw_channel, map)) in source.maps.iter().enumerate() {
+            let c = c0 + k;
+            let zero = T::from_f32(source.zero);
+            let lut: [T; 256] = std::array::from_fn(|v| T::from_f32(map[v]));
+            for (y, sy) in ys.iter().enumerate() {
+                let row =
+                    sy.map(|sy| &source.raw[sy * w * source.channels..][..w * source.channels]);
+                let value = |sx: &Option<usize>| match (row, sx) {
+                    (Some(row), Some(sx)) => {
+                        lut[usize::from(row[sx * source.channels + raw_channel])]
+                    }
+                    _ => zero,
+                };
+                match layout {
+                    Layout::Nchw => {
+                        let dst = &mut out[(c * ph + y) * pw..][..pw];
+                        for (d, sx) in dst.iter_mut().zip(&xs) {
+                            *d = value(sx);
+                        }
+                    }
+                    Layout::Nhwc => {
+                        for (x, sx) in xs.iter().enumerate() {
+                            out[(y * pw + x) * channels + c] = value(sx);
+                        }
+                    }
+                }
+            }
+        }
+        c0 += source.channels();
+    }
+}
+
+/// Where the maps of one batch item lie in an output tensor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OutputMaps {
+    /// Offset between consecutive channels.
+    channel_stride: usize,
+    /// Offset between consecutive pixels of a row.
+    pixel_stride: usize,
+    /// Offset between consecutive batch items.
+    item_stride: usize,
+    /// Number of channels.
+    channels: usize,
+}
+
+impl OutputMaps {
+    /// Locates `width` x `height` maps in a tensor of shape `dims`: rank 4
+    /// NCHW or NHWC (told apart by where the size sits), rank 3 (N, H, W)
+    /// or rank 2 (H, W). `None` when no such map fits the shape.
+    pub fn locate(dims: &[i64], batch: usize, (width, height): (u32, u32)) -> Option<OutputMaps> {
+        let (w, h) = (i64::from(width), i64::from(height));
+        let plane = (width as usize) * (height as usize);
+        let positive = |d: i64| usize::try_from(d).ok();
+        let maps = match *dims {
+            [n, c, hh, ww] if hh == h && ww == w => OutputMaps {
+                channel_stride: plane,
+                pixel_stride: 1,
+                item_stride: positive(c)? * plane,
+                channels: positive(c)?,
+            }
+            .with_batch(n, batch)?,
+            [n, hh, ww, c] if hh == h && ww == w => OutputMaps {
+                channel_stride: 1,
+                pixel_stride: positive(c)?,
+                item_stride: positive(c)? * plane,
+                channels: positive(c)?,
+            }
+            .with_batch(n, batch)?,
+            [n, hh, ww] if hh == h && ww == w => OutputMaps {
+                channel_stride: plane,
+                pixel_stride: 1,
+                item_stride: plane,
+                channels: 1,
+            }
+            .with_batch(n, batch)?,
+            [hh, ww] if hh == h && ww == w && batch == 1 => OutputMaps {
+                channel_stride: plane,
+                pixel_stride: 1,
+                item_stride: plane,
+                channels: 1,
+            },
+            _ => return None,
+        };
+        Some(maps)
+    }
+
+    fn with_batch(self, n: i64, batch: usize) -> Option<OutputMaps> {
+        (usize::try_from(n).ok()? == batch).then_some(self)
+    }
+
+    /// Number of channels per item.
+    pub fn channels(&self) -> usize {
+        self.channels
+    }
+
+    /// Channel `channel` of item `item`, row-major, as floats.
+    pub fn plane<T: Element>(&self, data: &[T], item: usize, channel: usize) -> Vec<f32> {
+        let start = item * self.item_stride + channel * self.channel_stride;
+        let len = self.item_stride / self.channels;
+        if self.pixel_stride == 1 {
+            data[start..start + len]
+                .iter()
+                .map(|v| v.to_f32())
+                .collect()
+        } else {
+            data[start..]
+                .iter()
+                .step_by(self.pixel_stride)
+                .take(len)
+                .map(|v| v.to_f32())
+                .collect()
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn card(size: &str) -> ModelCard {
+        ModelCard::from_json(
+            "test",
+            &format!(
+                r#"{{"name": "t", "task": "stereo", "inputs": {{"left": "l", "right": "r"}},
+                    "scale": 0.5, "mean": [1, 2, 3], "std": [1, 2, 4], "color_order": "BGR",
+                    "size": {size}, "output": {{"name": "d"}}}}"#
+            ),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn padding_reaches_the_multiple_on_the_chosen_sides() {
+        let size = card(
+            r#"{"mode": "dynamic", "multiple": 8, "horizontal": "both", "vertical": "start"}"#,
+        )
+        .size;
+        let pad = Padding::for_card(13, 9, &size);
+        assert_eq!(
+            pad,
+            Padding {
+                left: 1,
+                right: 2,
+                top: 7,
+                bottom: 0
+            }
+        );
+        assert_eq!(pad.padded(13, 9), (16, 16));
+        let fixed = card(r#"{"mode": "fixed", "width": 4, "height": 4}"#).size;
+        assert_eq!(Padding::for_card(13, 9, &fixed), Padding::default());
+    }
+
+    #[test]
+    fn items_are_normalised_reordered_and_padded() {
+        let card = card(r#"{"mode": "dynamic", "multiple": 1}"#);
+        let image = RgbImage::from_raw(2, 1, vec![10, 20, 30, 40, 50, 60]).unwrap();
+        let source = [Source::rgb(&image, &card)];
+        let pad = Padding {
+            left: 1,
+            ..Padding::default()
+        };
+        let mut nchw = vec![0f32; 9];
+        write_item(
+            &mut nchw,
+            &source,
+            (2, 1),
+            pad,
+            PadMode::Replicate,
+            Layout::Nchw,
+        );
+        // BGR: channel 0 is blue, (30 * 0.5 - 1) / 1 = 14; replicated left.
+        assert_eq!(nchw, [14.0, 14.0, 29.0, 4.0, 4.0, 11.5, 0.5, 0.5, 4.25]);
+        let mut nhwc = vec![0f32; 9];
+        write_item(&mut nhwc, &source, (2, 1), pad, PadMode::Zero, Layout::Nhwc);
+        assert_eq!(nhwc, [0.0, 0.0, 0.0, 14.0, 4.0, 0.5, 29.0, 11.5, 4.25]);
+    }
+
+    #[test]
+    fn output_maps_are_found_in_either_layout() {
+        let nchw = OutputMaps::locate(&[2, 2, 3, 4], 2, (4, 3)).unwrap();
+        let data: Vec<f32> = (0..48).map(|v| v as f32).collect();
+        assert_eq!(nchw.plane(&data, 1, 1)[0], 36.0);
+        let nhwc = OutputMaps::locate(&[1, 3, 4, 2], 1, (4, 3)).unwrap();
+        assert_eq!(nhwc.plane(&data, 0, 1)[..2], [1.0, 3.0]);
+        assert!(OutputMaps::locate(&[1, 1, 5, 4], 1, (4, 3)).is_none());
+        assert!(OutputMaps::locate(&[3, 4], 1, (4, 3)).is_some());
+    }
+}
