@@ -26,7 +26,7 @@ enum Command {
     DecodeDepth(commands::decode_depth::Args),
     /// Score predicted disparities against ground truth (EPE, Out-x, D1).
     Eval(commands::eval::Args),
-    /// Compute disparity for rectified pairs with the built-in matcher.
+    /// Compute disparity for rectified pairs (built-in matcher or an ONNX network).
     Predict(commands::predict::Args),
     /// Synthesise two extra views of stereo pairs (one baseline further left and right).
     Extrapolate(commands::extrapolate::Args),

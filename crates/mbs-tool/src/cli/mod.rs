@@ -1,7 +1,8 @@
 //! Pieces shared by the subcommands: sharding, parallel batches with a
-//! progress bar and a summary, thread-pool setup.
+//! progress bar and a summary, thread-pool setup, ONNX Runtime flags.
 
 pub mod batch;
+pub mod onnx;
 pub mod shard;
 
 /// Sets the number of worker threads (0 = one per core).

@@ -1,5 +1,5 @@
 //! `mbs-tool predict`: disparity for rectified pairs with the built-in
-//! semi-global matcher.
+//! semi-global matcher or an ONNX stereo network (`--model`, `--card`).
 
 use std::path::{Path, PathBuf};
 
@@ -9,9 +9,11 @@ use mbs_core::colormap::colorize_disparity;
 use mbs_core::formats::{pfm, png16, rgb};
 use mbs_dataset::Manifest;
 use mbs_dataset::manifest::resolve;
-use mbs_infer::{Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max_disparity};
+use mbs_infer::onnx::{ModelCard, OnnxStereo};
+use mbs_infer::{Disparity, Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max_disparity};
 
 use crate::cli::batch::{self, Outcome};
+use crate::cli::onnx::OnnxArgs;
 use crate::cli::shard::Shard;
 
 /// Arguments of `predict`.
@@ -20,11 +22,15 @@ use crate::cli::shard::Shard;
   mbs-tool predict --left im2.png --right im6.png --max-disparity 64 --out pred --color
   mbs-tool predict --kitti /data/kitti2015/training --format png16 --out pred/disp_0
   mbs-tool predict --manifest mbs-demo/manifest.json --pair 2:1 --out pred
+  mbs-tool predict --kitti DIR --model igev.onnx --card igev --device cuda --out pred
 
 Outputs: <out>/<name>.pfm (+inf = invalid) or <out>/<name>.png (KITTI 16-bit,
 value/256, 0 = invalid), where <name> is the left view's file stem (pairs and
 KITTI) or the sample id (manifests); with --color also <name>_color.png.
-Holes are filled from the background side, so every pixel has a value.
+With the built-in matcher, holes are filled from the background side, so
+every pixel has a value; with --model, pixels the network gives a negative
+disparity are invalid. Built-in cards: lama, migan, crestereo, hitnet,
+raft-stereo, igev (see schemas/model-card.schema.json to write one).
 Finished outputs are skipped, so an interrupted run resumes where it stopped.")]
 pub struct Args {
     /// Left (reference) view of a single pair.
@@ -53,7 +59,17 @@ pub struct Args {
     /// Also write a colour-mapped PNG of each disparity map.
     #[arg(long)]
     pub color: bool,
-    /// Number of disparities searched (0 = estimate per pair, up to 256).
+    /// An ONNX stereo network to use instead of the built-in matcher.
+    #[arg(long, value_name = "FILE.onnx", requires = "card")]
+    pub model: Option<PathBuf>,
+    /// How to feed --model: a built-in card name or a card FILE.json.
+    #[arg(long, value_name = "NAME|FILE.json", requires = "model")]
+    pub card: Option<String>,
+    /// ONNX Runtime settings (with --model).
+    #[command(flatten)]
+    pub onnx: OnnxArgs,
+    /// Number of disparities searched (0 = estimate per pair, up to 256);
+    /// with --model only the top of the --color scale (0 = the map's maximum).
     #[arg(long, default_value_t = 128)]
     pub max_disparity: u32,
     /// Aggregation paths of the semi-global matcher.
@@ -151,11 +167,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(shard) => shard.select(jobs),
         None => jobs,
     };
+    let network = match (&args.model, &args.card) {
+        (Some(model), Some(card)) => {
+            let stereo = OnnxStereo::open(model, ModelCard::load(card)?, &args.onnx.options())?;
+            args.onnx
+                .report_fallback(&model.display().to_string(), stereo.device());
+            Some(stereo)
+        }
+        _ => None,
+    };
     let summary = batch::run(
         &jobs,
         "pairs",
         |j| j.reference.display().to_string(),
-        |j| predict_one(&args, j),
+        |j| predict_one(&args, network.as_ref(), j),
     );
     summary.finish("predict", "pairs")
 }
@@ -230,7 +255,7 @@ pub fn manifest_jobs(path: &Path, (reference, target): (usize, usize)) -> anyhow
         .collect()
 }
 
-fn predict_one(args: &Args, job: &Job) -> anyhow::Result<Outcome> {
+fn predict_one(args: &Args, network: Option<&OnnxStereo>, job: &Job) -> anyhow::Result<Outcome> {
     let out = args
         .out
         .join(format!("{}.{}", job.name, args.format.extension()));
@@ -246,22 +271,31 @@ fn predict_one(args: &Args, job: &Job) -> anyhow::Result<Outcome> {
     } else {
         (&reference, &target)
     };
-    let max_disparity = match args.max_disparity {
-        0 => estimate_max_disparity(left, right, 256)?,
-        n => n,
-    };
-    let sgm = Sgm::new(SgmConfig {
-        paths: match args.paths {
-            Paths::Five => SgmPaths::Five,
-            Paths::Eight => SgmPaths::Eight,
-        },
-        fill: !args.no_fill,
-        ..SgmConfig::with_max_disparity(max_disparity)
-    });
-    let prediction = if job.target_on_left {
-        sgm.predict_right(left, right)?
-    } else {
-        sgm.predict(left, right)?
+    let (prediction, max_disparity) = match network {
+        Some(network) => {
+            let prediction = run_matcher(network, left, right, job.target_on_left)?;
+            let top = match args.max_disparity {
+                0 => max_finite(&prediction),
+                n => n as f32,
+            };
+            (prediction, top)
+        }
+        None => {
+            let max_disparity = match args.max_disparity {
+                0 => estimate_max_disparity(left, right, 256)?,
+                n => n,
+            };
+            let sgm = Sgm::new(SgmConfig {
+                paths: match args.paths {
+                    Paths::Five => SgmPaths::Five,
+                    Paths::Eight => SgmPaths::Eight,
+                },
+                fill: !args.no_fill,
+                ..SgmConfig::with_max_disparity(max_disparity)
+            });
+            let prediction = run_matcher(&sgm, left, right, job.target_on_left)?;
+            (prediction, max_disparity as f32)
+        }
     };
     let disparity = &prediction.disparity;
     match args.format {
@@ -269,9 +303,35 @@ fn predict_one(args: &Args, job: &Job) -> anyhow::Result<Outcome> {
         Format::Png16 => png16::write_kitti_disparity(&out, disparity)?,
     }
     if args.color {
-        rgb::write_rgb_png(&color, &colorize_disparity(disparity, max_disparity as f32))?;
+        rgb::write_rgb_png(&color, &colorize_disparity(disparity, max_disparity))?;
     }
     Ok(Outcome::Done)
+}
+
+/// The disparity of the reference view: `left`'s, or `right`'s by mirroring
+/// when the target lies on the left.
+fn run_matcher(
+    matcher: &dyn StereoMatcher,
+    left: &mbs_core::RgbImage,
+    right: &mbs_core::RgbImage,
+    target_on_left: bool,
+) -> anyhow::Result<Disparity> {
+    Ok(if target_on_left {
+        matcher.predict_right(left, right)?
+    } else {
+        matcher.predict(left, right)?
+    })
+}
+
+/// The largest finite disparity (1 if there is none), the top of the colour
+/// scale.
+fn max_finite(prediction: &Disparity) -> f32 {
+    prediction
+        .disparity
+        .iter()
+        .copied()
+        .filter(|d| d.is_finite())
+        .fold(1.0, f32::max)
 }
 
 #[cfg(test)]

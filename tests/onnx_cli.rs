@@ -1,0 +1,109 @@
+//! `mbs-tool predict --model … --card …` on the test models of
+//! `tests/fixtures/onnx/` with real ONNX Runtime (from tools/setup-ort.sh).
+
+mod common;
+
+use std::path::PathBuf;
+
+use common::{run, text};
+use image::Rgb;
+use mbs_core::RgbImage;
+use mbs_core::formats::{pfm, rgb};
+
+fn fixture(name: &str) -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../tests/fixtures/onnx")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+fn pair(dir: &std::path::Path) -> (String, String) {
+    let left = dir.join("left.png");
+    let right = dir.join("right.png");
+    rgb::write_rgb_png(&left, &RgbImage::from_pixel(37, 21, Rgb([100; 3])))
+        .expect("write left view");
+    rgb::write_rgb_png(&right, &RgbImage::from_pixel(37, 21, Rgb([40; 3])))
+        .expect("write right view");
+    (left.display().to_string(), right.display().to_string())
+}
+
+#[test]
+fn predict_runs_an_onnx_model_with_a_card_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let (left, right) = pair(dir.path());
+    let out = dir.path().join("pred");
+    let model = fixture("stereo_negative.onnx");
+    let card = fixture("stereo_negative.json");
+    let args = [
+        "predict", "--left", &left, "--right", &right, "--model", &model, "--card", &card,
+    ];
+    let output = run(&[&args[..], &["--out", out.to_str().unwrap(), "--color"]].concat());
+    assert!(output.status.success(), "{}", text(&output));
+    let disparity = pfm::read_pfm_grey(&out.join("left.pfm")).unwrap();
+    assert_eq!(disparity.dimensions(), (37, 21));
+    // 0.5 * 100 + 0.25 * 40 + 1 = 61, read through the card's sign -1; the
+    // last column's right neighbour is padding (replicated): also 61.
+    assert!(
+        disparity.iter().all(|&d| (d - 61.0).abs() < 1e-3),
+        "{:?}",
+        &disparity.as_raw()[..4]
+    );
+    assert!(out.join("left_color.png").is_file());
+}
+
+#[test]
+fn predict_explains_onnx_setup_problems() {
+    let dir = tempfile::tempdir().unwrap();
+    let (left, right) = pair(dir.path());
+    let out = dir.path().join("pred").display().to_string();
+    let model = fixture("stereo_dynamic.onnx");
+    let base = [
+        "predict", "--left", &left, "--right", &right, "--out", &out, "--model", &model,
+    ];
+    let fails_with = |extra: &[&str], message: &str| {
+        let output = run(&[&base[..], extra].concat());
+        assert!(!output.status.success(), "{}", text(&output));
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(
+            stderr.contains(message),
+            "expected {message:?} in\n{}",
+            text(&output)
+        );
+    };
+    fails_with(&["--card", "no-such-card"], "no built-in card of that name");
+    fails_with(
+        &["--card", "crestereo"],
+        "the card's output \"output\" is not an output of the model",
+    );
+    fails_with(
+        &["--card", "igev", "--ort-lib", "/no/libonnxruntime.so"],
+        "--ort-lib = /no/libonnxruntime.so: no such file",
+    );
+    let card = fixture("stereo_dynamic.json");
+    #[cfg(not(feature = "cuda"))]
+    fails_with(
+        &["--card", &card, "--device", "cuda"],
+        "device cuda:0: this build of mbs has no CUDA support",
+    );
+    fails_with(&["--card", &card, "--device", "gpu"], "invalid device");
+    // With the fallback allowed, the run goes on on the CPU and says so.
+    let output = run(&[
+        &base[..],
+        &[
+            "--card",
+            &card,
+            "--device",
+            "cuda:1",
+            "--allow-cpu-fallback",
+        ],
+    ]
+    .concat());
+    assert!(output.status.success(), "{}", text(&output));
+    #[cfg(not(feature = "cuda"))]
+    assert!(
+        String::from_utf8_lossy(&output.stderr).contains("running on cpu"),
+        "{}",
+        text(&output)
+    );
+}
