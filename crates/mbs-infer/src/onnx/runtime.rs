@@ -191,7 +191,11 @@ pub fn open_session(model: &Path, options: &RuntimeOptions) -> Result<(Session, 
         path: model.to_path_buf(),
         message,
     };
-    let mut builder = Session::builder(&env).map_err(|e| model_error(e.to_string()))?;
+    // No spinning: ONNX Runtime's idle workers would otherwise keep the
+    // cores busy while mbs pre- and post-processes between runs.
+    let mut builder = Session::builder(&env)
+        .and_then(|b| b.with_intra_op_spinning(false).map_err(Into::into))
+        .map_err(|e| model_error(e.to_string()))?;
     if options.intra_threads > 0 {
         builder = builder
             .with_intra_threads(options.intra_threads)

@@ -4,6 +4,7 @@ use std::path::Path;
 
 use image::imageops::{self, FilterType};
 use mbs_core::{FloatImage, MaskImage, RgbImage};
+use rayon::prelude::*;
 
 use super::card::{ElementType, Layout, ModelCard, SizePolicy, Task};
 use super::error::Result;
@@ -103,10 +104,7 @@ impl OnnxStereo {
         Ok(planes
             .into_iter()
             .map(|plane| {
-                let map = FloatImage::from_raw(padded.0, padded.1, plane)
-                    .expect("OutputMaps::plane returns one value per padded pixel");
-                let map = imageops::crop_imm(&map, pad.left, pad.top, input_size.0, input_size.1)
-                    .to_image();
+                let map = crop(plane, padded.0, pad, input_size);
                 let map = if input_size == size {
                     map
                 } else {
@@ -189,18 +187,41 @@ impl OnnxStereo {
     }
 }
 
+/// The `size` image inside a plane of `padded_width` columns padded by
+/// `pad`.
+fn crop(
+    plane: Vec<f32>,
+    padded_width: u32,
+    pad: Padding,
+    (width, height): (u32, u32),
+) -> FloatImage {
+    if pad == Padding::default() {
+        return FloatImage::from_raw(width, height, plane)
+            .expect("an unpadded plane has the image's size");
+    }
+    let (pw, w) = (padded_width as usize, width as usize);
+    let mut out = vec![0.0; w * height as usize];
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let start = (y + pad.top as usize) * pw + pad.left as usize;
+        row.copy_from_slice(&plane[start..start + w]);
+    });
+    FloatImage::from_raw(width, height, out).expect("one value per pixel by construction")
+}
+
 /// Scales a raw output map and marks negative or non-finite values invalid.
 fn to_disparity(mut map: FloatImage, scale: f32) -> Disparity {
     let mut valid = MaskImage::new(map.width(), map.height());
-    for (d, v) in map.iter_mut().zip(valid.iter_mut()) {
-        let value = *d * scale;
-        if value.is_finite() && value >= 0.0 {
-            *d = value;
-            *v = 255;
-        } else {
-            *d = f32::INFINITY;
-        }
-    }
+    map.par_iter_mut()
+        .zip(valid.par_iter_mut())
+        .for_each(|(d, v)| {
+            let value = *d * scale;
+            if value.is_finite() && value >= 0.0 {
+                *d = value;
+                *v = 255;
+            } else {
+                *d = f32::INFINITY;
+            }
+        });
     Disparity {
         disparity: map,
         valid,

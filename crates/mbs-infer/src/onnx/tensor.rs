@@ -2,6 +2,7 @@
 //! model card: padding, layout, colour order, normalisation.
 
 use mbs_core::{MaskImage, RgbImage};
+use rayon::prelude::*;
 
 use super::card::{ColorOrder, Layout, MaskSpec, ModelCard, PadMode, PadSide, SizePolicy};
 
@@ -140,6 +141,7 @@ impl<'a> Source<'a> {
 /// Writes one batch item from `sources` (their channels one after the
 /// other) of size `width` x `height`, padded by `pad`, into `out`, which
 /// holds `channels * padded width * padded height` values in `layout`.
+/// Rows are written in parallel.
 pub fn write_item<T: Element>(
     out: &mut [T],
     sources: &[Source<'_>],
@@ -149,54 +151,71 @@ pub fn write_item<T: Element>(
     layout: Layout,
 ) {
     let (pw, ph) = pad.padded(width, height);
-    let (pw, ph) = (pw as usize, ph as usize);
-    let channels: usize = sources.iter().map(Source::channels).sum();
-    // Source column / row of every padded one; None = zero padding.
-    let index = |n: u32, before: u32, len: usize| -> Vec<Option<usize>> {
-        (0..len)
-            .map(|i| {
-                let i = i as i64 - i64::from(before);
-                match fill {
-                    PadMode::Replicate => Some(i.clamp(0, i64::from(n) - 1) as usize),
-                    PadMode::Zero => (0..i64::from(n)).contains(&i).then_some(i as usize),
-                }
+    let (pw, ph, w) = (pw as usize, ph as usize, width as usize);
+    // Per tensor channel: its source, the source's channel, the lookup table
+    // and the padding value.
+    let planes: Vec<(&Source<'_>, usize, [T; 256], T)> = sources
+        .iter()
+        .flat_map(|s| {
+            s.maps.iter().map(move |(raw_channel, map)| {
+                let lut = std::array::from_fn(|v| T::from_f32(map[v]));
+                (s, *raw_channel, lut, T::from_f32(s.zero))
             })
-            .collect()
+        })
+        .collect();
+    let channels = planes.len();
+    // Source row of every padded row; None = zero padding.
+    let source_row = |y: usize| -> Option<usize> {
+        let y = y as i64 - i64::from(pad.top);
+        match fill {
+            PadMode::Replicate => Some(y.clamp(0, i64::from(height) - 1) as usize),
+            PadMode::Zero => (0..i64::from(height)).contains(&y).then_some(y as usize),
+        }
     };
-    let xs = index(width, pad.left, pw);
-    let ys = index(height, pad.top, ph);
-    let w = width as usize;
-    let mut c0 = 0;
-    for source in sources {
-        for (k, (raw_channel, map)) in source.maps.iter().enumerate() {
-            let c = c0 + k;
-            let zero = T::from_f32(source.zero);
-            let lut: [T; 256] = std::array::from_fn(|v| T::from_f32(map[v]));
-            for (y, sy) in ys.iter().enumerate() {
-                let row =
-                    sy.map(|sy| &source.raw[sy * w * source.channels..][..w * source.channels]);
-                let value = |sx: &Option<usize>| match (row, sx) {
-                    (Some(row), Some(sx)) => {
-                        lut[usize::from(row[sx * source.channels + raw_channel])]
-                    }
-                    _ => zero,
-                };
-                match layout {
-                    Layout::Nchw => {
-                        let dst = &mut out[(c * ph + y) * pw..][..pw];
-                        for (d, sx) in dst.iter_mut().zip(&xs) {
-                            *d = value(sx);
-                        }
-                    }
-                    Layout::Nhwc => {
-                        for (x, sx) in xs.iter().enumerate() {
-                            out[(y * pw + x) * channels + c] = value(sx);
-                        }
+    let left = pad.left as usize;
+    match layout {
+        Layout::Nchw => out.par_chunks_mut(pw).enumerate().for_each(|(i, dst)| {
+            let (source, raw_channel, lut, zero) = &planes[i / ph];
+            let Some(sy) = source_row(i % ph) else {
+                dst.fill(*zero);
+                return;
+            };
+            let stride = source.channels;
+            let row = &source.raw[sy * w * stride..][..w * stride];
+            let (before, rest) = dst.split_at_mut(left);
+            let (middle, after) = rest.split_at_mut(w);
+            for (d, px) in middle.iter_mut().zip(row.chunks_exact(stride)) {
+                *d = lut[usize::from(px[*raw_channel])];
+            }
+            let (first, last) = match fill {
+                PadMode::Replicate => (middle[0], middle[w - 1]),
+                PadMode::Zero => (*zero, *zero),
+            };
+            before.fill(first);
+            after.fill(last);
+        }),
+        Layout::Nhwc => out
+            .par_chunks_mut(pw * channels)
+            .enumerate()
+            .for_each(|(y, dst)| {
+                for (c, (source, raw_channel, lut, zero)) in planes.iter().enumerate() {
+                    let stride = source.channels;
+                    let row = source_row(y).map(|sy| &source.raw[sy * w * stride..][..w * stride]);
+                    for (x, d) in dst.iter_mut().skip(c).step_by(channels).enumerate() {
+                        let sx = x as i64 - left as i64;
+                        let sx = match fill {
+                            PadMode::Replicate => Some(sx.clamp(0, w as i64 - 1) as usize),
+                            PadMode::Zero => (0..w as i64).contains(&sx).then_some(sx as usize),
+                        };
+                        *d = match (row, sx) {
+                            (Some(row), Some(sx)) => {
+                                lut[usize::from(row[sx * stride + raw_channel])]
+                            }
+                            _ => *zero,
+                        };
                     }
                 }
-            }
-        }
-        c0 += source.channels();
+            }),
     }
 }
 
