@@ -8,8 +8,8 @@
 //!
 //! On a synthetic WIDTH x HEIGHT pair, times REPEATS calls of
 //! `OnnxStereo::predict` (pre-processing, inference, post-processing) and
-//! REPEATS bare model runs on tensors of the padded size (inference alone,
-//! the same work Python's `InferenceSession.run` does). Prints one JSON
+//! REPEATS bare model runs on tensors of the padded size with the output
+//! copied out (the same work Python's `InferenceSession.run` does). Prints one JSON
 //! object with the per-frame times in milliseconds.
 
 use std::path::Path;
@@ -74,12 +74,14 @@ fn main() -> Result<(), BoxError> {
             .map(|n| (*n, shape.clone(), tensor.clone()))
             .collect::<Vec<_>>()
     };
-    bare.run::<f32>(inputs())?; // warm-up
+    // Copy the output out, as Python's run does into a numpy array.
+    let copy_out = |_: &[i64], data: &[f32]| Ok(data.to_vec());
+    bare.run(inputs(), copy_out)?; // warm-up
     let mut infer = Vec::with_capacity(repeats);
     for _ in 0..repeats {
         let inputs = inputs();
         let start = Instant::now();
-        bare.run::<f32>(inputs)?;
+        bare.run(inputs, copy_out)?;
         infer.push(start.elapsed().as_secs_f64() * 1e3);
     }
     let (full_median, full_min) = millis(&mut full);

@@ -124,31 +124,28 @@ impl OnnxInpainter {
             fill,
             card.layout,
         );
-        let output = self.model.run::<T>(vec![
-            (image_name, shape(3), image_data),
-            (mask_name, shape(1), mask_data),
-        ])?;
-        let maps = OutputMaps::locate(&output.dims, 1, (pw, ph))
-            .filter(|m| m.channels() == 3)
-            .ok_or_else(|| {
-                self.model.run_error(format!(
-                    "output {:?} has shape {:?}; expected one 3-channel {pw}x{ph} image",
-                    card.output.name, output.dims
-                ))
-            })?;
         let order = match card.color_order {
             ColorOrder::Rgb => [0, 1, 2],
             ColorOrder::Bgr => [2, 1, 0],
         };
-        let planes: Vec<FloatImage> = order
-            .iter()
-            .map(|&c| {
-                let plane = maps.plane(&output.data, 0, c);
-                let plane = FloatImage::from_raw(pw, ph, plane)
-                    .expect("OutputMaps::plane returns one value per padded pixel");
-                imageops::crop_imm(&plane, pad.left, pad.top, size.0, size.1).to_image()
-            })
-            .collect();
+        let read = |dims: &[i64], data: &[T]| {
+            let maps = OutputMaps::locate(dims, 1, (pw, ph))
+                .filter(|m| m.channels() == 3)
+                .ok_or_else(|| {
+                    self.model.run_error(format!(
+                        "output {:?} has shape {dims:?}; expected one 3-channel {pw}x{ph} image",
+                        card.output.name
+                    ))
+                })?;
+            Ok(order.map(|c| maps.crop(data, (0, c), pw, pad, size)))
+        };
+        let planes = self.model.run::<T, _>(
+            vec![
+                (image_name, shape(3), image_data),
+                (mask_name, shape(1), mask_data),
+            ],
+            read,
+        )?;
         let scale = card.output.scale;
         Ok(RgbImage::from_fn(size.0, size.1, |x, y| {
             image::Rgb(std::array::from_fn(|c| {

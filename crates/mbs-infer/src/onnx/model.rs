@@ -13,14 +13,6 @@ use super::error::{OnnxError, Result};
 use super::runtime::{Device, RuntimeOptions, open_session};
 use super::tensor::Element;
 
-/// An output tensor copied out of the session: its shape and values.
-pub struct Output<T> {
-    /// The shape.
-    pub dims: Vec<i64>,
-    /// The values, row-major.
-    pub data: Vec<T>,
-}
-
 /// An ONNX model with its card.
 pub struct Model {
     path: PathBuf,
@@ -81,9 +73,13 @@ impl Model {
         self.batch.is_none_or(|b| b == n)
     }
 
-    /// Runs the model on `inputs` (tensor name, shape, values) and copies
-    /// out the card's output.
-    pub fn run<T: Element>(&self, inputs: Vec<(&str, Vec<i64>, Vec<T>)>) -> Result<Output<T>> {
+    /// Runs the model on `inputs` (tensor name, shape, values) and hands
+    /// the card's output (shape, values) to `read`, without copying it.
+    pub fn run<T: Element, R>(
+        &self,
+        inputs: Vec<(&str, Vec<i64>, Vec<T>)>,
+        read: impl FnOnce(&[i64], &[T]) -> Result<R>,
+    ) -> Result<R> {
         let values = inputs
             .into_iter()
             .map(|(name, shape, data)| {
@@ -102,10 +98,7 @@ impl Model {
         let (shape, data) = value
             .try_extract_tensor::<T>()
             .map_err(|e| self.run_error(e))?;
-        Ok(Output {
-            dims: shape.to_vec(),
-            data: data.to_vec(),
-        })
+        read(shape, data)
     }
 
     /// An [`OnnxError::Run`] about this model.

@@ -95,16 +95,14 @@ impl OnnxStereo {
             _ => (pairs.to_vec(), size),
         };
         let pad = Padding::for_card(input_size.0, input_size.1, &card.size);
-        let padded = pad.padded(input_size.0, input_size.1);
-        let planes = match card.dtype {
+        let maps = match card.dtype {
             ElementType::Float32 => self.infer::<f32>(&pairs, input_size, pad)?,
             ElementType::Uint8 => self.infer::<u8>(&pairs, input_size, pad)?,
         };
         let scale = card.output.sign * card.output.scale * size.0 as f32 / input_size.0 as f32;
-        Ok(planes
+        Ok(maps
             .into_iter()
-            .map(|plane| {
-                let map = crop(plane, padded.0, pad, input_size);
+            .map(|map| {
                 let map = if input_size == size {
                     map
                 } else {
@@ -116,13 +114,13 @@ impl OnnxStereo {
     }
 
     /// Builds the input tensors, runs the model and returns each pair's
-    /// output plane on the padded grid.
+    /// raw output map, padding removed.
     fn infer<T: Element>(
         &self,
         pairs: &[(&RgbImage, &RgbImage)],
         size: (u32, u32),
         pad: Padding,
-    ) -> Result<Vec<Vec<f32>>> {
+    ) -> Result<Vec<FloatImage>> {
         let card = self.model.card();
         let fill = match card.size {
             SizePolicy::Dynamic { fill, .. } => fill,
@@ -164,48 +162,28 @@ impl OnnxStereo {
                 (right, shape(3), fill_tensor(&[false])),
             ]
         };
-        let output = self.model.run::<T>(inputs)?;
-        let maps = OutputMaps::locate(&output.dims, pairs.len(), (pw, ph)).ok_or_else(|| {
-            self.model.run_error(format!(
-                "output {:?} has shape {:?}; expected {} map(s) of {pw}x{ph}",
-                card.output.name,
-                output.dims,
-                pairs.len()
-            ))
-        })?;
-        if card.output.channel >= maps.channels() {
-            return Err(self.model.run_error(format!(
-                "the card reads channel {} of output {:?}, which has {}",
-                card.output.channel,
-                card.output.name,
-                maps.channels()
-            )));
-        }
-        Ok((0..pairs.len())
-            .map(|item| maps.plane(&output.data, item, card.output.channel))
-            .collect())
+        let read = |dims: &[i64], data: &[T]| {
+            let maps = OutputMaps::locate(dims, pairs.len(), (pw, ph)).ok_or_else(|| {
+                self.model.run_error(format!(
+                    "output {:?} has shape {dims:?}; expected {} map(s) of {pw}x{ph}",
+                    card.output.name,
+                    pairs.len()
+                ))
+            })?;
+            let channel = card.output.channel;
+            if channel >= maps.channels() {
+                return Err(self.model.run_error(format!(
+                    "the card reads channel {channel} of output {:?}, which has {}",
+                    card.output.name,
+                    maps.channels()
+                )));
+            }
+            Ok((0..pairs.len())
+                .map(|item| maps.crop(data, (item, channel), pw, pad, size))
+                .collect())
+        };
+        self.model.run::<T, _>(inputs, read)
     }
-}
-
-/// The `size` image inside a plane of `padded_width` columns padded by
-/// `pad`.
-fn crop(
-    plane: Vec<f32>,
-    padded_width: u32,
-    pad: Padding,
-    (width, height): (u32, u32),
-) -> FloatImage {
-    if pad == Padding::default() {
-        return FloatImage::from_raw(width, height, plane)
-            .expect("an unpadded plane has the image's size");
-    }
-    let (pw, w) = (padded_width as usize, width as usize);
-    let mut out = vec![0.0; w * height as usize];
-    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        let start = (y + pad.top as usize) * pw + pad.left as usize;
-        row.copy_from_slice(&plane[start..start + w]);
-    });
-    FloatImage::from_raw(width, height, out).expect("one value per pixel by construction")
 }
 
 /// Scales a raw output map and marks negative or non-finite values invalid.

@@ -1,7 +1,7 @@
 //! Images to input tensors and output tensors back to images, following a
 //! model card: padding, layout, colour order, normalisation.
 
-use mbs_core::{MaskImage, RgbImage};
+use mbs_core::{FloatImage, MaskImage, RgbImage};
 use rayon::prelude::*;
 
 use super::card::{ColorOrder, Layout, MaskSpec, ModelCard, PadMode, PadSide, SizePolicy};
@@ -282,23 +282,27 @@ impl OutputMaps {
         self.channels
     }
 
-    /// Channel `channel` of item `item`, row-major, as floats.
-    pub fn plane<T: Element>(&self, data: &[T], item: usize, channel: usize) -> Vec<f32> {
+    /// Channel `channel` of item `item` without its padding: the
+    /// `width` x `height` image at (`pad.left`, `pad.top`) of maps
+    /// `padded_width` wide, as floats (rows in parallel).
+    pub fn crop<T: Element>(
+        &self,
+        data: &[T],
+        (item, channel): (usize, usize),
+        padded_width: u32,
+        pad: Padding,
+        (width, height): (u32, u32),
+    ) -> FloatImage {
         let start = item * self.item_stride + channel * self.channel_stride;
-        let len = self.item_stride / self.channels;
-        if self.pixel_stride == 1 {
-            data[start..start + len]
-                .iter()
-                .map(|v| v.to_f32())
-                .collect()
-        } else {
-            data[start..]
-                .iter()
-                .step_by(self.pixel_stride)
-                .take(len)
-                .map(|v| v.to_f32())
-                .collect()
-        }
+        let (pw, w, step) = (padded_width as usize, width as usize, self.pixel_stride);
+        let mut out = vec![0.0; w * height as usize];
+        out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            let first = start + ((y + pad.top as usize) * pw + pad.left as usize) * step;
+            for (x, v) in row.iter_mut().enumerate() {
+                *v = data[first + x * step].to_f32();
+            }
+        });
+        FloatImage::from_raw(width, height, out).expect("one value per pixel by construction")
     }
 }
 
@@ -368,9 +372,16 @@ mod tests {
     fn output_maps_are_found_in_either_layout() {
         let nchw = OutputMaps::locate(&[2, 2, 3, 4], 2, (4, 3)).unwrap();
         let data: Vec<f32> = (0..48).map(|v| v as f32).collect();
-        assert_eq!(nchw.plane(&data, 1, 1)[0], 36.0);
+        let pad = Padding {
+            left: 1,
+            top: 1,
+            ..Padding::default()
+        };
+        let crop = nchw.crop(&data, (1, 1), 4, pad, (2, 2));
+        assert_eq!(crop.as_raw(), &[41.0, 42.0, 45.0, 46.0]);
         let nhwc = OutputMaps::locate(&[1, 3, 4, 2], 1, (4, 3)).unwrap();
-        assert_eq!(nhwc.plane(&data, 0, 1)[..2], [1.0, 3.0]);
+        let crop = nhwc.crop(&data, (0, 1), 4, Padding::default(), (4, 3));
+        assert_eq!(crop.as_raw()[..2], [1.0, 3.0]);
         assert!(OutputMaps::locate(&[1, 1, 5, 4], 1, (4, 3)).is_none());
         assert!(OutputMaps::locate(&[3, 4], 1, (4, 3)).is_some());
     }
