@@ -333,7 +333,7 @@ fn cards_that_do_not_fit_the_model_are_refused() {
     // An inpainting card for a stereo model.
     let err = open_stereo("stereo_dynamic.onnx", card("inpaint_lama.json"));
     assert!(
-        err.contains("is a Inpaint card; this needs a Stereo card"),
+        err.contains("is an inpainting card; this needs a stereo card"),
         "{err}"
     );
 }

@@ -25,6 +25,16 @@ pub enum Task {
     Inpaint,
 }
 
+impl Task {
+    /// The task as a noun for messages.
+    pub fn noun(self) -> &'static str {
+        match self {
+            Task::Stereo => "stereo",
+            Task::Inpaint => "inpainting",
+        }
+    }
+}
+
 /// Memory order of an image tensor.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum Layout {
@@ -271,8 +281,8 @@ impl ModelCard {
         };
         if !expected.contains(&roles.as_slice()) {
             return Err(format!(
-                "inputs has roles {roles:?}; a {:?} card needs one of {expected:?}",
-                self.task
+                "inputs has roles {roles:?}; a {} card needs one of {expected:?}",
+                self.task.noun()
             ));
         }
         if self.std.contains(&0.0) {

@@ -35,7 +35,12 @@ impl Model {
         if card.task != task {
             return Err(OnnxError::Card {
                 card: card.name,
-                message: format!("is a {:?} card; this needs a {task:?} card", card.task),
+                message: format!(
+                    "is a{} {} card; this needs a {} card",
+                    if card.task == Task::Inpaint { "n" } else { "" },
+                    card.task.noun(),
+                    task.noun()
+                ),
             });
         }
         let (session, device) = open_session(path, options)?;
