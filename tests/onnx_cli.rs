@@ -80,6 +80,14 @@ fn predict_explains_onnx_setup_problems() {
         &["--card", "igev", "--ort-lib", "/no/libonnxruntime.so"],
         "--ort-lib = /no/libonnxruntime.so: no such file",
     );
+    // A file that is no library: the loader's reason, with the path.
+    let fake = dir.path().join("libonnxruntime.so.1.31.1");
+    std::fs::write(&fake, b"not a library").expect("write the fake library");
+    let fake = fake.display().to_string();
+    fails_with(
+        &["--card", "igev", "--ort-lib", &fake],
+        &format!("{fake}: cannot load ONNX Runtime"),
+    );
     let card = fixture("stereo_dynamic.json");
     #[cfg(not(feature = "cuda"))]
     fails_with(
