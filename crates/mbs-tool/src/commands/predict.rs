@@ -8,6 +8,7 @@ use clap::{Parser, ValueEnum};
 use mbs_core::colormap::colorize_disparity;
 use mbs_core::formats::{pfm, png16, rgb};
 use mbs_dataset::Manifest;
+use mbs_dataset::kitti::KittiFolder;
 use mbs_dataset::manifest::resolve;
 use mbs_infer::{Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max_disparity};
 
@@ -166,41 +167,28 @@ fn file_stem(path: &Path) -> anyhow::Result<String> {
         .with_context(|| format!("{}: not a file name", path.display()))
 }
 
-/// The pairs of a KITTI folder: `*_10.png` of the left image folder with
-/// the same name in the right one.
+/// The pairs of a KITTI folder: the `*_10` frames (those with ground
+/// truth in training folders).
 pub fn kitti_jobs(dir: &Path) -> anyhow::Result<Vec<Job>> {
-    let (left_dir, right_dir) = ["image_2", "colored_0"]
-        .into_iter()
-        .zip(["image_3", "colored_1"])
-        .map(|(l, r)| (dir.join(l), dir.join(r)))
-        .find(|(l, r)| l.is_dir() && r.is_dir())
-        .with_context(|| {
-            format!(
-                "{}: not a KITTI folder (expected image_2 and image_3, or colored_0 and colored_1)",
-                dir.display()
-            )
-        })?;
-    let mut names: Vec<String> = std::fs::read_dir(&left_dir)
-        .with_context(|| format!("cannot list {}", left_dir.display()))?
-        .filter_map(|e| e.ok())
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| n.ends_with("_10.png"))
-        .collect();
-    names.sort();
-    if names.is_empty() {
-        bail!("{}: no *_10.png frames", left_dir.display());
-    }
-    names
-        .into_iter()
-        .map(|n| {
-            Ok(Job {
-                reference: left_dir.join(&n),
-                target: right_dir.join(&n),
-                target_on_left: false,
-                name: file_stem(Path::new(&n))?,
-            })
+    let folder = KittiFolder::open(dir)?;
+    let jobs: Vec<Job> = folder
+        .frames
+        .iter()
+        .filter(|f| f.ends_with("_10"))
+        .map(|f| Job {
+            reference: folder.left(f),
+            target: folder.right(f),
+            target_on_left: false,
+            name: f.clone(),
         })
-        .collect()
+        .collect();
+    if jobs.is_empty() {
+        bail!(
+            "{}: no *_10.png frames",
+            dir.join(folder.version.view_dirs().0).display()
+        );
+    }
+    Ok(jobs)
 }
 
 /// The `(reference, target)` pair of every sample of a manifest.
