@@ -2,6 +2,7 @@
 //! progress bar and a summary, thread-pool setup.
 
 pub mod batch;
+pub mod pair;
 pub mod shard;
 
 /// Sets the number of worker threads (0 = one per core).

@@ -13,6 +13,7 @@ use mbs_dataset::manifest::resolve;
 use mbs_infer::{Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max_disparity};
 
 use crate::cli::batch::{self, Outcome};
+use crate::cli::pair::parse_pair;
 use crate::cli::shard::Shard;
 
 /// Arguments of `predict`.
@@ -101,21 +102,6 @@ pub enum Paths {
     /// All eight directions: more accurate, about 1.6x the time.
     #[value(name = "8")]
     Eight,
-}
-
-fn parse_pair(s: &str) -> Result<(usize, usize), String> {
-    let usage = || format!("invalid pair {s:?}: expected REFERENCE:TARGET, e.g. 0:1");
-    let (r, t) = s.split_once(':').ok_or_else(usage)?;
-    let pair = (
-        r.trim().parse().map_err(|_| usage())?,
-        t.trim().parse().map_err(|_| usage())?,
-    );
-    if pair.0 == pair.1 {
-        return Err(format!(
-            "invalid pair {s:?}: reference and target must differ"
-        ));
-    }
-    Ok(pair)
 }
 
 /// One pair to match and where its outputs go.
@@ -265,13 +251,6 @@ fn predict_one(args: &Args, job: &Job) -> anyhow::Result<Outcome> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn pairs_parse_and_must_differ() {
-        assert_eq!(parse_pair("2:1"), Ok((2, 1)));
-        assert!(parse_pair("1:1").is_err());
-        assert!(parse_pair("21").is_err());
-    }
 
     #[test]
     fn kitti_folders_need_both_views() {
