@@ -19,21 +19,7 @@ fn rgb(rel: &str) -> RgbImage {
 
 /// An 8-bit ground-truth map: `value / scale` pixels, 0 = unknown.
 fn gt(rel: &str, scale: f32) -> FloatImage {
-    let codes = image::open(data(rel))
-        .expect("test data is readable")
-        .to_luma8();
-    let values = codes
-        .as_raw()
-        .iter()
-        .map(|&v| {
-            if v == 0 {
-                f32::INFINITY
-            } else {
-                f32::from(v) / scale
-            }
-        })
-        .collect();
-    FloatImage::from_raw(codes.width(), codes.height(), values).expect("same size")
+    mbs_core::formats::read_disparity(&data(rel), Some(scale)).expect("test data is readable")
 }
 
 fn score(matcher: &dyn StereoMatcher, left: &str, right: &str, truth: &FloatImage) -> Metrics {

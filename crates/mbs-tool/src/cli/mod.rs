@@ -3,6 +3,7 @@
 
 pub mod batch;
 pub mod pair;
+pub mod rig;
 pub mod shard;
 
 /// Sets the number of worker threads (0 = one per core).
