@@ -11,6 +11,7 @@ use mbs_core::formats::{read_disparity, rgb};
 use mbs_core::metrics::{MeanMetrics, Metrics, Region, RegionSums, evaluate, valid_mask};
 use mbs_core::{FloatImage, MaskImage};
 use mbs_dataset::Manifest;
+use mbs_dataset::kitti::KittiVersion;
 use mbs_dataset::manifest::resolve;
 use rayon::prelude::*;
 use serde_json::{Value, json};
@@ -159,9 +160,9 @@ fn find_prediction(dir: &Path, name: &str) -> anyhow::Result<PathBuf> {
 
 /// The images of a KITTI training folder with their predictions.
 pub fn kitti_items(dir: &Path, predictions: &Path) -> anyhow::Result<Vec<Item>> {
-    let (occ, noc) = [("disp_occ_0", "disp_noc_0"), ("disp_occ", "disp_noc")]
+    let (occ, noc) = [KittiVersion::Kitti2015, KittiVersion::Kitti2012]
         .into_iter()
-        .map(|(o, n)| (dir.join(o), dir.join(n)))
+        .map(|v| (dir.join(v.gt_dirs().0), dir.join(v.gt_dirs().1)))
         .find(|(o, _)| o.is_dir())
         .with_context(|| {
             format!(
