@@ -1,0 +1,14 @@
+//! S3 self-supervised multi-baseline stereo training on burn: losses, masks and weight map, EMA teacher, schedules, triplet sampling and backbones.
+//!
+//! Everything runs on burn's run-time selected device (`Device::flex()` on
+//! CPU, `.autodiff()` for training); see `DESIGN.md` for the choice of burn.
+
+pub mod error;
+pub mod losses;
+pub mod mask;
+
+#[cfg(test)]
+mod test_util;
+
+pub use error::TrainError;
+pub use losses::{LossConfig, LossInputs, LossOutput, S3Loss};
