@@ -3,9 +3,13 @@
 //! Everything runs on burn's run-time selected device (`Device::flex()` on
 //! CPU, `.autodiff()` for training); see `DESIGN.md` for the choice of burn.
 
+pub mod ema;
 pub mod error;
 pub mod losses;
 pub mod mask;
+pub mod mirror;
+pub mod sampling;
+pub mod schedule;
 
 #[cfg(test)]
 mod test_util;
