@@ -3,6 +3,7 @@
 //! Everything runs on burn's run-time selected device (`Device::flex()` on
 //! CPU, `.autodiff()` for training); see `DESIGN.md` for the choice of burn.
 
+pub mod backbone;
 pub mod ema;
 pub mod error;
 pub mod losses;
@@ -14,5 +15,6 @@ pub mod schedule;
 #[cfg(test)]
 mod test_util;
 
+pub use backbone::{Backbone, CostVolumeNet, CostVolumeNetConfig};
 pub use error::TrainError;
 pub use losses::{LossConfig, LossInputs, LossOutput, S3Loss};
