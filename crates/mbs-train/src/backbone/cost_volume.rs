@@ -1,7 +1,8 @@
 //! A compact cost-volume stereo network that learns on CPU at small sizes:
 //! shared features at 1/4 resolution, a correlation volume of
-//! `max_disparity / 4` candidates, 2-D convolutions over it, soft-argmin and
-//! bilinear upsampling (two matrix products) to full resolution.
+//! `max_disparity / 4` candidates, 2-D convolutions over it plus the raw
+//! correlation as candidate logits, soft-argmin and bilinear upsampling
+//! (two matrix products) to full resolution.
 
 use burn::config::Config;
 use burn::module::Module;
@@ -27,6 +28,10 @@ pub struct CostVolumeNetConfig {
     /// Channels of the cost aggregation layers.
     #[config(default = 32)]
     pub hidden: usize,
+    /// Weight of the raw correlation added to the candidate logits, so an
+    /// untrained network already prefers the best-matching candidate.
+    #[config(default = 10.0)]
+    pub correlation_weight: f64,
 }
 
 impl CostVolumeNetConfig {
@@ -64,6 +69,7 @@ impl CostVolumeNetConfig {
             aggregate_mid: conv(hidden, hidden, 1),
             logits: conv(hidden, candidates, 1),
             candidates,
+            correlation_weight: self.correlation_weight,
         })
     }
 }
@@ -78,6 +84,7 @@ pub struct CostVolumeNet {
     aggregate_mid: Conv2d,
     logits: Conv2d,
     candidates: usize,
+    correlation_weight: f64,
 }
 
 impl CostVolumeNet {
@@ -88,14 +95,22 @@ impl CostVolumeNet {
         self.refine.forward(x)
     }
 
-    /// Correlation volume `[B, candidates, h, w]`: channel mean of
-    /// `L(x) R(x - d)`, zero where `x - d` leaves the image.
+    /// Correlation volume `[B, candidates, h, w]`: cosine similarity of
+    /// `L(x)` and `R(x - d)` after removing each channel's image mean (so
+    /// constant responses, such as biases, do not match everywhere); zero
+    /// where `x - d` leaves the image.
     fn correlation(&self, left: Tensor<4>, right: Tensor<4>) -> Tensor<4> {
         let width = left.dims()[3];
+        let unit = |features: Tensor<4>| {
+            let centred = features.clone() - features.mean_dims(&[2, 3]);
+            let norm = (centred.clone() * centred.clone()).sum_dim(1).sqrt() + 1e-6;
+            centred / norm
+        };
+        let (left, right) = (unit(left), unit(right));
         let shift = self.candidates - 1;
         let padded = right.pad((shift, 0, 0, 0), PadMode::Constant(0.0));
         let slices = (0..self.candidates)
-            .map(|d| (left.clone() * padded.clone().narrow(3, shift - d, width)).mean_dim(1))
+            .map(|d| (left.clone() * padded.clone().narrow(3, shift - d, width)).sum_dim(1))
             .collect();
         Tensor::cat(slices, 1)
     }
@@ -110,10 +125,11 @@ impl Backbone for CostVolumeNet {
         let volume = self.correlation(left.clone(), right);
         let x = relu(
             self.aggregate_in
-                .forward(Tensor::cat(vec![volume, left], 1)),
+                .forward(Tensor::cat(vec![volume.clone(), left], 1)),
         );
         let x = relu(self.aggregate_mid.forward(x));
-        let probabilities = softmax(self.logits.forward(x), 1);
+        let logits = self.logits.forward(x) + volume * self.correlation_weight;
+        let probabilities = softmax(logits, 1);
         let device = probabilities.device();
         let candidates = Tensor::<1, Int>::arange(0..self.candidates as i64, &device)
             .float()
