@@ -3,6 +3,7 @@
 //! Everything runs on burn's run-time selected device (`Device::flex()` on
 //! CPU, `.autodiff()` for training); see `DESIGN.md` for the choice of burn.
 
+pub mod augment;
 pub mod backbone;
 pub mod ema;
 pub mod error;
@@ -11,6 +12,7 @@ pub mod mask;
 pub mod mirror;
 pub mod sampling;
 pub mod schedule;
+pub mod step;
 
 #[cfg(test)]
 mod test_util;
@@ -18,3 +20,4 @@ mod test_util;
 pub use backbone::{Backbone, CostVolumeNet, CostVolumeNetConfig};
 pub use error::TrainError;
 pub use losses::{LossConfig, LossInputs, LossOutput, S3Loss};
+pub use step::{S3Trainer, StepBatch, StepReport, TrainerConfig};

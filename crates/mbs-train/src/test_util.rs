@@ -25,3 +25,13 @@ pub fn assert_close(got: &[f32], want: &[f32], tolerance: f32) {
         );
     }
 }
+
+/// Every float parameter of a module, flattened in visiting order.
+#[derive(Default)]
+pub struct FlatParams(pub Vec<f32>);
+
+impl burn::module::ModuleVisitor for FlatParams {
+    fn visit_float<const D: usize>(&mut self, param: &burn::module::Param<Tensor<D>>) {
+        self.0.extend(values(param.val().without_autodiff()));
+    }
+}
