@@ -5,6 +5,7 @@
 
 pub mod augment;
 pub mod backbone;
+pub mod clip;
 pub mod ema;
 pub mod error;
 pub mod losses;

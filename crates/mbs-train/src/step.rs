@@ -3,12 +3,12 @@
 //! with gradient clipping, EMA update of the teacher.
 
 use burn::config::Config;
-use burn::grad_clipping::GradientClippingConfig;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::Tensor;
 use mbs_core::geometry::Side;
 
 use crate::backbone::{Backbone, predict};
+use crate::clip::clip_global_norm;
 use crate::ema::ema_update;
 use crate::error::TrainError;
 use crate::losses::{LossConfig, LossInputs, S3Loss};
@@ -28,10 +28,9 @@ pub struct TrainerConfig {
     /// (paper Table 3, row (D)*).
     #[config(default = true)]
     pub ema: bool,
-    /// Per-parameter gradient norm limit (burn clips each parameter's
-    /// gradient; PyTorch's `clip_grad_norm_` clips the global norm).
+    /// Limit of the global gradient L2 norm (as PyTorch's `clip_grad_norm_`).
     #[config(default = 1.0)]
-    pub grad_clip_norm: f32,
+    pub grad_clip_norm: f64,
 }
 
 /// One batch for [`S3Trainer::step`]. Images are `[B, 3, H, W]` in `[0, 1]`
@@ -63,6 +62,8 @@ pub struct StepReport {
     pub step: usize,
     /// Total loss before the update.
     pub loss: f32,
+    /// Global gradient norm before clipping.
+    pub grad_norm: f64,
     /// Learning rate used.
     pub lr: f64,
     /// EMA momentum used (1 when EMA is off).
@@ -78,6 +79,7 @@ pub struct S3Trainer<B: Backbone> {
     lr: OneCycle,
     momentum: CosineMomentum,
     ema: bool,
+    grad_clip_norm: f64,
     step: usize,
 }
 
@@ -94,9 +96,14 @@ impl<B: Backbone> S3Trainer<B> {
                 reason: "a number in [0, 1]",
             });
         }
-        let optimizer = AdamConfig::new()
-            .with_grad_clipping(Some(GradientClippingConfig::Norm(config.grad_clip_norm)))
-            .init();
+        if !(config.grad_clip_norm.is_finite() && config.grad_clip_norm > 0.0) {
+            return Err(TrainError::InvalidSetting {
+                name: "grad_clip_norm",
+                value: config.grad_clip_norm.to_string(),
+                reason: "a positive number",
+            });
+        }
+        let optimizer = AdamConfig::new().init();
         Ok(Self {
             teacher: student.valid(),
             student,
@@ -108,6 +115,7 @@ impl<B: Backbone> S3Trainer<B> {
                 total_steps: config.lr.total_steps,
             },
             ema: config.ema,
+            grad_clip_norm: config.grad_clip_norm,
             step: 0,
         })
     }
@@ -164,7 +172,8 @@ impl<B: Backbone> S3Trainer<B> {
             .and_then(|values| values.first().copied())
             .ok_or(TrainError::Readback("the loss"))?;
         let lr = self.lr.lr(self.step);
-        let grads = GradientsParams::from_grads(out.total.backward(), &self.student);
+        let mut grads = GradientsParams::from_grads(out.total.backward(), &self.student);
+        let grad_norm = clip_global_norm(&self.student, &mut grads, self.grad_clip_norm)?;
         self.student = self.optimizer.step(lr, self.student.clone(), grads);
         let momentum = if self.ema {
             self.momentum.at(self.step)
@@ -177,6 +186,7 @@ impl<B: Backbone> S3Trainer<B> {
         let report = StepReport {
             step: self.step,
             loss,
+            grad_norm,
             lr,
             momentum,
         };

@@ -269,3 +269,20 @@ fn step_time_at_256x512() {
         start.elapsed().as_secs_f64() * 1e3 / 3.0
     );
 }
+
+#[test]
+fn trainer_config_round_trips_through_json() {
+    use burn::config::{Config, config_to_json};
+    let config = TrainerConfig::new(
+        LossConfig::new().with_occlusion_enhancement(false),
+        OneCycleConfig::new(5e-5, 50_000),
+    )
+    .with_ema(false);
+    let json = config_to_json(&config);
+    assert!(json.contains("\"occlusion_enhancement\": false"), "{json}");
+    let back = TrainerConfig::load_binary(json.as_bytes()).expect("own JSON parses");
+    assert_eq!(back.loss, config.loss);
+    assert_eq!(back.lr, config.lr);
+    assert!(!back.ema);
+    assert_eq!(back.ema_base, 0.996);
+}
