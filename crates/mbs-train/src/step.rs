@@ -142,12 +142,18 @@ impl<B: Backbone> S3Trainer<B> {
             teacher_sides,
             ratios,
         } = batch;
-        let teacher_disparity = predict(
-            &self.teacher,
-            reference.clone(),
-            teacher_target.clone(),
-            &teacher_sides,
-        );
+        // Only the geometry term reads the teacher (Table 3 (A) runs without it).
+        let teacher_disparity = if self.loss.config().geometry {
+            predict(
+                &self.teacher,
+                reference.clone(),
+                teacher_target.clone(),
+                &teacher_sides,
+            )
+        } else {
+            let [batch, _, height, width] = reference.dims();
+            Tensor::zeros([batch, 1, height, width], &reference.device())
+        };
         let student_disparity = predict(
             &self.student,
             augmented_reference,

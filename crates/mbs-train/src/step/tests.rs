@@ -286,3 +286,31 @@ fn trainer_config_round_trips_through_json() {
     assert!(!back.ema);
     assert_eq!(back.ema_base, 0.996);
 }
+
+#[test]
+fn table3_row_a_trains_without_the_teacher() {
+    let device = Device::flex();
+    let train_device = device.clone().autodiff();
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let scenes = vec![scene(&mut rng)];
+    let net = CostVolumeNetConfig::new()
+        .with_max_disparity(16)
+        .with_features(4)
+        .with_hidden(4);
+    let config = TrainerConfig::new(
+        LossConfig::new().with_geometry(false),
+        OneCycleConfig::new(1e-3, 10),
+    );
+    let mut trainer =
+        S3Trainer::new(net.init(&train_device).expect("valid"), &config).expect("valid");
+    let triplets = [Triplet {
+        reference: 1,
+        student: 0,
+        teacher: 2,
+    }];
+    let report = trainer
+        .step(batch(&scenes, &triplets, &rig(), &device))
+        .expect("step runs");
+    assert!(report.loss.is_finite() && report.loss > 0.0);
+    assert!(report.grad_norm.is_finite());
+}
