@@ -151,7 +151,7 @@ fn bad_inputs_give_clear_errors_and_non_zero_exit() {
 fn killed_run_resumes_to_byte_identical_outputs() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
-    write_carla_frames(&data, 40, 320, 240);
+    write_carla_frames(&data, 80, 320, 240);
     let args = |out: &std::path::Path| {
         vec![
             "decode-depth".to_string(),
@@ -169,7 +169,7 @@ fn killed_run_resumes_to_byte_identical_outputs() {
     let output = common::mbs_tool().args(args(&clean)).output().unwrap();
     assert!(output.status.success(), "{}", text(&output));
     let reference = tree(&clean);
-    assert_eq!(reference.len(), 40 * 5);
+    assert_eq!(reference.len(), 80 * 5);
 
     // Kill a second run as soon as it has written something.
     let killed = dir.path().join("killed");

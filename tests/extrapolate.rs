@@ -235,5 +235,9 @@ fn errors_name_the_problem() {
     );
 
     let output = run(&["extrapolate", "--kitti", s(dir.path())]);
-    assert!(text(&output).contains("expected a KITTI split folder with image_2/ and image_3/"));
+    assert!(
+        text(&output).contains(
+            "not a KITTI folder (expected image_2 and image_3, or colored_0 and colored_1)"
+        )
+    );
 }

@@ -3,6 +3,7 @@
 
 pub mod checksum;
 pub mod error;
+pub mod kitti;
 pub mod manifest;
 pub mod mbs20k;
 pub mod probe;

@@ -98,6 +98,17 @@ pub struct Sample {
     /// SHA-256 (lowercase hex) of some of this sample's files, by path.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub sha256: BTreeMap<String, String>,
+    /// `(width, height)` of this sample's images when it differs from the
+    /// rig's (KITTI frames vary by a few pixels).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub image_size: Option<(u32, u32)>,
+}
+
+impl Sample {
+    /// The `(width, height)` of this sample's images.
+    pub fn size(&self, rig: &Rig) -> (u32, u32) {
+        self.image_size.unwrap_or((rig.width, rig.height))
+    }
 }
 
 /// Ground-truth disparity of one ordered camera pair.
@@ -286,6 +297,7 @@ mod tests {
             }],
             synthesized_masks: vec![],
             sha256: BTreeMap::new(),
+            image_size: None,
         };
         let manifest = Manifest {
             format: FORMAT.into(),

@@ -124,6 +124,7 @@ pub fn scan(root: &Path, options: &ScanOptions) -> Result<Manifest, DatasetError
                 ground_truth: Vec::new(),
                 synthesized_masks: Vec::new(),
                 sha256: BTreeMap::new(),
+                image_size: None,
             }
         })
         .collect::<Vec<_>>();

@@ -257,7 +257,14 @@ fn check_sample(
     let mut checked = BTreeSet::new();
     for (role, rel) in sample.files() {
         if checked.insert(rel) {
-            problems.extend(check_file(manifest_path, rig, id, role, rel, options));
+            problems.extend(check_file(
+                manifest_path,
+                sample.size(rig),
+                id,
+                role,
+                rel,
+                options,
+            ));
         }
     }
     for (rel, expected) in &sample.sha256 {
@@ -284,7 +291,7 @@ fn check_sample(
 
 fn check_file(
     manifest_path: &Path,
-    rig: &Rig,
+    size: (u32, u32),
     id: Option<&str>,
     role: FileRole,
     rel: &str,
@@ -301,14 +308,14 @@ fn check_file(
             return Some(problem(id, Some(rel), kind, e.to_string()));
         }
     };
-    if (info.width, info.height) != (rig.width, rig.height) {
+    if (info.width, info.height) != size {
         return Some(problem(
             id,
             Some(rel),
             ProblemKind::WrongSize,
             format!(
-                "image is {}x{}, the rig says {}x{}",
-                info.width, info.height, rig.width, rig.height
+                "image is {}x{}, the manifest says {}x{}",
+                info.width, info.height, size.0, size.1
             ),
         ));
     }

@@ -209,6 +209,7 @@ impl DatasetSpec {
                     ground_truth,
                     synthesized_masks: Vec::new(),
                     sha256,
+                    image_size: None,
                     id,
                 });
             }

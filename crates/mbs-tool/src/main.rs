@@ -7,7 +7,8 @@ mod commands;
 use clap::{Parser, Subcommand};
 
 /// Multi-baseline stereo toolkit: build training data for stereo networks
-/// (CARLA depth decoding, synthetic scenes, dataset manifests) and check it.
+/// (CARLA depth decoding, synthetic scenes, novel-view extrapolation of stereo
+/// pairs), match and score stereo pairs, and check datasets.
 #[derive(Parser)]
 #[command(name = "mbs-tool", version, propagate_version = true)]
 #[command(after_help = "Start with `mbs-tool demo`, then `mbs-tool <COMMAND> --help`.")]

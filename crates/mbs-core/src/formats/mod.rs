@@ -99,23 +99,7 @@ pub fn read_disparity(
             ));
         }
     };
-    let scale = png_scale.unwrap_or(1.0);
-    let data = codes
-        .as_raw()
-        .iter()
-        .map(|&v| {
-            if v == 0 {
-                f32::INFINITY
-            } else {
-                f32::from(v) / scale
-            }
-        })
-        .collect();
-    // One sample per pixel in both images, so the length matches.
-    Ok(
-        crate::FloatImage::from_raw(codes.width(), codes.height(), data)
-            .expect("same size as the codes"),
-    )
+    Ok(png16::decode_scaled(&codes, png_scale.unwrap_or(1.0)))
 }
 
 #[cfg(test)]

@@ -38,17 +38,18 @@ pub fn write_gray16(path: &Path, image: &Gray16Image) -> Result<()> {
     })
 }
 
-/// Decodes integer codes `v` into floats `v / scale`, with `0` -> `+inf`.
-pub fn decode_scaled(codes: &Gray16Image, scale: f32) -> FloatImage {
+/// Decodes 8- or 16-bit integer codes `v` into floats `v / scale`, with
+/// `0` -> `+inf`.
+pub fn decode_scaled<P>(codes: &ImageBuffer<Luma<P>, Vec<P>>, scale: f32) -> FloatImage
+where
+    P: image::Primitive + Into<f32>,
+{
     let data = codes
         .as_raw()
         .iter()
         .map(|&v| {
-            if v == 0 {
-                f32::INFINITY
-            } else {
-                f32::from(v) / scale
-            }
+            let v: f32 = v.into();
+            if v == 0.0 { f32::INFINITY } else { v / scale }
         })
         .collect();
     // Same dimensions and one sample per pixel, so the length matches.

@@ -3,6 +3,8 @@
 
 pub mod batch;
 pub mod onnx;
+pub mod pair;
+pub mod rig;
 pub mod shard;
 
 /// Sets the number of worker threads (0 = one per core).

@@ -11,6 +11,7 @@ use mbs_dataset::Manifest;
 use mbs_dataset::manifest::resolve;
 
 use crate::cli::batch::{self, Outcome};
+use crate::cli::pair::parse_pair;
 use crate::cli::shard::Shard;
 
 /// Arguments of `decode-depth`.
@@ -80,15 +81,6 @@ pub enum DisparityFormat {
     Png16,
     /// PFM float32, +inf = invalid.
     Pfm,
-}
-
-fn parse_pair(s: &str) -> Result<(usize, usize), String> {
-    let usage = || format!("invalid pair {s:?}: expected REFERENCE:TARGET, e.g. 0:4");
-    let (r, t) = s.split_once(':').ok_or_else(usage)?;
-    Ok((
-        r.trim().parse().map_err(|_| usage())?,
-        t.trim().parse().map_err(|_| usage())?,
-    ))
 }
 
 /// One depth image and where its outputs go.
@@ -316,7 +308,5 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("5-camera rig"), "{err}");
-        assert_eq!(parse_pair("0:3"), Ok((0, 3)));
-        assert!(parse_pair("03").is_err());
     }
 }

@@ -5,11 +5,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use clap::Parser;
-use mbs_core::formats::{pfm, png16};
+use mbs_core::formats::{pfm, png16, rgb};
+use mbs_core::quality::psnr;
 use mbs_dataset::Manifest;
 use mbs_dataset::mbs20k::Counts;
 
-use super::{decode_depth, synth, validate};
+use super::{decode_depth, extrapolate, synth, validate};
 
 /// Arguments of `demo`.
 #[derive(Parser)]
@@ -19,7 +20,9 @@ use super::{decode_depth, synth, validate};
 Steps: synth (a small MBS20K-style dataset with exact ground truth) ->
 validate (schema + files) -> decode-depth (CARLA depth -> metres and
 disparity for every pair) -> a check of the decoded disparity against the
-renderer's ground truth. Re-running reuses finished outputs.")]
+renderer's ground truth -> extrapolate (two new views from a stereo pair,
+with the built-in matcher) compared with the rendered views. Re-running
+reuses finished outputs.")]
 pub struct Args {
     /// Output folder.
     #[arg(long, default_value = "mbs-demo")]
@@ -97,6 +100,38 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "pair 0:4 over {pixels} pixels nearer than 200 m: EPE {epe:.4} px (KITTI PNG quantisation is 1/256 px)"
     );
 
+    let sample = data.join(&manifest_data.samples[0].id);
+    let extrapolated = args.out.join("extrapolated");
+    let view = |k: usize| {
+        sample
+            .join(mbs_dataset::mbs20k::view_file(k))
+            .display()
+            .to_string()
+    };
+    let extrapolate_args = strings(&[
+        "extrapolate",
+        "--left",
+        &view(1),
+        "--right",
+        &view(2),
+        "--disparity",
+        "sgm",
+        "--out",
+        &extrapolated.display().to_string(),
+        "--preview",
+    ]);
+    step(
+        "5. Extrapolate cameras 0 and 3 from the pair (1, 2) with the built-in matcher",
+        &extrapolate_args,
+    );
+    extrapolate::run(extrapolate::Args::try_parse_from(&extrapolate_args)?)?;
+    for (new, rendered) in [("image_1.png", 0), ("image_4.png", 3)] {
+        let ours = rgb::read_rgb(&extrapolated.join(new))?;
+        let truth = rgb::read_rgb(&sample.join(mbs_dataset::mbs20k::view_file(rendered)))?;
+        let db = psnr(&ours, &truth, None).context("views of different sizes")?;
+        eprintln!("{new} vs rendered camera {rendered}: PSNR {db:.2} dB");
+    }
+
     println!(
         "\nSets per town and weather:\n{}",
         Counts::of(&manifest_data).table()
@@ -113,6 +148,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     println!(
         "  {}/<Town>/<Weather>/<frame>/depth_0.exr, disp_0_T.png   decoded depth and disparity",
         decoded.display()
+    );
+    println!(
+        "  {}/image_1.png, image_4.png, mask_*.png, preview.png   extrapolated views",
+        extrapolated.display()
     );
     Ok(())
 }

@@ -4,12 +4,14 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::cli::pair::parse_pair;
 use anyhow::{Context, bail};
 use clap::Parser;
 use mbs_core::formats::{read_disparity, rgb};
 use mbs_core::metrics::{MeanMetrics, Metrics, Region, RegionSums, evaluate, valid_mask};
 use mbs_core::{FloatImage, MaskImage};
 use mbs_dataset::Manifest;
+use mbs_dataset::kitti::KittiVersion;
 use mbs_dataset::manifest::resolve;
 use rayon::prelude::*;
 use serde_json::{Value, json};
@@ -64,15 +66,6 @@ pub struct Args {
     pub jobs: usize,
 }
 
-fn parse_pair(s: &str) -> Result<(usize, usize), String> {
-    let usage = || format!("invalid pair {s:?}: expected REFERENCE:TARGET, e.g. 0:1");
-    let (r, t) = s.split_once(':').ok_or_else(usage)?;
-    Ok((
-        r.trim().parse().map_err(|_| usage())?,
-        t.trim().parse().map_err(|_| usage())?,
-    ))
-}
-
 /// One image to score.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Item {
@@ -82,6 +75,9 @@ pub struct Item {
     pub prediction: PathBuf,
     /// Ground truth over all valid pixels.
     pub gt: PathBuf,
+    /// The ground truth is this times the file's values (manifests share
+    /// one-baseline files between pairs).
+    pub gt_factor: f32,
     /// Where the non-occluded pixels are.
     pub noc: Option<Noc>,
 }
@@ -108,6 +104,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ),
             prediction: args.predictions.clone(),
             gt: gt.clone(),
+            gt_factor: 1.0,
             noc: args.noc.clone().map(Noc::Mask),
         }]
     } else if let Some(dir) = &args.kitti {
@@ -163,9 +160,9 @@ fn find_prediction(dir: &Path, name: &str) -> anyhow::Result<PathBuf> {
 
 /// The images of a KITTI training folder with their predictions.
 pub fn kitti_items(dir: &Path, predictions: &Path) -> anyhow::Result<Vec<Item>> {
-    let (occ, noc) = [("disp_occ_0", "disp_noc_0"), ("disp_occ", "disp_noc")]
+    let (occ, noc) = [KittiVersion::Kitti2015, KittiVersion::Kitti2012]
         .into_iter()
-        .map(|(o, n)| (dir.join(o), dir.join(n)))
+        .map(|v| (dir.join(v.gt_dirs().0), dir.join(v.gt_dirs().1)))
         .find(|(o, _)| o.is_dir())
         .with_context(|| {
             format!(
@@ -191,6 +188,7 @@ pub fn kitti_items(dir: &Path, predictions: &Path) -> anyhow::Result<Vec<Item>> 
             Ok(Item {
                 prediction: find_prediction(predictions, &name)?,
                 gt: occ.join(&file),
+                gt_factor: 1.0,
                 noc: noc_map.is_file().then_some(Noc::Map(noc_map)),
                 name,
             })
@@ -213,20 +211,12 @@ pub fn manifest_items(
                 .ground_truth
                 .iter()
                 .find(|g| g.reference == reference && g.target == target)?;
-            if gt.scale != 1.0 {
-                // Scaled files are shared between pairs; not supported here.
-                return Some(Err(anyhow::anyhow!(
-                    "{}: sample {}: ground truth with scale {} is not supported by eval",
-                    path.display(),
-                    s.id,
-                    gt.scale
-                )));
-            }
             Some(find_prediction(predictions, &s.id).map(|prediction| {
                 Item {
                     name: s.id.clone(),
                     prediction,
                     gt: resolve(path, &gt.disparity),
+                    gt_factor: gt.scale as f32,
                     noc: gt
                         .occlusion
                         .as_deref()
@@ -246,7 +236,10 @@ pub fn manifest_items(
 
 fn score(item: &Item, gt_scale: Option<f32>, thresholds: &[f32]) -> anyhow::Result<RegionSums> {
     let prediction = read_disparity(&item.prediction, None)?;
-    let gt = read_disparity(&item.gt, gt_scale)?;
+    let mut gt = read_disparity(&item.gt, gt_scale)?;
+    if item.gt_factor != 1.0 {
+        gt.iter_mut().for_each(|d| *d *= item.gt_factor);
+    }
     let noc: Option<MaskImage> = match &item.noc {
         None => None,
         Some(Noc::Map(p)) => Some(valid_mask(&read_disparity(p, gt_scale)?)),

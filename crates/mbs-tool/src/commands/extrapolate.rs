@@ -10,10 +10,16 @@ use mbs_core::formats::pfm::{Endian, write_pfm_grey};
 use mbs_core::formats::read_float_map;
 use mbs_core::formats::rgb::{read_rgb, write_mask_png, write_rgb_png};
 use mbs_core::{FloatImage, RgbImage, Side};
+use mbs_dataset::kitti::KittiFolder;
 use mbs_infer::inpaint::{BackgroundFill, Inpainter, IsotropicFill};
+use mbs_infer::{Sgm, SgmConfig, StereoMatcher, estimate_max_disparity};
 use mbs_warp::{Dilation, extrapolate_view, fill_disparity_background, forward_warp};
 
 use crate::cli::batch::{self, Outcome};
+use crate::cli::shard::Shard;
+
+mod manifest;
+mod preview;
 
 /// Arguments of `extrapolate`.
 #[derive(Parser)]
@@ -61,6 +67,13 @@ pub struct Args {
     /// KITTI: folder of right-view disparities named like image_3's files.
     #[arg(long, requires = "kitti", conflicts_with = "disparity_dir")]
     pub right_disparity_dir: Option<PathBuf>,
+    /// Where disparities come from when no file is given for a frame: the
+    /// built-in semi-global matcher (left view, and right view by mirroring).
+    #[arg(long, value_enum)]
+    pub disparity: Option<DisparitySource>,
+    /// Number of disparities the matcher searches (0 = estimate per pair, up to 256).
+    #[arg(long, default_value_t = 0)]
+    pub max_disparity: u32,
     /// How the hole masks are grown before inpainting (none measured best on
     /// Middlebury Tsukuba, also with disparities that bleed across edges).
     #[arg(long, value_enum, default_value_t = DilationKind::None)]
@@ -71,9 +84,29 @@ pub struct Args {
     /// Inpainting of the masked pixels.
     #[arg(long, value_enum, default_value_t = InpaintKind::Background)]
     pub inpaint: InpaintKind,
+    /// Also write a contact sheet per frame (preview/NAME.png): the four
+    /// views, synthesised pixels tinted red, and the disparities used.
+    #[arg(long)]
+    pub preview: bool,
+    /// Focal length in pixels, recorded in the manifest's rig (KITTI: about 721).
+    #[arg(long, default_value_t = 721.5377)]
+    pub focal: f64,
+    /// Baseline between the two input cameras in metres, recorded in the manifest (KITTI: 0.54).
+    #[arg(long, default_value_t = 0.54)]
+    pub baseline: f64,
+    /// Process only shard K of N (0-based); run once more without it to write the manifest.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<Shard>,
     /// Worker threads (0 = one per core).
     #[arg(long, default_value_t = 0)]
     pub jobs: usize,
+}
+
+/// Disparity estimators for frames without disparity files.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DisparitySource {
+    /// The built-in semi-global matcher (`mbs-tool predict`).
+    Sgm,
 }
 
 /// Mask dilations (see `mbs_warp::Dilation`).
@@ -113,12 +146,31 @@ struct Frame {
     mask_4: PathBuf,
     disparity_2: PathBuf,
     disparity_3: PathBuf,
+    preview: PathBuf,
+    /// KITTI ground truth of the left view, recorded in the manifest.
+    ground_truth: Option<PathBuf>,
+}
+
+impl Frame {
+    fn outputs(&self) -> [&PathBuf; 6] {
+        [
+            &self.image_1,
+            &self.image_4,
+            &self.mask_1,
+            &self.mask_4,
+            &self.disparity_2,
+            &self.disparity_3,
+        ]
+    }
 }
 
 /// What every frame is processed with.
 struct Settings {
     dilation: Dilation,
     inpainter: Box<dyn Inpainter>,
+    matcher: Option<DisparitySource>,
+    max_disparity: u32,
+    preview: bool,
 }
 
 /// Runs `extrapolate`.
@@ -137,18 +189,57 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             InpaintKind::Background => Box::new(BackgroundFill::default()),
             InpaintKind::Isotropic => Box::new(IsotropicFill),
         },
+        matcher: args.disparity,
+        max_disparity: args.max_disparity,
+        preview: args.preview,
     };
-    let frames = match &args.kitti {
-        Some(root) => kitti_frames(root, &args)?,
-        None => vec![pair_frame(&args)?],
+    let (frames, out) = match &args.kitti {
+        Some(root) => (
+            kitti_frames(root, &args)?,
+            args.out.clone().unwrap_or_else(|| root.clone()),
+        ),
+        None => (
+            vec![pair_frame(&args)?],
+            args.out.clone().unwrap_or_default(),
+        ),
+    };
+    let selected: Vec<&Frame> = match args.shard {
+        Some(shard) => shard.select(frames.iter().collect()),
+        None => frames.iter().collect(),
     };
     let summary = batch::run(
-        &frames,
+        &selected,
         "frames",
         |f| f.name.clone(),
         |f| process(f, &settings),
     );
-    summary.finish("extrapolate", "frames")
+    let result = summary.finish("extrapolate", "frames");
+    if args.shard.is_none() {
+        let manifest =
+            manifest::four_view_manifest(&frames_done(&frames), &out, args.focal, args.baseline)?;
+        let path = out.join("manifest.json");
+        manifest.save(&path)?;
+        eprintln!(
+            "extrapolate: {} four-view samples -> {}",
+            manifest.samples.len(),
+            path.display()
+        );
+    }
+    result
+}
+
+/// The frames whose outputs are all written, as manifest entries.
+fn frames_done(frames: &[Frame]) -> Vec<manifest::FourViews<'_>> {
+    frames
+        .iter()
+        .filter(|f| f.outputs().iter().all(|p| p.exists()))
+        .map(|f| manifest::FourViews {
+            id: f.name.trim_end_matches(".png"),
+            views: [&f.image_1, &f.left, &f.right, &f.image_4],
+            masks: [&f.mask_1, &f.mask_4],
+            ground_truth: f.ground_truth.as_deref(),
+        })
+        .collect()
 }
 
 /// The one frame of `--left/--right` mode.
@@ -179,18 +270,15 @@ fn pair_frame(args: &Args) -> anyhow::Result<Frame> {
         mask_4: out.join("mask_4.png"),
         disparity_2: out.join("disparity_2.pfm"),
         disparity_3: out.join("disparity_3.pfm"),
+        preview: out.join("preview.png"),
+        ground_truth: None,
     })
 }
 
-/// The frames of a KITTI split folder: every image in image_2/ with its
-/// namesake in image_3/.
+/// The frames of a KITTI split folder (2015 or 2012, training or testing):
+/// every left view with its namesake on the right.
 fn kitti_frames(root: &Path, args: &Args) -> anyhow::Result<Vec<Frame>> {
-    let (left_dir, right_dir) = (root.join("image_2"), root.join("image_3"));
-    ensure!(
-        left_dir.is_dir() && right_dir.is_dir(),
-        "{}: expected a KITTI split folder with image_2/ and image_3/ (e.g. kitti2015/training)",
-        root.display()
-    );
+    let folder = KittiFolder::open(root)?;
     let out = args.out.as_deref().unwrap_or(root);
     let (left_disp_dir, right_disp_dir) = match &args.disparity_dir {
         Some(dir) => (Some(dir.join("disparity_2")), Some(dir.join("disparity_3"))),
@@ -199,21 +287,14 @@ fn kitti_frames(root: &Path, args: &Args) -> anyhow::Result<Vec<Frame>> {
             args.right_disparity_dir.clone(),
         ),
     };
-    let mut names: Vec<String> = std::fs::read_dir(&left_dir)
-        .with_context(|| format!("{}: cannot list", left_dir.display()))?
-        .filter_map(|e| e.ok())
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| n.ends_with(".png"))
-        .collect();
-    names.sort();
-    ensure!(!names.is_empty(), "{}: no .png views", left_dir.display());
-    Ok(names
-        .into_iter()
-        .map(|name| {
-            let stem = name.trim_end_matches(".png");
+    Ok(folder
+        .frames
+        .iter()
+        .map(|stem| {
+            let name = format!("{stem}.png");
             Frame {
-                left: left_dir.join(&name),
-                right: right_dir.join(&name),
+                left: folder.left(stem),
+                right: folder.right(stem),
                 left_disparity: left_disp_dir.as_deref().and_then(|d| find_map(d, stem)),
                 right_disparity: right_disp_dir.as_deref().and_then(|d| find_map(d, stem)),
                 image_1: out.join("image_1").join(&name),
@@ -222,6 +303,8 @@ fn kitti_frames(root: &Path, args: &Args) -> anyhow::Result<Vec<Frame>> {
                 mask_4: out.join("mask_4").join(&name),
                 disparity_2: out.join("disparity_2").join(format!("{stem}.pfm")),
                 disparity_3: out.join("disparity_3").join(format!("{stem}.pfm")),
+                preview: out.join("preview").join(&name),
+                ground_truth: folder.disparity_occ(stem),
                 name,
             }
         })
@@ -238,15 +321,7 @@ fn find_map(dir: &Path, stem: &str) -> Option<PathBuf> {
 
 /// Extrapolates one frame, unless all its outputs exist.
 fn process(frame: &Frame, settings: &Settings) -> anyhow::Result<Outcome> {
-    let outputs = [
-        &frame.image_1,
-        &frame.image_4,
-        &frame.mask_1,
-        &frame.mask_4,
-        &frame.disparity_2,
-        &frame.disparity_3,
-    ];
-    if outputs.iter().all(|p| p.exists()) {
+    if frame.outputs().iter().all(|p| p.exists()) && (!settings.preview || frame.preview.exists()) {
         return Ok(Outcome::Skipped);
     }
     let left = read_rgb(&frame.left)?;
@@ -259,7 +334,7 @@ fn process(frame: &Frame, settings: &Settings) -> anyhow::Result<Outcome> {
         frame.right.display(),
         right.dimensions()
     );
-    let (disp_left, disp_right) = disparities(frame, &left, &right)?;
+    let (disp_left, disp_right) = disparities(frame, &left, &right, settings)?;
     let views = [
         (&left, &disp_left, Side::Left, &frame.image_1, &frame.mask_1),
         (
@@ -270,6 +345,7 @@ fn process(frame: &Frame, settings: &Settings) -> anyhow::Result<Outcome> {
             &frame.mask_4,
         ),
     ];
+    let mut new_views = Vec::with_capacity(2);
     for (image, disparity, side, image_path, mask_path) in views {
         let view = extrapolate_view(image, disparity, side, settings.dilation)?;
         let filled = settings
@@ -278,6 +354,15 @@ fn process(frame: &Frame, settings: &Settings) -> anyhow::Result<Outcome> {
             .with_context(|| format!("inpainting {}", image_path.display()))?;
         write_mask_png(mask_path, &view.mask)?;
         write_rgb_png(image_path, &filled)?;
+        new_views.push((filled, view.mask));
+    }
+    if settings.preview {
+        let sheet = preview::contact_sheet(
+            [&new_views[0].0, &left, &right, &new_views[1].0],
+            [&new_views[0].1, &new_views[1].1],
+            [&disp_left, &disp_right],
+        );
+        write_rgb_png(&frame.preview, &sheet)?;
     }
     write_pfm_grey(&frame.disparity_2, &disp_left, Endian::Little)?;
     write_pfm_grey(&frame.disparity_3, &disp_right, Endian::Little)?;
@@ -289,9 +374,16 @@ fn disparities(
     frame: &Frame,
     left: &RgbImage,
     right: &RgbImage,
+    settings: &Settings,
 ) -> anyhow::Result<(FloatImage, FloatImage)> {
     let load = |path: &Path| -> anyhow::Result<FloatImage> {
         let map = read_float_map(path)?;
+        let bad = map.iter().filter(|d| d.is_nan() || **d < 0.0).count();
+        ensure!(
+            bad == 0,
+            "{}: {bad} NaN or negative disparities (disparity is a non-negative magnitude; mark invalid pixels +inf or 0 in PNGs)",
+            path.display()
+        );
         ensure!(
             map.dimensions() == left.dimensions(),
             "{}: disparity is {:?} but the views are {:?} (width, height)",
@@ -322,9 +414,22 @@ fn disparities(
             let dl = derive(right, &dr, Side::Left)?;
             (dl, dr)
         }
+        (None, None) if settings.matcher == Some(DisparitySource::Sgm) => {
+            let max_disparity = match settings.max_disparity {
+                0 => estimate_max_disparity(left, right, 256)?,
+                n => n,
+            };
+            let sgm = Sgm::new(SgmConfig::with_max_disparity(max_disparity));
+            let dl = sgm.predict(left, right)?.disparity;
+            let dr = sgm.predict_right(left, right)?.disparity;
+            (
+                fill_disparity_background(&dl),
+                fill_disparity_background(&dr),
+            )
+        }
         (None, None) => bail!(
             "no disparity for {}: give --left-disparity and/or --right-disparity \
-             (KITTI: --left-disparity-dir / --right-disparity-dir), or --disparity-dir",
+             (KITTI: --left-disparity-dir / --right-disparity-dir), --disparity-dir, or --disparity sgm",
             frame.left.display()
         ),
     })

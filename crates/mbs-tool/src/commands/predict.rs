@@ -8,12 +8,14 @@ use clap::{Parser, ValueEnum};
 use mbs_core::colormap::colorize_disparity;
 use mbs_core::formats::{pfm, png16, rgb};
 use mbs_dataset::Manifest;
+use mbs_dataset::kitti::KittiFolder;
 use mbs_dataset::manifest::resolve;
 use mbs_infer::onnx::{ModelCard, OnnxStereo};
 use mbs_infer::{Disparity, Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max_disparity};
 
 use crate::cli::batch::{self, Outcome};
 use crate::cli::onnx::OnnxArgs;
+use crate::cli::pair::parse_pair;
 use crate::cli::shard::Shard;
 
 /// Arguments of `predict`.
@@ -118,21 +120,6 @@ pub enum Paths {
     Eight,
 }
 
-fn parse_pair(s: &str) -> Result<(usize, usize), String> {
-    let usage = || format!("invalid pair {s:?}: expected REFERENCE:TARGET, e.g. 0:1");
-    let (r, t) = s.split_once(':').ok_or_else(usage)?;
-    let pair = (
-        r.trim().parse().map_err(|_| usage())?,
-        t.trim().parse().map_err(|_| usage())?,
-    );
-    if pair.0 == pair.1 {
-        return Err(format!(
-            "invalid pair {s:?}: reference and target must differ"
-        ));
-    }
-    Ok(pair)
-}
-
 /// One pair to match and where its outputs go.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Job {
@@ -191,41 +178,28 @@ fn file_stem(path: &Path) -> anyhow::Result<String> {
         .with_context(|| format!("{}: not a file name", path.display()))
 }
 
-/// The pairs of a KITTI folder: `*_10.png` of the left image folder with
-/// the same name in the right one.
+/// The pairs of a KITTI folder: the `*_10` frames (those with ground
+/// truth in training folders).
 pub fn kitti_jobs(dir: &Path) -> anyhow::Result<Vec<Job>> {
-    let (left_dir, right_dir) = ["image_2", "colored_0"]
-        .into_iter()
-        .zip(["image_3", "colored_1"])
-        .map(|(l, r)| (dir.join(l), dir.join(r)))
-        .find(|(l, r)| l.is_dir() && r.is_dir())
-        .with_context(|| {
-            format!(
-                "{}: not a KITTI folder (expected image_2 and image_3, or colored_0 and colored_1)",
-                dir.display()
-            )
-        })?;
-    let mut names: Vec<String> = std::fs::read_dir(&left_dir)
-        .with_context(|| format!("cannot list {}", left_dir.display()))?
-        .filter_map(|e| e.ok())
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| n.ends_with("_10.png"))
-        .collect();
-    names.sort();
-    if names.is_empty() {
-        bail!("{}: no *_10.png frames", left_dir.display());
-    }
-    names
-        .into_iter()
-        .map(|n| {
-            Ok(Job {
-                reference: left_dir.join(&n),
-                target: right_dir.join(&n),
-                target_on_left: false,
-                name: file_stem(Path::new(&n))?,
-            })
+    let folder = KittiFolder::open(dir)?;
+    let jobs: Vec<Job> = folder
+        .frames
+        .iter()
+        .filter(|f| f.ends_with("_10"))
+        .map(|f| Job {
+            reference: folder.left(f),
+            target: folder.right(f),
+            target_on_left: false,
+            name: f.clone(),
         })
-        .collect()
+        .collect();
+    if jobs.is_empty() {
+        bail!(
+            "{}: no *_10.png frames",
+            dir.join(folder.version.view_dirs().0).display()
+        );
+    }
+    Ok(jobs)
 }
 
 /// The `(reference, target)` pair of every sample of a manifest.
@@ -337,13 +311,6 @@ fn max_finite(prediction: &Disparity) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn pairs_parse_and_must_differ() {
-        assert_eq!(parse_pair("2:1"), Ok((2, 1)));
-        assert!(parse_pair("1:1").is_err());
-        assert!(parse_pair("21").is_err());
-    }
 
     #[test]
     fn kitti_folders_need_both_views() {

@@ -3,7 +3,8 @@
 use std::path::PathBuf;
 
 use clap::Parser;
-use mbs_core::Rig;
+
+use crate::cli::rig::RigArgs;
 use mbs_dataset::mbs20k::{Counts, ScanOptions, scan};
 
 /// Arguments of `scan`.
@@ -25,21 +26,8 @@ pub struct Args {
     /// Towns whose samples form the test split.
     #[arg(long, value_delimiter = ',', default_value = "Town10")]
     pub test_towns: Vec<String>,
-    /// Image width in pixels.
-    #[arg(long, default_value_t = 960)]
-    pub width: u32,
-    /// Image height in pixels.
-    #[arg(long, default_value_t = 540)]
-    pub height: u32,
-    /// Focal length in pixels.
-    #[arg(long, default_value_t = 480.0)]
-    pub focal: f64,
-    /// Baseline between neighbouring cameras in metres.
-    #[arg(long, default_value_t = 0.5)]
-    pub baseline: f64,
-    /// Number of cameras.
-    #[arg(long, default_value_t = 5)]
-    pub views: usize,
+    #[command(flatten)]
+    pub rig: RigArgs,
     /// Depth beyond this many metres is invalid for disparity.
     #[arg(long, default_value_t = 200.0)]
     pub max_depth: f64,
@@ -48,13 +36,7 @@ pub struct Args {
 /// Runs `scan`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let options = ScanOptions {
-        rig: Rig::centred(
-            args.views,
-            args.baseline,
-            args.focal,
-            args.width,
-            args.height,
-        ),
+        rig: args.rig.rig()?,
         test_towns: args.test_towns,
         max_depth_m: args.max_depth,
     };

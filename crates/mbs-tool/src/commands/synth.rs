@@ -3,7 +3,8 @@
 use std::path::PathBuf;
 
 use clap::Parser;
-use mbs_core::Rig;
+
+use crate::cli::rig::RigArgs;
 use mbs_synth::dataset::DatasetSpec;
 use mbs_synth::{SceneConfig, Weather};
 
@@ -42,21 +43,8 @@ pub struct Args {
     /// Towns whose samples form the test split.
     #[arg(long, value_delimiter = ',', default_value = "Town10")]
     pub test_towns: Vec<String>,
-    /// Number of cameras.
-    #[arg(long, default_value_t = 5)]
-    pub views: usize,
-    /// Image width in pixels.
-    #[arg(long, default_value_t = 960)]
-    pub width: u32,
-    /// Image height in pixels.
-    #[arg(long, default_value_t = 540)]
-    pub height: u32,
-    /// Focal length in pixels.
-    #[arg(long, default_value_t = 480.0)]
-    pub focal: f64,
-    /// Baseline between neighbouring cameras in metres.
-    #[arg(long, default_value_t = 0.5)]
-    pub baseline: f64,
+    #[command(flatten)]
+    pub rig: RigArgs,
     /// Master seed.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -80,19 +68,10 @@ pub struct Args {
 /// Runs `synth`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
-    if args.views < 2 || args.width == 0 || args.height == 0 || args.frames == 0 {
-        anyhow::bail!("need at least 2 views, 1 frame and a non-empty image size");
+    if args.frames == 0 {
+        anyhow::bail!("--frames must be at least 1");
     }
-    if !(args.focal > 0.0 && args.baseline > 0.0) {
-        anyhow::bail!("--focal and --baseline must be positive");
-    }
-    let rig = Rig::centred(
-        args.views,
-        args.baseline,
-        args.focal,
-        args.width,
-        args.height,
-    );
+    let rig = args.rig.rig()?;
     let spec = DatasetSpec {
         rig,
         towns: args.towns,

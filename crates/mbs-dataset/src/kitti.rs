@@ -1,0 +1,174 @@
+//! KITTI stereo folders (SPEC §3): 2015 (`image_2`, `image_3`, `disp_occ_0`,
+//! `disp_noc_0`) and 2012 (`colored_0`, `colored_1`, `disp_occ`,
+//! `disp_noc`), training or testing.
+
+use std::path::{Path, PathBuf};
+
+use crate::error::DatasetError;
+
+/// Which KITTI benchmark a folder belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum KittiVersion {
+    /// KITTI 2015: `image_2` / `image_3`.
+    Kitti2015,
+    /// KITTI 2012: `colored_0` / `colored_1`.
+    Kitti2012,
+}
+
+/// A KITTI split folder and its frames.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KittiFolder {
+    /// The split folder, e.g. `kitti2015/training`.
+    pub root: PathBuf,
+    /// The benchmark version, from the folder names.
+    pub version: KittiVersion,
+    /// File stems of the left views (e.g. `000000_10`), sorted.
+    pub frames: Vec<String>,
+}
+
+impl KittiFolder {
+    /// Detects the layout of `root` and lists the PNG frames of its left
+    /// view folder.
+    pub fn open(root: &Path) -> Result<KittiFolder, DatasetError> {
+        let version = [KittiVersion::Kitti2015, KittiVersion::Kitti2012]
+            .into_iter()
+            .find(|v| {
+                let (l, r) = v.view_dirs();
+                root.join(l).is_dir() && root.join(r).is_dir()
+            })
+            .ok_or_else(|| DatasetError::Layout {
+                path: root.to_path_buf(),
+                message:
+                    "not a KITTI folder (expected image_2 and image_3, or colored_0 and colored_1)"
+                        .into(),
+            })?;
+        let left_dir = root.join(version.view_dirs().0);
+        let io = |source| DatasetError::Io {
+            path: left_dir.clone(),
+            source,
+        };
+        let mut frames = Vec::new();
+        for entry in std::fs::read_dir(&left_dir).map_err(io)? {
+            let name = entry
+                .map_err(io)?
+                .file_name()
+                .to_string_lossy()
+                .into_owned();
+            if let Some(stem) = name.strip_suffix(".png") {
+                frames.push(stem.to_string());
+            }
+        }
+        frames.sort();
+        if frames.is_empty() {
+            return Err(DatasetError::Layout {
+                path: left_dir,
+                message: "no .png views".into(),
+            });
+        }
+        Ok(KittiFolder {
+            root: root.to_path_buf(),
+            version,
+            frames,
+        })
+    }
+
+    /// The left view of a frame.
+    pub fn left(&self, frame: &str) -> PathBuf {
+        self.root
+            .join(self.version.view_dirs().0)
+            .join(format!("{frame}.png"))
+    }
+
+    /// The right view of a frame.
+    pub fn right(&self, frame: &str) -> PathBuf {
+        self.root
+            .join(self.version.view_dirs().1)
+            .join(format!("{frame}.png"))
+    }
+
+    /// The ground-truth disparity of the left view (all valid pixels), when
+    /// the file exists (training `*_10` frames).
+    pub fn disparity_occ(&self, frame: &str) -> Option<PathBuf> {
+        Some(
+            self.root
+                .join(self.version.gt_dirs().0)
+                .join(format!("{frame}.png")),
+        )
+        .filter(|p| p.is_file())
+    }
+
+    /// The non-occluded ground-truth disparity of the left view, when it exists.
+    pub fn disparity_noc(&self, frame: &str) -> Option<PathBuf> {
+        Some(
+            self.root
+                .join(self.version.gt_dirs().1)
+                .join(format!("{frame}.png")),
+        )
+        .filter(|p| p.is_file())
+    }
+}
+
+impl KittiVersion {
+    /// The left and right view folder names.
+    pub fn view_dirs(self) -> (&'static str, &'static str) {
+        match self {
+            KittiVersion::Kitti2015 => ("image_2", "image_3"),
+            KittiVersion::Kitti2012 => ("colored_0", "colored_1"),
+        }
+    }
+
+    /// The all-pixels and non-occluded ground-truth folder names.
+    pub fn gt_dirs(self) -> (&'static str, &'static str) {
+        match self {
+            KittiVersion::Kitti2015 => ("disp_occ_0", "disp_noc_0"),
+            KittiVersion::Kitti2012 => ("disp_occ", "disp_noc"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn touch(path: &Path) {
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(path, b"").unwrap();
+    }
+
+    #[test]
+    fn detects_both_versions_and_lists_frames() {
+        let dir = tempfile::tempdir().unwrap();
+        let k15 = dir.path().join("k15");
+        touch(&k15.join("image_2/000001_10.png"));
+        touch(&k15.join("image_2/000000_11.png"));
+        touch(&k15.join("image_3/000001_10.png"));
+        touch(&k15.join("disp_occ_0/000001_10.png"));
+        let folder = KittiFolder::open(&k15).unwrap();
+        assert_eq!(folder.version, KittiVersion::Kitti2015);
+        assert_eq!(folder.frames, ["000000_11", "000001_10"]);
+        assert_eq!(folder.right("000001_10"), k15.join("image_3/000001_10.png"));
+        assert!(folder.disparity_occ("000001_10").is_some());
+        assert!(folder.disparity_noc("000001_10").is_none());
+
+        let k12 = dir.path().join("k12");
+        touch(&k12.join("colored_0/000003_10.png"));
+        std::fs::create_dir_all(k12.join("colored_1")).unwrap();
+        let folder = KittiFolder::open(&k12).unwrap();
+        assert_eq!(folder.version, KittiVersion::Kitti2012);
+        assert_eq!(
+            folder.left("000003_10"),
+            k12.join("colored_0/000003_10.png")
+        );
+    }
+
+    #[test]
+    fn other_folders_are_refused_with_their_path() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = KittiFolder::open(dir.path()).unwrap_err().to_string();
+        assert!(err.contains("not a KITTI folder"), "{err}");
+        std::fs::create_dir_all(dir.path().join("image_2")).unwrap();
+        std::fs::create_dir_all(dir.path().join("image_3")).unwrap();
+        let err = KittiFolder::open(dir.path()).unwrap_err().to_string();
+        assert!(err.contains("no .png views"), "{err}");
+    }
+}

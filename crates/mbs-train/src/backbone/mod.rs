@@ -1,0 +1,36 @@
+//! Stereo backbones: anything that maps a rectified pair to a
+//! full-resolution disparity can be trained with S3 (SPEC §5).
+
+pub mod cost_volume;
+pub mod upsample;
+
+use burn::module::Module;
+use burn::tensor::Tensor;
+use mbs_core::geometry::Side;
+
+use crate::mirror::mirror_left;
+
+pub use cost_volume::{CostVolumeNet, CostVolumeNetConfig};
+
+/// A stereo network for a target on the **right** of the reference.
+pub trait Backbone: Module {
+    /// Disparity `[B, 1, H, W]` (pixels, >= 0, on the reference grid) for
+    /// reference and target images `[B, 3, H, W]` in `[0, 1]`.
+    fn disparity(&self, reference: Tensor<4>, target: Tensor<4>) -> Tensor<4>;
+}
+
+/// Disparity for pairs whose targets lie on either side: left-side items
+/// are mirrored in, predicted as right-side pairs, and mirrored back.
+///
+/// # Panics
+/// When `sides.len()` differs from the batch size.
+pub fn predict<B: Backbone>(
+    backbone: &B,
+    reference: Tensor<4>,
+    target: Tensor<4>,
+    sides: &[Side],
+) -> Tensor<4> {
+    let reference = mirror_left(reference, sides);
+    let target = mirror_left(target, sides);
+    mirror_left(backbone.disparity(reference, target), sides)
+}

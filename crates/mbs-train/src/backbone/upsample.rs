@@ -1,0 +1,78 @@
+//! Bilinear upsampling as two matrix products with fixed interpolation
+//! matrices, `U_h D U_w^T`: it has a backward pass on every burn backend
+//! (burn's GPU `interpolate` has none) and runs as fast on flex.
+
+use burn::tensor::{Device, Tensor, TensorData};
+
+/// The `[n_out, n_in]` matrix of 1-D linear interpolation with PyTorch's
+/// `align_corners = false` convention (pixel centres at `i + 0.5`, source
+/// coordinates clamped at the border).
+pub fn interpolation_matrix(n_out: usize, n_in: usize) -> Vec<f32> {
+    let mut matrix = vec![0.0f32; n_out * n_in];
+    let scale = n_in as f64 / n_out as f64;
+    for i in 0..n_out {
+        let source = ((i as f64 + 0.5) * scale - 0.5).max(0.0);
+        let left = (source.floor() as usize).min(n_in - 1);
+        let right = (left + 1).min(n_in - 1);
+        let weight = (source - left as f64) as f32;
+        matrix[i * n_in + left] += 1.0 - weight;
+        matrix[i * n_in + right] += weight;
+    }
+    matrix
+}
+
+/// Bilinear resize of `maps` (`[B, C, h, w]`) to `[B, C, height, width]`.
+pub fn upsample_bilinear(maps: Tensor<4>, height: usize, width: usize) -> Tensor<4> {
+    let [batch, channels, h, w] = maps.dims();
+    let device: Device = maps.device();
+    let rows = Tensor::<2>::from_data(
+        TensorData::new(interpolation_matrix(height, h), [height, h]),
+        &device,
+    );
+    let cols = Tensor::<2>::from_data(
+        TensorData::new(interpolation_matrix(width, w), [width, w]),
+        &device,
+    );
+    let rows = rows
+        .reshape([1, 1, height, h])
+        .expand([batch, channels, height, h]);
+    let cols_t = cols
+        .transpose()
+        .reshape([1, 1, w, width])
+        .expand([batch, channels, w, width]);
+    rows.matmul(maps).matmul(cols_t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_util::{assert_close, tensor4, values};
+
+    #[test]
+    fn matrix_matches_pytorch_align_corners_false() {
+        // torch.nn.functional.interpolate([0, 1], size=4, mode="linear",
+        // align_corners=False) = [0, 0.25, 0.75, 1].
+        let m = interpolation_matrix(4, 2);
+        assert_close(&m, &[1.0, 0.0, 0.75, 0.25, 0.25, 0.75, 0.0, 1.0], 1e-6);
+        // Rows sum to 1.
+        let m = interpolation_matrix(13, 4);
+        for row in m.chunks(4) {
+            assert!((row.iter().sum::<f32>() - 1.0).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn upsamples_separably() {
+        let device = Device::flex();
+        let maps = tensor4(&[0.0, 1.0, 2.0, 3.0], [1, 1, 2, 2], &device);
+        let up = upsample_bilinear(maps, 4, 4);
+        assert_eq!(up.dims(), [1, 1, 4, 4]);
+        // Rows [0, .25, .75, 1] x 2 + columns [0, .25, .75, 1].
+        let axis = [0.0, 0.25, 0.75, 1.0];
+        let want: Vec<f32> = axis
+            .iter()
+            .flat_map(|r| axis.iter().map(move |c| 2.0 * r + c))
+            .collect();
+        assert_close(&values(up), &want, 1e-6);
+    }
+}

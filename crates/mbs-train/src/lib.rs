@@ -1,0 +1,37 @@
+//! S3 self-supervised multi-baseline stereo training on burn: losses, masks and weight map, EMA teacher, schedules, triplet sampling and backbones.
+//!
+//! Everything runs on burn's run-time selected device (`Device::flex()` on
+//! CPU, `.autodiff()` for training); see `DESIGN.md` for the choice of burn.
+//!
+//! One step, as [`step::S3Trainer::step`] runs it:
+//!
+//! ```text
+//! sampling::TripletSampler  -> (reference r, student target t_s, teacher target t_t), r = B_s / B_t
+//! augment::AugmentConfig    -> colour jitter + occlusion of the student's pair
+//! backbone::predict         -> d_t = teacher(I_r, I_tt)     (no autodiff, left targets mirrored)
+//!                              d_s = student(aug I_r, aug I_ts)
+//! losses::S3Loss::compute   -> L = mean(A |d_s - r d_t|) + lambda_p mean(M_s P_s) + lambda_s L_s
+//!                              (P, M on clean images; mask::weight_map gives A)
+//! clip::clip_global_norm    -> Adam step at schedule::OneCycle::lr(step)
+//! ema::ema_update           -> teacher <- m teacher + (1 - m) student, m = schedule::CosineMomentum
+//! ```
+
+pub mod augment;
+pub mod backbone;
+pub mod clip;
+pub mod ema;
+pub mod error;
+pub mod losses;
+pub mod mask;
+pub mod mirror;
+pub mod sampling;
+pub mod schedule;
+pub mod step;
+
+#[cfg(test)]
+mod test_util;
+
+pub use backbone::{Backbone, CostVolumeNet, CostVolumeNetConfig};
+pub use error::TrainError;
+pub use losses::{LossConfig, LossInputs, LossOutput, S3Loss};
+pub use step::{S3Trainer, StepBatch, StepReport, TrainerConfig};

@@ -1,0 +1,332 @@
+//! The S3 loss (paper eq. 7):
+//! `L = mean(A |d_s - r d_t|) + lambda_p mean(M_s P_s) + lambda_s L_s`,
+//! with a switch for every term and every mask part (paper Tables 3 and 4).
+
+pub mod geometry;
+pub mod photometric;
+pub mod smoothness;
+pub mod warp;
+
+use burn::config::Config;
+use burn::tensor::Tensor;
+use mbs_core::geometry::Side;
+
+use crate::error::TrainError;
+use crate::mask::{MaskParts, validity_mask, weight_map};
+use geometry::geometry_consistency;
+use photometric::photometric_map;
+use smoothness::edge_aware_smoothness;
+use warp::warp_to_reference;
+
+/// Hyper-parameters and ablation switches of the S3 loss; the defaults are
+/// the paper's.
+#[derive(Config, Debug, PartialEq)]
+pub struct LossConfig {
+    /// Photometric threshold `tau` of the validity masks.
+    #[config(default = 0.1)]
+    pub tau: f64,
+    /// Weight `omega` of pixels the teacher sees and the student does not.
+    #[config(default = 2.0)]
+    pub omega: f64,
+    /// Weight `lambda_p` of the photometric term.
+    #[config(default = 10.0)]
+    pub lambda_p: f64,
+    /// `lambda_s / lambda_p` (the paper sets `lambda_s = 0.001 lambda_p`).
+    #[config(default = 0.001)]
+    pub lambda_s_ratio: f64,
+    /// SSIM share `alpha` of the photometric error.
+    #[config(default = 0.85)]
+    pub alpha: f64,
+    /// Side of the SSIM box window (odd): 7 as the authors' toolbox, 3 as monodepth2.
+    #[config(default = 7)]
+    pub ssim_window: usize,
+    /// Geometry-consistency term `L_g` on (Table 3).
+    #[config(default = true)]
+    pub geometry: bool,
+    /// Photometric term `L_p` on (Table 3).
+    #[config(default = true)]
+    pub photometric: bool,
+    /// Smoothness term `L_s` on (Table 3).
+    #[config(default = true)]
+    pub smoothness: bool,
+    /// Photometric threshold filtering `P < tau` in the masks (PTF, Table 4).
+    #[config(default = true)]
+    pub threshold_filter: bool,
+    /// Auto-masking `P < P_identity` in the masks (AMF, Table 4).
+    #[config(default = true)]
+    pub auto_mask: bool,
+    /// Occlusion-aware enhancement: weight `omega` instead of 1 where only
+    /// the teacher sees (OAE, Table 4).
+    #[config(default = true)]
+    pub occlusion_enhancement: bool,
+}
+
+impl LossConfig {
+    /// Smoothness weight `lambda_s = lambda_s_ratio * lambda_p`.
+    pub fn lambda_s(&self) -> f64 {
+        self.lambda_s_ratio * self.lambda_p
+    }
+
+    /// The mask parts switched on.
+    pub fn mask_parts(&self) -> MaskParts {
+        MaskParts {
+            threshold: self.threshold_filter.then_some(self.tau),
+            auto_mask: self.auto_mask,
+        }
+    }
+
+    /// The effective `omega` (1 when occlusion-aware enhancement is off).
+    pub fn effective_omega(&self) -> f64 {
+        if self.occlusion_enhancement {
+            self.omega
+        } else {
+            1.0
+        }
+    }
+
+    /// Checks every value against its valid range.
+    pub fn validate(&self) -> Result<(), TrainError> {
+        let invalid = |name, value: String, reason| {
+            Err(TrainError::InvalidSetting {
+                name,
+                value,
+                reason,
+            })
+        };
+        if !(self.tau.is_finite() && self.tau > 0.0) {
+            return invalid("tau", self.tau.to_string(), "a positive number");
+        }
+        if !(self.omega.is_finite() && self.omega >= 0.0) {
+            return invalid(
+                "omega",
+                self.omega.to_string(),
+                "a non-negative number (the paper uses > 1)",
+            );
+        }
+        if !(self.lambda_p.is_finite() && self.lambda_p >= 0.0) {
+            return invalid(
+                "lambda_p",
+                self.lambda_p.to_string(),
+                "a non-negative number",
+            );
+        }
+        if !(self.lambda_s_ratio.is_finite() && self.lambda_s_ratio >= 0.0) {
+            return invalid(
+                "lambda_s_ratio",
+                self.lambda_s_ratio.to_string(),
+                "a non-negative number",
+            );
+        }
+        if !(0.0..=1.0).contains(&self.alpha) {
+            return invalid("alpha", self.alpha.to_string(), "a number in [0, 1]");
+        }
+        if self.ssim_window % 2 == 0 {
+            return invalid(
+                "ssim_window",
+                self.ssim_window.to_string(),
+                "an odd window side such as 3 or 7",
+            );
+        }
+        if !(self.geometry || self.photometric || self.smoothness) {
+            return invalid(
+                "geometry/photometric/smoothness",
+                "all false".into(),
+                "at least one loss term on",
+            );
+        }
+        Ok(())
+    }
+}
+
+/// One batch of what the loss sees. Images are `[B, C, H, W]` in `[0, 1]`,
+/// clean (un-augmented: masks and photometric maps use clean images, also
+/// for the student); disparities are `[B, 1, H, W]` on the reference grid,
+/// already mirrored back for left targets.
+#[derive(Debug, Clone)]
+pub struct LossInputs {
+    /// Reference images `I_r`.
+    pub reference: Tensor<4>,
+    /// The student's target images `I_ts`.
+    pub student_target: Tensor<4>,
+    /// The teacher's target images `I_tt`.
+    pub teacher_target: Tensor<4>,
+    /// Student prediction `d_s` (carries the gradient).
+    pub student_disparity: Tensor<4>,
+    /// Teacher prediction `d_t` (detached by the loss).
+    pub teacher_disparity: Tensor<4>,
+    /// Side of each student target relative to its reference.
+    pub student_sides: Vec<Side>,
+    /// Side of each teacher target relative to its reference.
+    pub teacher_sides: Vec<Side>,
+    /// Baseline ratio `r = B_s / B_t` of each batch item.
+    pub ratios: Vec<f64>,
+}
+
+/// The loss and its parts. Terms that are switched off are `None`.
+#[derive(Debug, Clone)]
+pub struct LossOutput {
+    /// The weighted total `L`, differentiable in the student disparity.
+    pub total: Tensor<1>,
+    /// `mean(A |d_s - r d_t|)`, unweighted.
+    pub geometry: Option<Tensor<1>>,
+    /// `mean(M_s P_s)`, before `lambda_p`.
+    pub photometric: Option<Tensor<1>>,
+    /// `L_s`, before `lambda_s`.
+    pub smoothness: Option<Tensor<1>>,
+    /// Student validity mask `M_s` (0/1), when the photometric or geometry term is on.
+    pub student_mask: Option<Tensor<4>>,
+    /// Teacher validity mask `M_t` (0/1), when the geometry term is on.
+    pub teacher_mask: Option<Tensor<4>>,
+    /// Occlusion-aware weight map `A`, when the geometry term is on.
+    pub weight_map: Option<Tensor<4>>,
+}
+
+/// The S3 loss with a validated configuration.
+#[derive(Debug, Clone)]
+pub struct S3Loss {
+    config: LossConfig,
+}
+
+impl S3Loss {
+    /// A loss from a configuration, checked by [`LossConfig::validate`].
+    pub fn new(config: LossConfig) -> Result<Self, TrainError> {
+        config.validate()?;
+        Ok(Self { config })
+    }
+
+    /// The configuration in use.
+    pub fn config(&self) -> &LossConfig {
+        &self.config
+    }
+
+    /// Photometric map `P` of a prediction and the identity map `P(I_r, I_tgt)`
+    /// of the un-warped target.
+    fn photometric_pair(
+        &self,
+        reference: &Tensor<4>,
+        target: Tensor<4>,
+        disparity: Tensor<4>,
+        sides: &[Side],
+    ) -> (Tensor<4>, Tensor<4>) {
+        let window = self.config.ssim_window;
+        let alpha = self.config.alpha;
+        let identity = photometric_map(reference.clone(), target.clone(), alpha, window);
+        let warped = warp_to_reference(target, disparity, sides);
+        (
+            photometric_map(reference.clone(), warped, alpha, window),
+            identity,
+        )
+    }
+
+    /// Computes `L` and its parts for one batch.
+    pub fn compute(&self, inputs: LossInputs) -> Result<LossOutput, TrainError> {
+        check_shapes(&inputs, self.config.ssim_window)?;
+        let config = &self.config;
+        let parts = config.mask_parts();
+        let LossInputs {
+            reference,
+            student_target,
+            teacher_target,
+            student_disparity,
+            teacher_disparity,
+            student_sides,
+            teacher_sides,
+            ratios,
+        } = inputs;
+
+        let mut total = Tensor::<1>::zeros([1], &student_disparity.device());
+        let mut out = LossOutput {
+            total: total.clone(),
+            geometry: None,
+            photometric: None,
+            smoothness: None,
+            student_mask: None,
+            teacher_mask: None,
+            weight_map: None,
+        };
+
+        if config.photometric || config.geometry {
+            let (p_s, id_s) = self.photometric_pair(
+                &reference,
+                student_target,
+                student_disparity.clone(),
+                &student_sides,
+            );
+            let m_s = validity_mask(p_s.clone(), id_s, parts);
+            if config.photometric {
+                let term = (m_s.clone() * p_s).mean();
+                total = total + term.clone() * config.lambda_p;
+                out.photometric = Some(term);
+            }
+            if config.geometry {
+                let teacher_disparity = teacher_disparity.detach();
+                let (p_t, id_t) = self.photometric_pair(
+                    &reference,
+                    teacher_target,
+                    teacher_disparity.clone(),
+                    &teacher_sides,
+                );
+                let m_t = validity_mask(p_t, id_t, parts);
+                let a = weight_map(m_t.clone(), m_s.clone(), config.effective_omega());
+                let term = geometry_consistency(
+                    student_disparity.clone(),
+                    teacher_disparity,
+                    &ratios,
+                    a.clone(),
+                );
+                total = total + term.clone();
+                out.geometry = Some(term);
+                out.teacher_mask = Some(m_t);
+                out.weight_map = Some(a);
+            }
+            out.student_mask = Some(m_s);
+        }
+        if config.smoothness {
+            let term = edge_aware_smoothness(student_disparity, reference);
+            total = total + term.clone() * config.lambda_s();
+            out.smoothness = Some(term);
+        }
+        out.total = total;
+        Ok(out)
+    }
+}
+
+/// Checks the shapes the loss relies on.
+fn check_shapes(inputs: &LossInputs, window: usize) -> Result<(), TrainError> {
+    let [batch, channels, height, width] = inputs.reference.dims();
+    let image = [batch, channels, height, width];
+    let map = [batch, 1, height, width];
+    let named = [
+        ("student target", inputs.student_target.dims(), image),
+        ("teacher target", inputs.teacher_target.dims(), image),
+        ("student disparity", inputs.student_disparity.dims(), map),
+        ("teacher disparity", inputs.teacher_disparity.dims(), map),
+    ];
+    for (name, got, want) in named {
+        if got != want {
+            return Err(TrainError::Shape(format!(
+                "{name} is {got:?}, expected {want:?}"
+            )));
+        }
+    }
+    for (name, len) in [
+        ("student sides", inputs.student_sides.len()),
+        ("teacher sides", inputs.teacher_sides.len()),
+        ("ratios", inputs.ratios.len()),
+    ] {
+        if len != batch {
+            return Err(TrainError::Shape(format!(
+                "{len} {name} for a batch of {batch}"
+            )));
+        }
+    }
+    if width < 2 || window / 2 >= height.min(width) {
+        return Err(TrainError::Shape(format!(
+            "images of {height}x{width} are too small for a {window}x{window} SSIM window"
+        )));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,166 @@
+//! Tests of the assembled S3 loss on a hand-computed 2x4 case.
+//!
+//! With `alpha = 0` and a 1x1 SSIM window the photometric map is the plain
+//! L1 error, so every number below follows by hand. Both rows are equal.
+//! - Reference `I_r = [0, 0.2, 0.4, 0.6]`.
+//! - Student target (right) `[0.2, 0.45, 0.6, 0.8]`, `d_s = [1, 1, 1, 2]`:
+//!   warped `[0.2, 0.2, 0.45, 0.45]`, `P_s = [0.2, 0, 0.05, 0.15]`,
+//!   identity `[0.2, 0.25, 0.2, 0.2]`, `M_s = [0, 1, 1, 0]`.
+//! - Teacher target (right) `[0.4, 0.6, 0.8, 1.0]`, `d_t = 2`: warped
+//!   `[0.4, 0.4, 0.4, 0.6]`, `P_t = [0.4, 0.2, 0, 0]`, identity 0.4,
+//!   `M_t = [0, 0, 1, 1]`; `A = [0, 0, 1, omega = 2]`.
+//! - `r = 0.5`: `|d_s - r d_t| = [0, 0, 0, 1]`, `L_g = 2 / 4 = 0.5`;
+//!   `mean(M_s P_s) = 0.05 / 4 = 0.0125`;
+//!   `L_s = exp(-0.2) / 3` (one disparity step of 1 across an image step of 0.2);
+//!   `L = 0.5 + 10 * 0.0125 + 0.01 * exp(-0.2) / 3`.
+
+use super::*;
+use crate::test_util::{assert_close, tensor4, values};
+use burn::tensor::Device;
+
+fn rows(row: [f32; 4]) -> Vec<f32> {
+    [row, row].concat()
+}
+
+fn inputs(device: &Device) -> LossInputs {
+    let shape = [1, 1, 2, 4];
+    LossInputs {
+        reference: tensor4(&rows([0.0, 0.2, 0.4, 0.6]), shape, device),
+        student_target: tensor4(&rows([0.2, 0.45, 0.6, 0.8]), shape, device),
+        teacher_target: tensor4(&rows([0.4, 0.6, 0.8, 1.0]), shape, device),
+        student_disparity: tensor4(&rows([1.0, 1.0, 1.0, 2.0]), shape, device),
+        teacher_disparity: tensor4(&rows([2.0; 4]), shape, device),
+        student_sides: vec![Side::Right],
+        teacher_sides: vec![Side::Right],
+        ratios: vec![0.5],
+    }
+}
+
+fn l1_config() -> LossConfig {
+    LossConfig::new().with_alpha(0.0).with_ssim_window(1)
+}
+
+fn scalar(tensor: Option<Tensor<1>>) -> f32 {
+    values(tensor.expect("term is on"))[0]
+}
+
+#[test]
+fn defaults_are_the_papers() {
+    let config = LossConfig::new();
+    assert_eq!(
+        (config.tau, config.omega, config.lambda_p, config.alpha),
+        (0.1, 2.0, 10.0, 0.85)
+    );
+    assert!((config.lambda_s() - 0.01).abs() < 1e-12);
+    assert_eq!(config.ssim_window, 7);
+    assert!(config.validate().is_ok());
+}
+
+#[test]
+fn hand_computed_total_and_parts() {
+    let device = Device::flex();
+    let loss = S3Loss::new(l1_config()).expect("valid config");
+    let out = loss.compute(inputs(&device)).expect("shapes match");
+    assert_close(
+        &values(out.student_mask.clone().expect("on")),
+        &rows([0.0, 1.0, 1.0, 0.0]),
+        0.0,
+    );
+    assert_close(
+        &values(out.teacher_mask.clone().expect("on")),
+        &rows([0.0, 0.0, 1.0, 1.0]),
+        0.0,
+    );
+    assert_close(
+        &values(out.weight_map.clone().expect("on")),
+        &rows([0.0, 0.0, 1.0, 2.0]),
+        0.0,
+    );
+    assert!((scalar(out.geometry) - 0.5).abs() < 1e-6);
+    assert!((scalar(out.photometric) - 0.0125).abs() < 1e-6);
+    let smooth = (-0.2f32).exp() / 3.0;
+    assert!((scalar(out.smoothness) - smooth).abs() < 1e-6);
+    let total = values(out.total)[0];
+    assert!(
+        (total - (0.5 + 0.125 + 0.01 * smooth)).abs() < 1e-6,
+        "{total}"
+    );
+}
+
+#[test]
+fn ablation_switches() {
+    let device = Device::flex();
+    let compute = |config: LossConfig| {
+        S3Loss::new(config)
+            .expect("valid config")
+            .compute(inputs(&device))
+            .expect("shapes match")
+    };
+    // OAE off: A = [0, 0, 1, 1], L_g = 1/4.
+    let out = compute(l1_config().with_occlusion_enhancement(false));
+    assert!((scalar(out.geometry) - 0.25).abs() < 1e-6);
+    // PTF off: M_s = [0, 1, 1, 1], M_t = [0, 1, 1, 1], L_g = 1/4, L_p = 0.2/4.
+    let out = compute(l1_config().with_threshold_filter(false));
+    assert!((scalar(out.geometry) - 0.25).abs() < 1e-6);
+    assert!((scalar(out.photometric) - 0.05).abs() < 1e-6);
+    // Table 3 (A): no geometry term, so no teacher mask and no weight map.
+    let out = compute(l1_config().with_geometry(false));
+    assert!(out.geometry.is_none() && out.weight_map.is_none() && out.teacher_mask.is_none());
+    let smooth = (-0.2f32).exp() / 3.0;
+    assert!((values(out.total)[0] - (0.125 + 0.01 * smooth)).abs() < 1e-6);
+    // Table 3 (B): geometry + photometric only.
+    let out = compute(l1_config().with_smoothness(false));
+    assert!(out.smoothness.is_none());
+    assert!((values(out.total)[0] - 0.625).abs() < 1e-6);
+}
+
+#[test]
+fn gradient_reaches_the_student_only() {
+    let device = Device::flex().autodiff();
+    let mut batch = inputs(&device);
+    batch.student_disparity = batch.student_disparity.require_grad();
+    batch.teacher_disparity = batch.teacher_disparity.require_grad();
+    let student = batch.student_disparity.clone();
+    let teacher = batch.teacher_disparity.clone();
+    let out = S3Loss::new(l1_config())
+        .expect("valid")
+        .compute(batch)
+        .expect("shapes match");
+    let grads = out.total.backward();
+    let grad = values(student.grad(&grads).expect("student gradient"));
+    assert!(grad.iter().all(|g| g.is_finite()));
+    // Pixel (0, 3): the geometry term alone gives A / N = 2 / 8.
+    assert!(grad[3] > 0.2, "{grad:?}");
+    assert!(teacher.grad(&grads).is_none());
+}
+
+#[test]
+fn rejects_bad_settings_and_shapes() {
+    assert!(matches!(
+        S3Loss::new(LossConfig::new().with_ssim_window(4)),
+        Err(TrainError::InvalidSetting {
+            name: "ssim_window",
+            ..
+        })
+    ));
+    assert!(S3Loss::new(LossConfig::new().with_alpha(1.5)).is_err());
+    let all_off = LossConfig::new()
+        .with_geometry(false)
+        .with_photometric(false)
+        .with_smoothness(false);
+    assert!(S3Loss::new(all_off).is_err());
+    let device = Device::flex();
+    let mut batch = inputs(&device);
+    batch.ratios = vec![0.5, 0.5];
+    assert!(matches!(
+        S3Loss::new(l1_config()).expect("valid").compute(batch),
+        Err(TrainError::Shape(_))
+    ));
+    // The default 7x7 window does not fit a 2-row image.
+    assert!(
+        S3Loss::new(LossConfig::new())
+            .expect("valid")
+            .compute(inputs(&device))
+            .is_err()
+    );
+}

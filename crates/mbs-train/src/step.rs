@@ -1,0 +1,205 @@
+//! One S3 training step: teacher forward (no gradient) on the clean pair,
+//! student forward on the augmented pair, loss on clean images, Adam step
+//! with gradient clipping, EMA update of the teacher.
+
+use burn::config::Config;
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::tensor::Tensor;
+use mbs_core::geometry::Side;
+
+use crate::backbone::{Backbone, predict};
+use crate::clip::clip_global_norm;
+use crate::ema::ema_update;
+use crate::error::TrainError;
+use crate::losses::{LossConfig, LossInputs, S3Loss};
+use crate::schedule::{CosineMomentum, OneCycle, OneCycleConfig};
+
+/// Everything a training run sets besides the network.
+#[derive(Config, Debug)]
+pub struct TrainerConfig {
+    /// Loss weights and ablation switches.
+    pub loss: LossConfig,
+    /// One-cycle learning rate (its `total_steps` also ends the EMA schedule).
+    pub lr: OneCycleConfig,
+    /// EMA momentum at step 0; it rises to 1 on a cosine.
+    #[config(default = 0.996)]
+    pub ema_base: f64,
+    /// Update the teacher by EMA; `false` keeps the initial teacher fixed
+    /// (paper Table 3, row (D)*).
+    #[config(default = true)]
+    pub ema: bool,
+    /// Limit of the global gradient L2 norm (as PyTorch's `clip_grad_norm_`).
+    #[config(default = 1.0)]
+    pub grad_clip_norm: f64,
+}
+
+/// One batch for [`S3Trainer::step`]. Images are `[B, 3, H, W]` in `[0, 1]`
+/// on a plain (non-autodiff) device.
+#[derive(Debug, Clone)]
+pub struct StepBatch {
+    /// Clean reference images.
+    pub reference: Tensor<4>,
+    /// Clean student targets.
+    pub student_target: Tensor<4>,
+    /// Clean teacher targets.
+    pub teacher_target: Tensor<4>,
+    /// Augmented reference images (the student's input).
+    pub augmented_reference: Tensor<4>,
+    /// Augmented student targets (the student's input).
+    pub augmented_target: Tensor<4>,
+    /// Side of each student target.
+    pub student_sides: Vec<Side>,
+    /// Side of each teacher target.
+    pub teacher_sides: Vec<Side>,
+    /// Baseline ratio `r = B_s / B_t` of each item.
+    pub ratios: Vec<f64>,
+}
+
+/// What one step reports.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepReport {
+    /// Step index (0-based) that was just taken.
+    pub step: usize,
+    /// Total loss before the update.
+    pub loss: f32,
+    /// Global gradient norm before clipping.
+    pub grad_norm: f64,
+    /// Learning rate used.
+    pub lr: f64,
+    /// EMA momentum used (1 when EMA is off).
+    pub momentum: f64,
+}
+
+/// Student, EMA teacher, optimiser and schedules.
+pub struct S3Trainer<B: Backbone> {
+    student: B,
+    teacher: B,
+    optimizer: ModuleOptimizer,
+    loss: S3Loss,
+    lr: OneCycle,
+    momentum: CosineMomentum,
+    ema: bool,
+    grad_clip_norm: f64,
+    step: usize,
+}
+
+impl<B: Backbone> S3Trainer<B> {
+    /// A trainer for `student` (on an autodiff device); the teacher starts
+    /// as a copy of it without autodiff (`student.valid()`).
+    pub fn new(student: B, config: &TrainerConfig) -> Result<Self, TrainError> {
+        let loss = S3Loss::new(config.loss.clone())?;
+        let lr = config.lr.init()?;
+        if !(0.0..=1.0).contains(&config.ema_base) {
+            return Err(TrainError::InvalidSetting {
+                name: "ema_base",
+                value: config.ema_base.to_string(),
+                reason: "a number in [0, 1]",
+            });
+        }
+        if !(config.grad_clip_norm.is_finite() && config.grad_clip_norm > 0.0) {
+            return Err(TrainError::InvalidSetting {
+                name: "grad_clip_norm",
+                value: config.grad_clip_norm.to_string(),
+                reason: "a positive number",
+            });
+        }
+        let optimizer = AdamConfig::new().init();
+        Ok(Self {
+            teacher: student.valid(),
+            student,
+            optimizer,
+            loss,
+            lr,
+            momentum: CosineMomentum {
+                base: config.ema_base,
+                total_steps: config.lr.total_steps,
+            },
+            ema: config.ema,
+            grad_clip_norm: config.grad_clip_norm,
+            step: 0,
+        })
+    }
+
+    /// The student network.
+    pub fn student(&self) -> &B {
+        &self.student
+    }
+
+    /// The teacher network (the one used for inference).
+    pub fn teacher(&self) -> &B {
+        &self.teacher
+    }
+
+    /// Takes one optimisation step on `batch`.
+    pub fn step(&mut self, batch: StepBatch) -> Result<StepReport, TrainError> {
+        let StepBatch {
+            reference,
+            student_target,
+            teacher_target,
+            augmented_reference,
+            augmented_target,
+            student_sides,
+            teacher_sides,
+            ratios,
+        } = batch;
+        // Only the geometry term reads the teacher (Table 3 (A) runs without it).
+        let teacher_disparity = if self.loss.config().geometry {
+            predict(
+                &self.teacher,
+                reference.clone(),
+                teacher_target.clone(),
+                &teacher_sides,
+            )
+        } else {
+            let [batch, _, height, width] = reference.dims();
+            Tensor::zeros([batch, 1, height, width], &reference.device())
+        };
+        let student_disparity = predict(
+            &self.student,
+            augmented_reference,
+            augmented_target,
+            &student_sides,
+        );
+        let out = self.loss.compute(LossInputs {
+            reference,
+            student_target,
+            teacher_target,
+            student_disparity,
+            teacher_disparity,
+            student_sides,
+            teacher_sides,
+            ratios,
+        })?;
+        let loss = out
+            .total
+            .to_data()
+            .try_to_vec::<f32>()
+            .ok()
+            .and_then(|values| values.first().copied())
+            .ok_or(TrainError::Readback("the loss"))?;
+        let lr = self.lr.lr(self.step);
+        let mut grads = GradientsParams::from_grads(out.total.backward(), &self.student);
+        let grad_norm = clip_global_norm(&self.student, &mut grads, self.grad_clip_norm)?;
+        self.student = self.optimizer.step(lr, self.student.clone(), grads);
+        let momentum = if self.ema {
+            self.momentum.at(self.step)
+        } else {
+            1.0
+        };
+        if self.ema {
+            self.teacher = ema_update(self.teacher.clone(), &self.student.valid(), momentum)?;
+        }
+        let report = StepReport {
+            step: self.step,
+            loss,
+            grad_norm,
+            lr,
+            momentum,
+        };
+        self.step += 1;
+        Ok(report)
+    }
+}
+
+#[cfg(test)]
+mod tests;

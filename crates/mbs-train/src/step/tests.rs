@@ -1,0 +1,316 @@
+//! End-to-end smoke test of the training step on a tiny synthetic dataset:
+//! a fronto-parallel textured plane seen by a 3-camera rig, so the true
+//! disparity between views `r` and `t` is `3 |t - r|` px everywhere.
+
+use super::*;
+use crate::augment::AugmentConfig;
+use crate::backbone::CostVolumeNetConfig;
+use crate::sampling::{Triplet, TripletSampler};
+use burn::module::Module;
+use burn::tensor::{Device, TensorData};
+use mbs_core::geometry::Rig;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+const HEIGHT: usize = 32;
+const WIDTH: usize = 96;
+const VIEWS: usize = 3;
+const STEP_PX: f32 = 8.0;
+
+/// Views of one scene: `view_k(x, y) = texture(x + 3k, y)`, three channels
+/// of sums of random sinusoids.
+fn scene(rng: &mut ChaCha8Rng) -> Vec<Vec<f32>> {
+    let waves: Vec<[f32; 4]> = (0..9)
+        .map(|_| {
+            [
+                rng.random_range(0.1..0.6),
+                rng.random_range(-0.3..0.3),
+                rng.random_range(0.0..6.3),
+                rng.random_range(0.05..0.12),
+            ]
+        })
+        .collect();
+    (0..VIEWS)
+        .map(|k| {
+            let mut image = Vec::with_capacity(3 * HEIGHT * WIDTH);
+            for channel in 0..3 {
+                for y in 0..HEIGHT {
+                    for x in 0..WIDTH {
+                        let u = x as f32 + STEP_PX * k as f32;
+                        let value: f32 = waves[channel * 3..channel * 3 + 3]
+                            .iter()
+                            .map(|[fx, fy, phase, amp]| {
+                                amp * (fx * u + fy * y as f32 + phase).sin()
+                            })
+                            .sum();
+                        image.push(0.5 + value);
+                    }
+                }
+            }
+            image
+        })
+        .collect()
+}
+
+fn stack(images: &[&Vec<f32>], device: &Device) -> Tensor<4> {
+    let data: Vec<f32> = images
+        .iter()
+        .flat_map(|image| image.iter().copied())
+        .collect();
+    Tensor::from_data(
+        TensorData::new(data, [images.len(), 3, HEIGHT, WIDTH]),
+        device,
+    )
+}
+
+fn batch(scenes: &[Vec<Vec<f32>>], triplets: &[Triplet], rig: &Rig, device: &Device) -> StepBatch {
+    let pick = |view: fn(&Triplet) -> usize| {
+        let images: Vec<&Vec<f32>> = scenes
+            .iter()
+            .zip(triplets)
+            .map(|(s, t)| &s[view(t)])
+            .collect();
+        stack(&images, device)
+    };
+    let reference = pick(|t| t.reference);
+    let student_target = pick(|t| t.student);
+    StepBatch {
+        teacher_target: pick(|t| t.teacher),
+        // Colour jitter: a brightness gain on the student's input.
+        augmented_reference: (reference.clone() * 1.1).clamp(0.0, 1.0),
+        augmented_target: (student_target.clone() * 1.1).clamp(0.0, 1.0),
+        reference,
+        student_target,
+        student_sides: triplets.iter().map(|t| t.student_side()).collect(),
+        teacher_sides: triplets.iter().map(|t| t.teacher_side()).collect(),
+        ratios: triplets.iter().map(|t| t.ratio(rig)).collect(),
+    }
+}
+
+fn rig() -> Rig {
+    Rig {
+        num_views: VIEWS,
+        baseline_m: 0.5,
+        focal_px: 100.0,
+        cx: WIDTH as f64 / 2.0,
+        cy: HEIGHT as f64 / 2.0,
+        width: WIDTH as u32,
+        height: HEIGHT as u32,
+    }
+}
+
+#[test]
+fn loss_decreases_over_twenty_steps() {
+    let device = Device::flex();
+    let train_device = device.clone().autodiff();
+    // Seeds the weight initialisation.
+    train_device.seed(42);
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let scenes: Vec<_> = (0..2).map(|_| scene(&mut rng)).collect();
+    let net = CostVolumeNetConfig::new()
+        .with_max_disparity(32)
+        .with_features(8)
+        .with_hidden(16);
+    let config = TrainerConfig::new(
+        LossConfig::new(),
+        OneCycleConfig::new(2e-3, 20).with_pct_start(0.1),
+    );
+    let mut trainer =
+        S3Trainer::new(net.init(&train_device).expect("valid net"), &config).expect("valid config");
+    // One fixed batch (the loss of random triplets varies more than it
+    // falls in 20 steps): a right-right item with r = 1/2 and a left-left
+    // item with r = 2, which goes through the mirroring.
+    let triplets = [
+        Triplet {
+            reference: 0,
+            student: 1,
+            teacher: 2,
+        },
+        Triplet {
+            reference: 2,
+            student: 0,
+            teacher: 1,
+        },
+    ];
+    let fixed = batch(&scenes, &triplets, &rig(), &device);
+    // Mean |d_s - truth| of the student on the clean pairs (truth 8 and 16 px).
+    let error = |trainer: &S3Trainer<crate::backbone::CostVolumeNet>| {
+        let d = crate::test_util::values(crate::backbone::predict(
+            &trainer.student().valid(),
+            fixed.reference.clone(),
+            fixed.student_target.clone(),
+            &fixed.student_sides,
+        ));
+        let half = d.len() / 2;
+        let truth = |i: usize| if i < half { 8.0 } else { 16.0 };
+        d.iter()
+            .enumerate()
+            .map(|(i, v)| (v - truth(i)).abs())
+            .sum::<f32>()
+            / d.len() as f32
+    };
+    let error_before = error(&trainer);
+    // Fresh colour jitter and occlusion of the student's input every step.
+    let augment = AugmentConfig::new()
+        .with_occlusion_min_side(4)
+        .with_occlusion_max_side(12);
+    let mut augment_rng = ChaCha8Rng::seed_from_u64(9);
+    let start = std::time::Instant::now();
+    let losses: Vec<f32> = (0..20)
+        .map(|_| {
+            let (augmented_reference, augmented_target) = augment.apply(
+                fixed.reference.clone(),
+                fixed.student_target.clone(),
+                &mut augment_rng,
+            );
+            let step = StepBatch {
+                augmented_reference,
+                augmented_target,
+                ..fixed.clone()
+            };
+            trainer.step(step).expect("step runs").loss
+        })
+        .collect();
+    let error_after = error(&trainer);
+    println!(
+        "20 steps, batch 2, {HEIGHT}x{WIDTH}: {:.0} ms per step; losses {losses:?}; student EPE {error_before} -> {error_after} px",
+        start.elapsed().as_secs_f64() * 1e3 / 20.0
+    );
+    assert!(losses.iter().all(|l| l.is_finite()));
+    let first: f32 = losses[..5].iter().sum::<f32>() / 5.0;
+    let last: f32 = losses[15..].iter().sum::<f32>() / 5.0;
+    assert!(
+        last < 0.7 * first,
+        "mean loss of steps 0-4 {first}, of steps 15-19 {last}"
+    );
+    // The disparity itself moves toward the truth (2.84 -> 1.50 px when written).
+    assert!(
+        error_after < 0.8 * error_before,
+        "{error_before} -> {error_after}"
+    );
+}
+
+#[test]
+fn fixed_teacher_stays_fixed_and_ema_teacher_moves() {
+    let device = Device::flex();
+    let train_device = device.clone().autodiff();
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let scenes = vec![scene(&mut rng)];
+    let net = CostVolumeNetConfig::new()
+        .with_max_disparity(32)
+        .with_features(4)
+        .with_hidden(4);
+    let weights = |trainer: &S3Trainer<crate::backbone::CostVolumeNet>| {
+        let mut reader = crate::test_util::FlatParams::default();
+        trainer.teacher().visit(&mut reader);
+        reader.0
+    };
+    for ema in [false, true] {
+        let config = TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(1e-2, 10))
+            .with_ema(ema)
+            .with_ema_base(0.5);
+        let mut trainer =
+            S3Trainer::new(net.init(&train_device).expect("valid"), &config).expect("valid");
+        let before = weights(&trainer);
+        let triplets = [TripletSampler::new(VIEWS, 1).expect("3 views").sample()];
+        let report = trainer
+            .step(batch(&scenes, &triplets, &rig(), &device))
+            .expect("step runs");
+        let after = weights(&trainer);
+        let moved = before.iter().zip(&after).filter(|(a, b)| a != b).count();
+        if ema {
+            assert_eq!(report.momentum, 0.5);
+            assert!(moved > 0);
+        } else {
+            assert_eq!(report.momentum, 1.0);
+            assert_eq!(moved, 0);
+        }
+    }
+}
+
+/// Step time at a finetuning-like crop; prints, asserts nothing about time.
+/// Run with `cargo test -p mbs-train --release -- --ignored --nocapture`.
+#[test]
+#[ignore = "timing run, several seconds"]
+fn step_time_at_256x512() {
+    let device = Device::flex();
+    let train_device = device.clone().autodiff();
+    let (batch, height, width) = (2, 256, 512);
+    let net = CostVolumeNetConfig::new().with_max_disparity(128);
+    let config = TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(2e-4, 100));
+    let mut trainer =
+        S3Trainer::new(net.init(&train_device).expect("valid"), &config).expect("valid");
+    let image = || {
+        Tensor::<4>::random(
+            [batch, 3, height, width],
+            burn::tensor::Distribution::Default,
+            &device,
+        )
+    };
+    let reference = image();
+    let target = image();
+    let step = StepBatch {
+        teacher_target: image(),
+        augmented_reference: reference.clone(),
+        augmented_target: target.clone(),
+        reference,
+        student_target: target,
+        student_sides: vec![Side::Right, Side::Left],
+        teacher_sides: vec![Side::Right, Side::Right],
+        ratios: vec![1.0, 0.5],
+    };
+    trainer.step(step.clone()).expect("warm-up step");
+    let start = std::time::Instant::now();
+    for _ in 0..3 {
+        trainer.step(step.clone()).expect("step runs");
+    }
+    println!(
+        "S3 step (teacher + student forward, loss, backward, Adam, EMA), batch {batch}, crop {height}x{width}, 128 px: {:.0} ms",
+        start.elapsed().as_secs_f64() * 1e3 / 3.0
+    );
+}
+
+#[test]
+fn trainer_config_round_trips_through_json() {
+    use burn::config::{Config, config_to_json};
+    let config = TrainerConfig::new(
+        LossConfig::new().with_occlusion_enhancement(false),
+        OneCycleConfig::new(5e-5, 50_000),
+    )
+    .with_ema(false);
+    let json = config_to_json(&config);
+    assert!(json.contains("\"occlusion_enhancement\": false"), "{json}");
+    let back = TrainerConfig::load_binary(json.as_bytes()).expect("own JSON parses");
+    assert_eq!(back.loss, config.loss);
+    assert_eq!(back.lr, config.lr);
+    assert!(!back.ema);
+    assert_eq!(back.ema_base, 0.996);
+}
+
+#[test]
+fn table3_row_a_trains_without_the_teacher() {
+    let device = Device::flex();
+    let train_device = device.clone().autodiff();
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let scenes = vec![scene(&mut rng)];
+    let net = CostVolumeNetConfig::new()
+        .with_max_disparity(16)
+        .with_features(4)
+        .with_hidden(4);
+    let config = TrainerConfig::new(
+        LossConfig::new().with_geometry(false),
+        OneCycleConfig::new(1e-3, 10),
+    );
+    let mut trainer =
+        S3Trainer::new(net.init(&train_device).expect("valid"), &config).expect("valid");
+    let triplets = [Triplet {
+        reference: 1,
+        student: 0,
+        teacher: 2,
+    }];
+    let report = trainer
+        .step(batch(&scenes, &triplets, &rig(), &device))
+        .expect("step runs");
+    assert!(report.loss.is_finite() && report.loss > 0.0);
+    assert!(report.grad_norm.is_finite());
+}
