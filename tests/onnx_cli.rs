@@ -1,4 +1,5 @@
-//! `mbs-tool predict --model … --card …` on the test models of
+//! `mbs-tool predict --model … --card …` and `mbs-tool extrapolate
+//! --disparity onnx:… --inpaint onnx:…` on the test models of
 //! `tests/fixtures/onnx/` with real ONNX Runtime (from tools/setup-ort.sh).
 
 mod common;
@@ -8,6 +9,7 @@ use std::path::PathBuf;
 use common::{run, text};
 use image::Rgb;
 use mbs_core::RgbImage;
+use mbs_core::formats::rgb::{read_mask, read_rgb};
 use mbs_core::formats::{pfm, rgb};
 
 fn fixture(name: &str) -> String {
@@ -111,6 +113,117 @@ fn predict_explains_onnx_setup_problems() {
     #[cfg(not(feature = "cuda"))]
     assert!(
         String::from_utf8_lossy(&output.stderr).contains("running on cpu"),
+        "{}",
+        text(&output)
+    );
+}
+
+#[test]
+fn extrapolate_uses_onnx_stereo_and_inpainting_models() {
+    let dir = tempfile::tempdir().unwrap();
+    // Dark textures: the test stereo model gives disparities of 1 to 20 px.
+    let texture = |seed: u32| {
+        RgbImage::from_fn(64, 40, |x, y| {
+            Rgb([
+                ((x * 5 + y * 3 + seed) % 24) as u8,
+                ((x + y * 7) % 20) as u8,
+                8,
+            ])
+        })
+    };
+    let (left, right) = (dir.path().join("l.png"), dir.path().join("r.png"));
+    rgb::write_rgb_png(&left, &texture(0)).unwrap();
+    rgb::write_rgb_png(&right, &texture(5)).unwrap();
+    let out = dir.path().join("out");
+    let stereo = format!("onnx:{}", fixture("stereo_dynamic.onnx"));
+    let inpaint = format!("onnx:{}", fixture("inpaint_migan.onnx"));
+    let (stereo_card, inpaint_card) = (
+        fixture("stereo_dynamic.json"),
+        fixture("inpaint_migan.json"),
+    );
+    let output = run(&[
+        "extrapolate",
+        "--left",
+        left.to_str().unwrap(),
+        "--right",
+        right.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--disparity",
+        &stereo,
+        "--card",
+        &stereo_card,
+        "--inpaint",
+        &inpaint,
+        "--inpaint-card",
+        &inpaint_card,
+    ]);
+    assert!(output.status.success(), "{}", text(&output));
+    // The left view's disparity is the model's function (0.5 mean left +
+    // 0.25 mean right one column on + 1).
+    let d2 = pfm::read_pfm_grey(&out.join("disparity_2.pfm")).unwrap();
+    let mean = |im: &RgbImage, x: u32, y: u32| {
+        im.get_pixel(x, y)
+            .0
+            .iter()
+            .map(|&v| f32::from(v))
+            .sum::<f32>()
+            / 3.0
+    };
+    let (l, r) = (texture(0), texture(5));
+    let expected = 0.5 * mean(&l, 10, 7) + 0.25 * mean(&r, 11, 7) + 1.0;
+    assert!((d2.get_pixel(10, 7).0[0] - expected).abs() < 1e-3);
+    // Synthesised pixels come from the MI-GAN-style model: 77 everywhere.
+    let (image_1, mask_1) = (
+        read_rgb(&out.join("image_1.png")).unwrap(),
+        read_mask(&out.join("mask_1.png")).unwrap(),
+    );
+    let holes: Vec<_> = mask_1
+        .enumerate_pixels()
+        .filter(|(_, _, m)| m.0[0] == 255)
+        .collect();
+    assert!(!holes.is_empty());
+    for (x, y, _) in holes {
+        assert_eq!(*image_1.get_pixel(x, y), Rgb([77; 3]), "({x}, {y})");
+    }
+}
+
+#[test]
+fn extrapolate_names_missing_onnx_cards() {
+    let dir = tempfile::tempdir().unwrap();
+    let (left, right) = pair(dir.path());
+    let out = dir.path().join("out").display().to_string();
+    let stereo = format!("onnx:{}", fixture("stereo_dynamic.onnx"));
+    let output = run(&[
+        "extrapolate",
+        "--left",
+        &left,
+        "--right",
+        &right,
+        "--out",
+        &out,
+        "--disparity",
+        &stereo,
+    ]);
+    assert!(!output.status.success());
+    assert!(
+        String::from_utf8_lossy(&output.stderr).contains("--disparity onnx:MODEL needs --card"),
+        "{}",
+        text(&output)
+    );
+    let output = run(&[
+        "extrapolate",
+        "--left",
+        &left,
+        "--right",
+        &right,
+        "--out",
+        &out,
+        "--inpaint",
+        "onnx:",
+    ]);
+    assert!(
+        String::from_utf8_lossy(&output.stderr).contains("invalid inpainter"),
         "{}",
         text(&output)
     );

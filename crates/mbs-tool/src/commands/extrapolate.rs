@@ -12,10 +12,12 @@ use mbs_core::formats::rgb::{read_rgb, write_mask_png, write_rgb_png};
 use mbs_core::{FloatImage, RgbImage, Side};
 use mbs_dataset::kitti::KittiFolder;
 use mbs_infer::inpaint::{BackgroundFill, Inpainter, IsotropicFill};
+use mbs_infer::onnx::{ModelCard, OnnxInpainter, OnnxStereo};
 use mbs_infer::{Sgm, SgmConfig, StereoMatcher, estimate_max_disparity};
 use mbs_warp::{Dilation, extrapolate_view, fill_disparity_background, forward_warp};
 
 use crate::cli::batch::{self, Outcome};
+use crate::cli::onnx::OnnxArgs;
 use crate::cli::shard::Shard;
 
 mod manifest;
@@ -67,10 +69,14 @@ pub struct Args {
     /// KITTI: folder of right-view disparities named like image_3's files.
     #[arg(long, requires = "kitti", conflicts_with = "disparity_dir")]
     pub right_disparity_dir: Option<PathBuf>,
-    /// Where disparities come from when no file is given for a frame: the
-    /// built-in semi-global matcher (left view, and right view by mirroring).
-    #[arg(long, value_enum)]
+    /// Where disparities come from when no file is given for a frame: `sgm`
+    /// (the built-in semi-global matcher) or `onnx:MODEL.onnx` (a stereo
+    /// network fed as --card says); left view, and right view by mirroring.
+    #[arg(long, value_name = "sgm|onnx:MODEL", value_parser = parse_disparity_source)]
     pub disparity: Option<DisparitySource>,
+    /// How to feed `--disparity onnx:MODEL`: a built-in card name or a card FILE.json.
+    #[arg(long, value_name = "NAME|FILE.json")]
+    pub card: Option<String>,
     /// Number of disparities the matcher searches (0 = estimate per pair, up to 256).
     #[arg(long, default_value_t = 0)]
     pub max_disparity: u32,
@@ -81,9 +87,18 @@ pub struct Args {
     /// Radius in pixels of the dilation.
     #[arg(long, default_value_t = 2)]
     pub dilate_radius: u32,
-    /// Inpainting of the masked pixels.
-    #[arg(long, value_enum, default_value_t = InpaintKind::Background)]
+    /// Inpainting of the masked pixels: `background` (fill each hole from
+    /// its background side, guided by the warped disparity), `isotropic`
+    /// (from the whole rim inwards, Telea-like) or `onnx:MODEL.onnx` (an
+    /// inpainting network such as LaMa or MI-GAN, fed as --inpaint-card says).
+    #[arg(long, value_name = "background|isotropic|onnx:MODEL", default_value = "background", value_parser = parse_inpaint)]
     pub inpaint: InpaintKind,
+    /// How to feed `--inpaint onnx:MODEL`: a built-in card name (lama, migan) or a card FILE.json.
+    #[arg(long, value_name = "NAME|FILE.json")]
+    pub inpaint_card: Option<String>,
+    /// ONNX Runtime settings (with onnx:MODEL sources).
+    #[command(flatten)]
+    pub onnx: OnnxArgs,
     /// Also write a contact sheet per frame (preview/NAME.png): the four
     /// views, synthesised pixels tinted red, and the disparities used.
     #[arg(long)]
@@ -103,10 +118,22 @@ pub struct Args {
 }
 
 /// Disparity estimators for frames without disparity files.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub enum DisparitySource {
     /// The built-in semi-global matcher (`mbs-tool predict`).
     Sgm,
+    /// An ONNX stereo network (`onnx:MODEL.onnx`).
+    Onnx(PathBuf),
+}
+
+fn parse_disparity_source(s: &str) -> Result<DisparitySource, String> {
+    match (s, s.strip_prefix("onnx:")) {
+        ("sgm", _) => Ok(DisparitySource::Sgm),
+        (_, Some(model)) if !model.is_empty() => Ok(DisparitySource::Onnx(model.into())),
+        _ => Err(format!(
+            "invalid disparity source {s:?}: expected sgm or onnx:MODEL.onnx"
+        )),
+    }
 }
 
 /// Mask dilations (see `mbs_warp::Dilation`).
@@ -124,13 +151,34 @@ pub enum DilationKind {
     ForegroundSide,
 }
 
-/// Built-in inpainters (see `mbs_infer::inpaint`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+/// Inpainters: the built-ins (see `mbs_infer::inpaint`) or an ONNX network.
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub enum InpaintKind {
     /// Fill each hole from its background side, guided by the warped disparity.
     Background,
     /// Fill holes from their whole rim inwards (Telea-like).
     Isotropic,
+    /// An ONNX inpainting network (`onnx:MODEL.onnx`).
+    Onnx(PathBuf),
+}
+
+fn parse_inpaint(s: &str) -> Result<InpaintKind, String> {
+    match (s, s.strip_prefix("onnx:")) {
+        ("background", _) => Ok(InpaintKind::Background),
+        ("isotropic", _) => Ok(InpaintKind::Isotropic),
+        (_, Some(model)) if !model.is_empty() => Ok(InpaintKind::Onnx(model.into())),
+        _ => Err(format!(
+            "invalid inpainter {s:?}: expected background, isotropic or onnx:MODEL.onnx"
+        )),
+    }
+}
+
+/// Where disparities come from for frames without files.
+enum Matcher {
+    /// The built-in semi-global matcher, built per frame.
+    Sgm,
+    /// An ONNX stereo network.
+    Onnx(Box<OnnxStereo>),
 }
 
 /// The input and output files of one frame.
@@ -168,7 +216,7 @@ impl Frame {
 struct Settings {
     dilation: Dilation,
     inpainter: Box<dyn Inpainter>,
-    matcher: Option<DisparitySource>,
+    matcher: Option<Matcher>,
     max_disparity: u32,
     preview: bool,
 }
@@ -185,11 +233,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             DilationKind::BackgroundSide => Dilation::BackgroundSide(r),
             DilationKind::ForegroundSide => Dilation::ForegroundSide(r),
         },
-        inpainter: match args.inpaint {
+        inpainter: match &args.inpaint {
             InpaintKind::Background => Box::new(BackgroundFill::default()),
             InpaintKind::Isotropic => Box::new(IsotropicFill),
+            InpaintKind::Onnx(model) => {
+                let card = args
+                    .inpaint_card
+                    .as_deref()
+                    .context("--inpaint onnx:MODEL needs --inpaint-card NAME|FILE.json")?;
+                let net = OnnxInpainter::open(model, ModelCard::load(card)?, &args.onnx.options())?;
+                args.onnx
+                    .report_fallback(&model.display().to_string(), net.device());
+                Box::new(net)
+            }
         },
-        matcher: args.disparity,
+        matcher: match &args.disparity {
+            None => None,
+            Some(DisparitySource::Sgm) => Some(Matcher::Sgm),
+            Some(DisparitySource::Onnx(model)) => {
+                let card = args
+                    .card
+                    .as_deref()
+                    .context("--disparity onnx:MODEL needs --card NAME|FILE.json")?;
+                let net = OnnxStereo::open(model, ModelCard::load(card)?, &args.onnx.options())?;
+                args.onnx
+                    .report_fallback(&model.display().to_string(), net.device());
+                Some(Matcher::Onnx(Box::new(net)))
+            }
+        },
         max_disparity: args.max_disparity,
         preview: args.preview,
     };
@@ -414,14 +485,21 @@ fn disparities(
             let dl = derive(right, &dr, Side::Left)?;
             (dl, dr)
         }
-        (None, None) if settings.matcher == Some(DisparitySource::Sgm) => {
-            let max_disparity = match settings.max_disparity {
-                0 => estimate_max_disparity(left, right, 256)?,
-                n => n,
+        (None, None) if settings.matcher.is_some() => {
+            let sgm;
+            let matcher: &dyn StereoMatcher = match &settings.matcher {
+                Some(Matcher::Onnx(net)) => net.as_ref(),
+                _ => {
+                    let max_disparity = match settings.max_disparity {
+                        0 => estimate_max_disparity(left, right, 256)?,
+                        n => n,
+                    };
+                    sgm = Sgm::new(SgmConfig::with_max_disparity(max_disparity));
+                    &sgm
+                }
             };
-            let sgm = Sgm::new(SgmConfig::with_max_disparity(max_disparity));
-            let dl = sgm.predict(left, right)?.disparity;
-            let dr = sgm.predict_right(left, right)?.disparity;
+            let dl = matcher.predict(left, right)?.disparity;
+            let dr = matcher.predict_right(left, right)?.disparity;
             (
                 fill_disparity_background(&dl),
                 fill_disparity_background(&dr),
@@ -429,7 +507,7 @@ fn disparities(
         }
         (None, None) => bail!(
             "no disparity for {}: give --left-disparity and/or --right-disparity \
-             (KITTI: --left-disparity-dir / --right-disparity-dir), --disparity-dir, or --disparity sgm",
+             (KITTI: --left-disparity-dir / --right-disparity-dir), --disparity-dir, or --disparity sgm|onnx:MODEL",
             frame.left.display()
         ),
     })
