@@ -28,6 +28,8 @@ mod preview;
 #[command(after_help = "Examples:
   mbs-tool extrapolate --left L.png --right R.png --left-disparity DL.pfm --out out/
   mbs-tool extrapolate --kitti kitti2015/training --left-disparity-dir kitti2015/training/disp_occ_0
+  mbs-tool extrapolate --kitti kitti2015/testing --disparity onnx:igev.onnx --card igev \\
+      --inpaint onnx:lama_fp32.onnx --inpaint-card lama --device cuda
 
 Outputs: image_1 (new view left of the left view, at -B) and image_4 (right of
 the right view, at +2B), mask_1 / mask_4 (255 = synthesised: holes and
