@@ -111,12 +111,23 @@ fn problem(
     }
 }
 
-/// Validates the manifest at `manifest_path`. `on_sample` is called once per
-/// sample checked on disk (for progress bars).
+/// Receives the progress of a validation (for progress bars).
+pub trait Progress: Sync {
+    /// The number of samples about to be checked on disk.
+    fn start(&self, _samples: usize) {}
+    /// One more sample has been checked.
+    fn advance(&self) {}
+}
+
+/// No progress reporting.
+impl Progress for () {}
+
+/// Validates the manifest at `manifest_path`, reporting to `progress` as
+/// samples are checked on disk.
 pub fn validate_manifest(
     manifest_path: &Path,
     options: ValidateOptions,
-    on_sample: &(dyn Fn() + Sync),
+    progress: &dyn Progress,
 ) -> Report {
     let mut report = Report {
         manifest: manifest_path.display().to_string(),
@@ -191,11 +202,12 @@ pub fn validate_manifest(
         }
     }
 
+    progress.start(samples.len());
     let per_sample: Vec<(usize, Vec<Problem>)> = samples
         .par_iter()
         .map(|s| {
             let result = check_sample(manifest_path, &rig, s, options);
-            on_sample();
+            progress.advance();
             result
         })
         .collect();

@@ -312,7 +312,7 @@ mod tests {
 
         let path = dir.path().join("manifest.json");
         manifest.save(&path).unwrap();
-        let report = mbs_dataset::validate::validate_manifest(&path, Default::default(), &|| {});
+        let report = mbs_dataset::validate::validate_manifest(&path, Default::default(), &());
         assert!(report.is_clean(), "{:?}", report.problems);
     }
 

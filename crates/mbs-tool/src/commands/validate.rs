@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Parser;
-use mbs_dataset::validate::{ValidateOptions, validate_manifest};
+use mbs_dataset::validate::{Progress, ValidateOptions, validate_manifest};
 
 use crate::cli::batch::progress_bar;
 
@@ -32,20 +32,26 @@ pub struct Args {
     pub jobs: usize,
 }
 
+/// A progress bar sized once the manifest is read.
+struct BarProgress(indicatif::ProgressBar);
+
+impl Progress for BarProgress {
+    fn start(&self, samples: usize) {
+        self.0.set_length(samples as u64);
+    }
+
+    fn advance(&self) {
+        self.0.inc(1);
+    }
+}
+
 /// Runs `validate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
-    let samples = std::fs::read_to_string(&args.manifest)
-        .ok()
-        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-        .and_then(|v| v["samples"].as_array().map(Vec::len))
-        .unwrap_or(0);
-    let bar = progress_bar(samples, "samples");
+    let bar = BarProgress(progress_bar(0, "samples"));
     let start = std::time::Instant::now();
-    let report = validate_manifest(&args.manifest, ValidateOptions { deep: args.deep }, &|| {
-        bar.inc(1)
-    });
-    bar.finish_and_clear();
+    let report = validate_manifest(&args.manifest, ValidateOptions { deep: args.deep }, &bar);
+    bar.0.finish_and_clear();
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
