@@ -1,5 +1,7 @@
 //! Errors of the training library.
 
+use std::path::PathBuf;
+
 use thiserror::Error;
 
 /// What can go wrong when configuring or feeding the S3 trainer.
@@ -24,4 +26,41 @@ pub enum TrainError {
     /// A rig with fewer than two views cannot give a stereo pair.
     #[error("a multi-baseline sample needs at least 2 views, got {0}")]
     TooFewViews(usize),
+    /// A training configuration (file, `--set` override) is malformed.
+    #[error("configuration: {0}")]
+    Config(String),
+    /// A data file (manifest, image, ground truth) could not be used.
+    #[error("{path}: {reason}")]
+    Data {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// A checkpoint could not be written or read.
+    #[error("checkpoint {path}: {reason}")]
+    Checkpoint {
+        /// The checkpoint folder or file.
+        path: PathBuf,
+        /// What went wrong.
+        reason: String,
+    },
+}
+
+impl TrainError {
+    /// A [`TrainError::Data`] for `path`.
+    pub fn data(path: impl Into<PathBuf>, reason: impl ToString) -> Self {
+        TrainError::Data {
+            path: path.into(),
+            reason: reason.to_string(),
+        }
+    }
+
+    /// A [`TrainError::Checkpoint`] for `path`.
+    pub fn checkpoint(path: impl Into<PathBuf>, reason: impl ToString) -> Self {
+        TrainError::Checkpoint {
+            path: path.into(),
+            reason: reason.to_string(),
+        }
+    }
 }

@@ -18,12 +18,17 @@
 
 pub mod augment;
 pub mod backbone;
+pub mod checkpoint;
 pub mod clip;
+pub mod config;
+pub mod data;
 pub mod ema;
 pub mod error;
+pub mod inference;
 pub mod losses;
 pub mod mask;
 pub mod mirror;
+pub mod run;
 pub mod sampling;
 pub mod schedule;
 pub mod step;
@@ -32,6 +37,7 @@ pub mod step;
 mod test_util;
 
 pub use backbone::{Backbone, CostVolumeNet, CostVolumeNetConfig};
+pub use config::RunConfig;
 pub use error::TrainError;
 pub use losses::{LossConfig, LossInputs, LossOutput, S3Loss};
 pub use step::{S3Trainer, StepBatch, StepReport, TrainerConfig};

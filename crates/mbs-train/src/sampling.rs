@@ -84,21 +84,26 @@ impl TripletSampler {
         })
     }
 
-    /// The next triplet: reference uniform over all views, each target
-    /// uniform over the other N - 1 (independently).
+    /// The next triplet (see [`draw_triplet`]).
     pub fn sample(&mut self) -> Triplet {
-        let reference = self.rng.random_range(0..self.n_views);
-        let mut other = || {
-            let pick = self.rng.random_range(0..self.n_views - 1);
-            if pick >= reference { pick + 1 } else { pick }
-        };
-        let student = other();
-        let teacher = other();
-        Triplet {
-            reference,
-            student,
-            teacher,
-        }
+        draw_triplet(self.n_views, &mut self.rng)
+    }
+}
+
+/// A triplet of an `n_views` sample (`n_views >= 2`): reference uniform
+/// over all views, each target uniform over the other N - 1, independently.
+pub fn draw_triplet<R: Rng>(n_views: usize, rng: &mut R) -> Triplet {
+    let reference = rng.random_range(0..n_views);
+    let mut other = || {
+        let pick = rng.random_range(0..n_views - 1);
+        if pick >= reference { pick + 1 } else { pick }
+    };
+    let student = other();
+    let teacher = other();
+    Triplet {
+        reference,
+        student,
+        teacher,
     }
 }
 

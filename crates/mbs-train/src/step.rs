@@ -11,7 +11,7 @@ use crate::backbone::{Backbone, predict};
 use crate::clip::clip_global_norm;
 use crate::ema::ema_update;
 use crate::error::TrainError;
-use crate::losses::{LossConfig, LossInputs, S3Loss};
+use crate::losses::{LossConfig, LossInputs, LossOutput, S3Loss};
 use crate::schedule::{CosineMomentum, OneCycle, OneCycleConfig};
 
 /// Everything a training run sets besides the network.
@@ -62,12 +62,39 @@ pub struct StepReport {
     pub step: usize,
     /// Total loss before the update.
     pub loss: f32,
+    /// The loss terms before their weights (`None` when switched off).
+    pub terms: LossTerms,
     /// Global gradient norm before clipping.
     pub grad_norm: f64,
     /// Learning rate used.
     pub lr: f64,
     /// EMA momentum used (1 when EMA is off).
     pub momentum: f64,
+}
+
+/// The unweighted loss terms of a step, read back from the device.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LossTerms {
+    /// `mean(A |d_s - r d_t|)`.
+    pub geometry: Option<f32>,
+    /// `mean(M_s P_s)`.
+    pub photometric: Option<f32>,
+    /// `L_s`.
+    pub smoothness: Option<f32>,
+}
+
+/// Maps of one batch for inspection (all `[B, 1, H, W]` row-major), taken
+/// without a gradient step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Diagnosis {
+    /// Teacher disparity `d_t` on the clean pair.
+    pub teacher_disparity: Vec<f32>,
+    /// Student disparity `d_s` on the student's input.
+    pub student_disparity: Vec<f32>,
+    /// Teacher validity mask `M_t` (0/1), when the geometry term is on.
+    pub teacher_mask: Option<Vec<f32>>,
+    /// Student validity mask `M_s` (0/1).
+    pub student_mask: Option<Vec<f32>>,
 }
 
 /// Student, EMA teacher, optimiser and schedules.
@@ -130,8 +157,28 @@ impl<B: Backbone> S3Trainer<B> {
         &self.teacher
     }
 
-    /// Takes one optimisation step on `batch`.
-    pub fn step(&mut self, batch: StepBatch) -> Result<StepReport, TrainError> {
+    /// Steps taken so far (the index of the next step).
+    pub fn steps_taken(&self) -> usize {
+        self.step
+    }
+
+    /// The optimiser (for checkpoints).
+    pub fn optimizer(&self) -> &ModuleOptimizer {
+        &self.optimizer
+    }
+
+    /// Puts back the state of a checkpoint: both networks, the optimiser
+    /// state and the number of steps taken.
+    pub fn restore(&mut self, student: B, teacher: B, optimizer: ModuleOptimizer, steps: usize) {
+        self.student = student;
+        self.teacher = teacher;
+        self.optimizer = optimizer;
+        self.step = steps;
+    }
+
+    /// Teacher and student predictions and the loss on `batch`, on the
+    /// student's device (the student's own gradient path when it has one).
+    fn forward(&self, student: &B, batch: StepBatch) -> Result<LossOutput, TrainError> {
         let StepBatch {
             reference,
             student_target,
@@ -155,12 +202,12 @@ impl<B: Backbone> S3Trainer<B> {
             Tensor::zeros([batch, 1, height, width], &reference.device())
         };
         let student_disparity = predict(
-            &self.student,
+            student,
             augmented_reference,
             augmented_target,
             &student_sides,
         );
-        let out = self.loss.compute(LossInputs {
+        self.loss.compute(LossInputs {
             reference,
             student_target,
             teacher_target,
@@ -169,14 +216,58 @@ impl<B: Backbone> S3Trainer<B> {
             student_sides,
             teacher_sides,
             ratios,
-        })?;
-        let loss = out
-            .total
-            .to_data()
-            .try_to_vec::<f32>()
-            .ok()
-            .and_then(|values| values.first().copied())
-            .ok_or(TrainError::Readback("the loss"))?;
+        })
+    }
+
+    /// The maps of `batch` (predictions and masks) without a gradient step.
+    pub fn diagnose(&self, batch: StepBatch) -> Result<Diagnosis, TrainError> {
+        let student = self.student.valid();
+        let out = self.forward(&student, batch.clone())?;
+        let teacher = predict(
+            &self.teacher,
+            batch.reference.clone(),
+            batch.teacher_target,
+            &batch.teacher_sides,
+        );
+        let student_disparity = predict(
+            &student,
+            batch.augmented_reference,
+            batch.augmented_target,
+            &batch.student_sides,
+        );
+        Ok(Diagnosis {
+            teacher_disparity: read_all(teacher, "the teacher disparity")?,
+            student_disparity: read_all(student_disparity, "the student disparity")?,
+            teacher_mask: out
+                .teacher_mask
+                .map(|m| read_all(m, "the teacher mask"))
+                .transpose()?,
+            student_mask: out
+                .student_mask
+                .map(|m| read_all(m, "the student mask"))
+                .transpose()?,
+        })
+    }
+
+    /// Takes one optimisation step on `batch`.
+    pub fn step(&mut self, batch: StepBatch) -> Result<StepReport, TrainError> {
+        let student = self.student.clone();
+        let out = self.forward(&student, batch)?;
+        let terms = LossTerms {
+            geometry: out
+                .geometry
+                .map(|t| read_scalar(t, "the geometry term"))
+                .transpose()?,
+            photometric: out
+                .photometric
+                .map(|t| read_scalar(t, "the photometric term"))
+                .transpose()?,
+            smoothness: out
+                .smoothness
+                .map(|t| read_scalar(t, "the smoothness term"))
+                .transpose()?,
+        };
+        let loss = read_scalar(out.total.clone(), "the loss")?;
         let lr = self.lr.lr(self.step);
         let mut grads = GradientsParams::from_grads(out.total.backward(), &self.student);
         let grad_norm = clip_global_norm(&self.student, &mut grads, self.grad_clip_norm)?;
@@ -192,6 +283,7 @@ impl<B: Backbone> S3Trainer<B> {
         let report = StepReport {
             step: self.step,
             loss,
+            terms,
             grad_norm,
             lr,
             momentum,
@@ -199,6 +291,24 @@ impl<B: Backbone> S3Trainer<B> {
         self.step += 1;
         Ok(report)
     }
+}
+
+/// The first value of a tensor as f32.
+fn read_scalar(tensor: Tensor<1>, what: &'static str) -> Result<f32, TrainError> {
+    tensor
+        .into_data()
+        .try_to_vec::<f32>()
+        .ok()
+        .and_then(|values| values.first().copied())
+        .ok_or(TrainError::Readback(what))
+}
+
+/// Every value of a tensor as f32, row-major.
+fn read_all<const D: usize>(tensor: Tensor<D>, what: &'static str) -> Result<Vec<f32>, TrainError> {
+    tensor
+        .into_data()
+        .try_to_vec::<f32>()
+        .map_err(|_| TrainError::Readback(what))
 }
 
 #[cfg(test)]

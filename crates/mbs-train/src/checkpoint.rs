@@ -1,0 +1,237 @@
+//! Checkpoints of a run: `<run>/checkpoints/step-NNNNNNN/` holds the
+//! student, the teacher and the optimiser state (burnpack files, which keep
+//! the parameter ids the optimiser state is keyed by) and `state.json`
+//! (format, steps taken, the full configuration and the random state).
+//!
+//! A checkpoint is written into `step-NNNNNNN.partial/` and renamed when
+//! complete, so a crash never leaves a folder that looks finished.
+//!
+//! The random state is the run's seed and the number of steps taken: every
+//! random choice of step `k` comes from a generator seeded by both
+//! ([`crate::data::step_rng`]), so nothing else needs saving.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use burn::module::Module;
+use burn::optim::{AdamConfig, ModuleOptimizer};
+use burn::store::{BurnpackStore, ModuleSnapshot};
+use burn::tensor::{Bytes, Device};
+use mbs_core::atomic::write_bytes_atomic;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use crate::backbone::CostVolumeNet;
+use crate::config::RunConfig;
+use crate::error::TrainError;
+
+/// `format` of `state.json`.
+pub const FORMAT: &str = "mbs-checkpoint/1";
+/// Folder of a run's checkpoints.
+pub const CHECKPOINTS_DIR: &str = "checkpoints";
+const STATE_FILE: &str = "state.json";
+const STUDENT_FILE: &str = "student.bpk";
+const TEACHER_FILE: &str = "teacher.bpk";
+const OPTIMIZER_FILE: &str = "optimizer.bpk";
+
+/// `state.json` of a checkpoint.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CheckpointState {
+    /// Always [`FORMAT`].
+    pub format: String,
+    /// Optimiser steps taken.
+    pub steps: usize,
+    /// The run's configuration, complete.
+    pub config: Value,
+    /// The random state.
+    pub rng: RngState,
+}
+
+/// Everything the run's random choices depend on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RngState {
+    /// The run's seed.
+    pub seed: u64,
+    /// The next step's index: its batch and augmentation generators are
+    /// ChaCha8 seeded with `seed`, on stream `2 step` and `2 step + 1`.
+    pub next_step: usize,
+}
+
+/// The checkpoint folder for `steps` taken.
+fn folder_name(steps: usize) -> String {
+    format!("step-{steps:07}")
+}
+
+/// Writes a checkpoint of a run into `run/checkpoints/` and keeps the
+/// newest `keep` of them; returns its folder.
+pub fn save<M: Module>(
+    run: &Path,
+    student: &M,
+    teacher: &M,
+    optimizer: &ModuleOptimizer,
+    config: &RunConfig,
+    steps: usize,
+    keep: usize,
+) -> Result<PathBuf, TrainError> {
+    let root = run.join(CHECKPOINTS_DIR);
+    let done = root.join(folder_name(steps));
+    let partial = root.join(format!("{}.partial", folder_name(steps)));
+    let io = |path: &Path, e: std::io::Error| TrainError::checkpoint(path, e);
+    if partial.exists() {
+        fs::remove_dir_all(&partial).map_err(|e| io(&partial, e))?;
+    }
+    fs::create_dir_all(&partial).map_err(|e| io(&partial, e))?;
+    write_module(&partial.join(STUDENT_FILE), student)?;
+    write_module(&partial.join(TEACHER_FILE), teacher)?;
+    let optimizer_bytes = optimizer
+        .into_bytes()
+        .map_err(|e| TrainError::checkpoint(&partial, format!("optimizer state: {e}")))?;
+    write_file(&partial.join(OPTIMIZER_FILE), &optimizer_bytes)?;
+    let state = CheckpointState {
+        format: FORMAT.into(),
+        steps,
+        config: config.to_json()?,
+        rng: RngState {
+            seed: config.seed,
+            next_step: steps,
+        },
+    };
+    let json = serde_json::to_vec_pretty(&state).map_err(|e| io(&partial, e.into()))?;
+    write_file(&partial.join(STATE_FILE), &json)?;
+    if done.exists() {
+        fs::remove_dir_all(&done).map_err(|e| io(&done, e))?;
+    }
+    fs::rename(&partial, &done).map_err(|e| io(&done, e))?;
+    prune(&root, keep)?;
+    Ok(done)
+}
+
+fn write_file(path: &Path, bytes: &[u8]) -> Result<(), TrainError> {
+    write_bytes_atomic(path, bytes).map_err(|e| TrainError::checkpoint(path, e))
+}
+
+fn write_module<M: Module>(path: &Path, module: &M) -> Result<(), TrainError> {
+    let mut store = BurnpackStore::from_bytes(None);
+    module
+        .save_into(&mut store)
+        .map_err(|e| TrainError::checkpoint(path, e))?;
+    let bytes = store
+        .get_bytes()
+        .map_err(|e| TrainError::checkpoint(path, e))?;
+    write_file(path, &bytes)
+}
+
+/// Completed checkpoints under `root`, oldest first.
+fn completed(root: &Path) -> Result<Vec<(usize, PathBuf)>, TrainError> {
+    let entries = match fs::read_dir(root) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(TrainError::checkpoint(root, e)),
+    };
+    let mut found: Vec<(usize, PathBuf)> = entries
+        .filter_map(Result::ok)
+        .filter_map(|entry| {
+            let name = entry.file_name().into_string().ok()?;
+            let steps = name.strip_prefix("step-")?.parse().ok()?;
+            let path = entry.path();
+            path.join(STATE_FILE).is_file().then_some((steps, path))
+        })
+        .collect();
+    found.sort();
+    Ok(found)
+}
+
+fn prune(root: &Path, keep: usize) -> Result<(), TrainError> {
+    let found = completed(root)?;
+    let excess = found.len().saturating_sub(keep.max(1));
+    for (_, path) in &found[..excess] {
+        fs::remove_dir_all(path).map_err(|e| TrainError::checkpoint(path, e))?;
+    }
+    Ok(())
+}
+
+/// A checkpoint on disk.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Checkpoint {
+    /// Its folder.
+    pub dir: PathBuf,
+    /// Its `state.json`.
+    pub state: CheckpointState,
+}
+
+impl Checkpoint {
+    /// The newest completed checkpoint of the run folder `run`, if any.
+    pub fn latest(run: &Path) -> Result<Option<Checkpoint>, TrainError> {
+        match completed(&run.join(CHECKPOINTS_DIR))?.pop() {
+            Some((_, dir)) => Checkpoint::open(&dir).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// Opens a checkpoint: a checkpoint folder, or a run folder (its newest
+    /// checkpoint).
+    pub fn open(path: &Path) -> Result<Checkpoint, TrainError> {
+        if !path.join(STATE_FILE).is_file() {
+            return Checkpoint::latest(path)?.ok_or_else(|| {
+                TrainError::checkpoint(
+                    path,
+                    "neither a checkpoint folder (no state.json) nor a training run with checkpoints/",
+                )
+            });
+        }
+        let state_path = path.join(STATE_FILE);
+        let text =
+            fs::read_to_string(&state_path).map_err(|e| TrainError::checkpoint(&state_path, e))?;
+        let state: CheckpointState = serde_json::from_str(&text).map_err(|e| {
+            TrainError::checkpoint(&state_path, format!("not a checkpoint state: {e}"))
+        })?;
+        if state.format != FORMAT {
+            return Err(TrainError::checkpoint(
+                &state_path,
+                format!("format `{}`, expected `{FORMAT}`", state.format),
+            ));
+        }
+        Ok(Checkpoint {
+            dir: path.to_path_buf(),
+            state,
+        })
+    }
+
+    /// The configuration the checkpoint was trained with.
+    pub fn config(&self) -> Result<RunConfig, TrainError> {
+        RunConfig::from_document(&self.state.config)
+            .map_err(|e| TrainError::checkpoint(self.dir.join(STATE_FILE), e))
+    }
+
+    /// The teacher (the network used for inference) on `device`.
+    pub fn teacher(&self, device: &Device) -> Result<CostVolumeNet, TrainError> {
+        let net = self.config()?.network.init(device)?;
+        self.load_module(net, TEACHER_FILE)
+    }
+
+    /// The student on `device`.
+    pub fn student(&self, device: &Device) -> Result<CostVolumeNet, TrainError> {
+        let net = self.config()?.network.init(device)?;
+        self.load_module(net, STUDENT_FILE)
+    }
+
+    /// The Adam state.
+    pub fn optimizer(&self) -> Result<ModuleOptimizer, TrainError> {
+        let path = self.dir.join(OPTIMIZER_FILE);
+        let bytes = fs::read(&path).map_err(|e| TrainError::checkpoint(&path, e))?;
+        AdamConfig::new()
+            .init()
+            .from_bytes(Bytes::from_bytes_vec(bytes))
+            .map_err(|e| TrainError::checkpoint(&path, e))
+    }
+
+    fn load_module<M: Module>(&self, mut module: M, file: &str) -> Result<M, TrainError> {
+        let path = self.dir.join(file);
+        let bytes = fs::read(&path).map_err(|e| TrainError::checkpoint(&path, e))?;
+        let mut store = BurnpackStore::from_bytes(Some(Bytes::from_bytes_vec(bytes)));
+        module
+            .load_from(&mut store)
+            .map_err(|e| TrainError::checkpoint(&path, e))?;
+        Ok(module)
+    }
+}

@@ -1,0 +1,317 @@
+//! The configuration of a training run: every hyper-parameter, with the
+//! paper's defaults, as one JSON document (`schemas/train-config.schema.json`).
+//!
+//! A run's configuration is built in layers: the defaults, then a user's
+//! file (any subset of the keys), then `key.path=value` overrides; the
+//! result is checked against the schema and then against each part's
+//! ranges.
+
+use std::sync::OnceLock;
+
+use burn::config::Config;
+use serde_json::Value;
+
+use crate::augment::AugmentConfig;
+use crate::backbone::CostVolumeNetConfig;
+use crate::data::DataConfig;
+use crate::error::TrainError;
+use crate::losses::LossConfig;
+use crate::schedule::OneCycleConfig;
+use crate::step::TrainerConfig;
+
+/// The training configuration JSON Schema text.
+pub const TRAIN_CONFIG_SCHEMA: &str = include_str!("../../../schemas/train-config.schema.json");
+
+/// Everything a training run needs to know besides its data and output.
+#[derive(Config, Debug)]
+pub struct RunConfig {
+    /// Loss, learning rate, EMA and clipping.
+    pub trainer: TrainerConfig,
+    /// The backbone.
+    pub network: CostVolumeNetConfig,
+    /// The student's augmentation.
+    pub augment: AugmentConfig,
+    /// Batches, crops, loading and validation pairs.
+    pub data: DataConfig,
+    /// Seed of the weights and of every random choice of the run.
+    #[config(default = 0)]
+    pub seed: u64,
+    /// Log the loss terms every this many steps.
+    #[config(default = 20)]
+    pub log_every: usize,
+    /// Validate (and draw the visual outputs) every this many steps, and at the end.
+    #[config(default = 1000)]
+    pub val_every: usize,
+    /// Save a checkpoint every this many steps, and at the end or on a stop.
+    #[config(default = 5000)]
+    pub checkpoint_every: usize,
+    /// Checkpoints kept on disk (the newest ones).
+    #[config(default = 2)]
+    pub keep_checkpoints: usize,
+    /// Validation pairs drawn as contact sheets.
+    #[config(default = 4)]
+    pub visual_samples: usize,
+}
+
+impl RunConfig {
+    /// The paper's pretraining settings (200k steps, batch 16, 384x512
+    /// crops, max LR 2e-4) with a 192-pixel disparity range.
+    pub fn paper() -> Self {
+        RunConfig::new(
+            TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(2e-4, 200_000)),
+            CostVolumeNetConfig::new().with_max_disparity(192),
+            AugmentConfig::new(),
+            DataConfig::new(),
+        )
+    }
+
+    /// Number of optimiser steps of the run.
+    pub fn steps(&self) -> usize {
+        self.trainer.lr.total_steps
+    }
+
+    /// The configuration as a JSON value.
+    pub fn to_json(&self) -> Result<Value, TrainError> {
+        serde_json::to_value(self).map_err(|e| TrainError::Config(e.to_string()))
+    }
+
+    /// The paper's defaults, overlaid with `file` (any subset of the keys)
+    /// and then with each `key.path=value` override, checked against the
+    /// schema and the ranges.
+    pub fn layered(file: Option<&Value>, overrides: &[String]) -> Result<Self, TrainError> {
+        let mut document = Self::paper().to_json()?;
+        if let Some(file) = file {
+            merge(&mut document, file);
+        }
+        for assignment in overrides {
+            let (path, value) = parse_override(assignment)?;
+            set_path(&mut document, &path, value)?;
+        }
+        Self::from_document(&document)
+    }
+
+    /// A complete configuration document (as saved in a checkpoint),
+    /// checked against the schema and the ranges.
+    pub fn from_document(document: &Value) -> Result<Self, TrainError> {
+        let issues: Vec<String> = validator()
+            .iter_errors(document)
+            .map(|e| {
+                let at = e.instance_path().to_string();
+                if at.is_empty() {
+                    e.to_string()
+                } else {
+                    format!("{at}: {e}")
+                }
+            })
+            .collect();
+        if !issues.is_empty() {
+            return Err(TrainError::Config(issues.join("; ")));
+        }
+        let config: RunConfig = serde_json::from_value(document.clone())
+            .map_err(|e| TrainError::Config(e.to_string()))?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Checks every part's ranges.
+    pub fn validate(&self) -> Result<(), TrainError> {
+        self.trainer.loss.validate()?;
+        self.trainer.lr.init()?;
+        self.augment.validate()?;
+        self.data.validate()?;
+        for (name, value) in [
+            ("log_every", self.log_every),
+            ("val_every", self.val_every),
+            ("checkpoint_every", self.checkpoint_every),
+            ("keep_checkpoints", self.keep_checkpoints),
+        ] {
+            if value == 0 {
+                return Err(TrainError::InvalidSetting {
+                    name,
+                    value: "0".into(),
+                    reason: "at least 1",
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+fn validator() -> &'static jsonschema::Validator {
+    static VALIDATOR: OnceLock<jsonschema::Validator> = OnceLock::new();
+    VALIDATOR.get_or_init(|| {
+        // The schema is part of this crate and checked by its tests.
+        let schema: Value =
+            serde_json::from_str(TRAIN_CONFIG_SCHEMA).expect("embedded schema is JSON");
+        jsonschema::validator_for(&schema).expect("embedded schema is a valid JSON Schema")
+    })
+}
+
+/// Overlays `top` on `base`: objects merge key by key, anything else replaces.
+fn merge(base: &mut Value, top: &Value) {
+    match (base, top) {
+        (Value::Object(base), Value::Object(top)) => {
+            for (key, value) in top {
+                match base.get_mut(key) {
+                    Some(slot) => merge(slot, value),
+                    None => {
+                        base.insert(key.clone(), value.clone());
+                    }
+                }
+            }
+        }
+        (base, top) => *base = top.clone(),
+    }
+}
+
+/// `a.b.c=value` into the path and a JSON value (`value` is parsed as JSON
+/// when it is, e.g. `3`, `false`, `[[0,1]]`, and taken as a string otherwise).
+fn parse_override(assignment: &str) -> Result<(Vec<String>, Value), TrainError> {
+    let (path, raw) = assignment.split_once('=').ok_or_else(|| {
+        TrainError::Config(format!(
+            "override `{assignment}` is not KEY=VALUE (e.g. trainer.loss.omega=3)"
+        ))
+    })?;
+    let path: Vec<String> = path.trim().split('.').map(str::to_owned).collect();
+    if path.iter().any(String::is_empty) {
+        return Err(TrainError::Config(format!(
+            "override `{assignment}`: empty key in the path"
+        )));
+    }
+    let value = serde_json::from_str(raw.trim()).unwrap_or_else(|_| Value::String(raw.into()));
+    Ok((path, value))
+}
+
+/// Sets an existing key of `document`; unknown keys are an error naming the
+/// keys that exist there.
+fn set_path(document: &mut Value, path: &[String], value: Value) -> Result<(), TrainError> {
+    let mut slot = document;
+    for (depth, key) in path.iter().enumerate() {
+        let Value::Object(map) = slot else {
+            return Err(TrainError::Config(format!(
+                "`{}` is not a section",
+                path[..depth].join(".")
+            )));
+        };
+        let known: Vec<String> = map.keys().cloned().collect();
+        slot = map.get_mut(key).ok_or_else(|| {
+            TrainError::Config(format!(
+                "unknown key `{}`; known here: {}",
+                path[..=depth].join("."),
+                known.join(", ")
+            ))
+        })?;
+    }
+    merge(slot, &value);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    /// Every key path of a JSON object, dotted.
+    fn keys(value: &Value, prefix: &str, out: &mut Vec<String>) {
+        if let Value::Object(map) = value {
+            for (key, child) in map {
+                let path = if prefix.is_empty() {
+                    key.clone()
+                } else {
+                    format!("{prefix}.{key}")
+                };
+                out.push(path.clone());
+                keys(child, &path, out);
+            }
+        }
+    }
+
+    /// Every property path the schema declares, dotted.
+    fn schema_keys(schema: &Value, prefix: &str, out: &mut Vec<String>) {
+        if let Some(Value::Object(properties)) = schema.get("properties") {
+            for (key, child) in properties {
+                let path = if prefix.is_empty() {
+                    key.clone()
+                } else {
+                    format!("{prefix}.{key}")
+                };
+                out.push(path.clone());
+                schema_keys(child, &path, out);
+            }
+        }
+    }
+
+    #[test]
+    fn the_schema_describes_exactly_the_configs_keys() {
+        let mut config_keys = Vec::new();
+        keys(
+            &RunConfig::paper().to_json().expect("serialises"),
+            "",
+            &mut config_keys,
+        );
+        let schema: Value = serde_json::from_str(TRAIN_CONFIG_SCHEMA).expect("schema is JSON");
+        let mut declared = Vec::new();
+        schema_keys(&schema, "", &mut declared);
+        config_keys.sort();
+        declared.sort();
+        assert_eq!(config_keys, declared);
+    }
+
+    #[test]
+    fn defaults_are_the_papers_and_valid() {
+        let config = RunConfig::layered(None, &[]).expect("defaults are valid");
+        assert_eq!(config.steps(), 200_000);
+        assert_eq!(config.trainer.lr.max_lr, 2e-4);
+        assert_eq!(config.trainer.loss.tau, 0.1);
+        assert_eq!(config.trainer.loss.omega, 2.0);
+        assert_eq!(config.trainer.loss.lambda_p, 10.0);
+        assert_eq!(config.data.batch_size, 16);
+        assert_eq!(
+            (config.data.crop_height, config.data.crop_width),
+            (384, 512)
+        );
+    }
+
+    #[test]
+    fn files_and_overrides_layer_on_the_defaults() {
+        let file = json!({"trainer": {"loss": {"omega": 3.0}}, "data": {"batch_size": 2}});
+        let config = RunConfig::layered(
+            Some(&file),
+            &[
+                "trainer.lr.total_steps=50".into(),
+                "trainer.loss.geometry=false".into(),
+                "data.val_pairs=[[1,2],[1,0]]".into(),
+            ],
+        )
+        .expect("valid");
+        assert_eq!(config.trainer.loss.omega, 3.0);
+        assert!(!config.trainer.loss.geometry);
+        assert!(
+            config.trainer.loss.photometric,
+            "untouched keys keep their default"
+        );
+        assert_eq!(config.data.batch_size, 2);
+        assert_eq!(config.steps(), 50);
+        assert_eq!(config.data.val_pairs, vec![[1, 2], [1, 0]]);
+    }
+
+    #[test]
+    fn bad_values_are_named() {
+        let err = |overrides: &[&str]| {
+            let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+            RunConfig::layered(None, &overrides)
+                .expect_err("must be refused")
+                .to_string()
+        };
+        assert!(err(&["trainer.loss.omgea=3"]).contains("unknown key `trainer.loss.omgea`"));
+        assert!(err(&["data.batch_size=-1"]).contains("/data/batch_size"));
+        assert!(err(&["trainer.loss.tau=fast"]).contains("/trainer/loss/tau"));
+        assert!(err(&["seed"]).contains("not KEY=VALUE"));
+        assert!(err(&["trainer.loss.ssim_window=4"]).contains("ssim_window"));
+        let file = json!({"trainer": {"loss": {"typo": 1}}});
+        let message = RunConfig::layered(Some(&file), &[])
+            .expect_err("unknown key in a file")
+            .to_string();
+        assert!(message.contains("typo"), "{message}");
+    }
+}

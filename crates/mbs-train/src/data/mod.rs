@@ -1,0 +1,123 @@
+//! The training data pipeline: samples from a manifest, random triplets
+//! and crops per batch, decoded on worker threads ahead of the step
+//! ([`loader::BatchLoader`]), and the held-out pairs with ground truth that
+//! validation scores ([`validation::ValidationSet`]).
+//!
+//! Every random choice of batch `k` comes from a generator seeded by the
+//! run's seed and `k` alone ([`step_rng`]), so a resumed run draws exactly
+//! the batches an uninterrupted one would, whatever the thread timing.
+
+pub mod batch;
+pub mod loader;
+pub mod samples;
+pub mod validation;
+
+use burn::config::Config;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use crate::error::TrainError;
+
+pub use batch::{HostBatch, image_to_chw};
+pub use loader::BatchLoader;
+pub use samples::{TrainingSamples, ViewPaths};
+pub use validation::{ValidationPair, ValidationSet};
+
+/// How batches are drawn and loaded.
+#[derive(Config, Debug, PartialEq)]
+pub struct DataConfig {
+    /// Batch items per step (the paper uses 16).
+    #[config(default = 16)]
+    pub batch_size: usize,
+    /// Height of the random crops (384 pretraining, 256 finetuning).
+    #[config(default = 384)]
+    pub crop_height: usize,
+    /// Width of the random crops (512 in the paper).
+    #[config(default = 512)]
+    pub crop_width: usize,
+    /// Threads that decode and crop batches ahead of the step.
+    #[config(default = 2)]
+    pub workers: usize,
+    /// Camera pairs `[reference, target]` scored by validation, when the
+    /// held-out samples have ground truth for them.
+    #[config(default = "vec![[0, 1]]")]
+    pub val_pairs: Vec<[usize; 2]>,
+    /// Validate on at most this many held-out samples (0 = all).
+    #[config(default = 32)]
+    pub val_samples: usize,
+}
+
+impl DataConfig {
+    /// Checks the ranges.
+    pub fn validate(&self) -> Result<(), TrainError> {
+        let positive = [("batch_size", self.batch_size), ("workers", self.workers)];
+        for (name, value) in positive {
+            if value == 0 {
+                return Err(TrainError::InvalidSetting {
+                    name,
+                    value: value.to_string(),
+                    reason: "at least 1",
+                });
+            }
+        }
+        for (name, value) in [
+            ("crop_height", self.crop_height),
+            ("crop_width", self.crop_width),
+        ] {
+            if value < 16 {
+                return Err(TrainError::InvalidSetting {
+                    name,
+                    value: value.to_string(),
+                    reason: "at least 16 pixels",
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Which random stream of a step a generator serves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stream {
+    /// Sample, triplet and crop choices (worker threads).
+    Batch,
+    /// The student's augmentation (training thread).
+    Augment,
+}
+
+/// The generator of `stream` for step `step` of a run seeded with `seed`.
+pub fn step_rng(seed: u64, step: usize, stream: Stream) -> ChaCha8Rng {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let lane = match stream {
+        Stream::Batch => 0,
+        Stream::Augment => 1,
+    };
+    rng.set_stream(((step as u64) << 1) | lane);
+    rng
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::Rng;
+
+    #[test]
+    fn step_generators_depend_on_seed_step_and_stream_only() {
+        let first = |seed, step, stream| step_rng(seed, step, stream).random::<u64>();
+        assert_eq!(first(1, 5, Stream::Batch), first(1, 5, Stream::Batch));
+        assert_ne!(first(1, 5, Stream::Batch), first(1, 6, Stream::Batch));
+        assert_ne!(first(1, 5, Stream::Batch), first(1, 5, Stream::Augment));
+        assert_ne!(first(1, 5, Stream::Batch), first(2, 5, Stream::Batch));
+    }
+
+    #[test]
+    fn defaults_are_the_papers_pretraining_settings() {
+        let config = DataConfig::new();
+        assert_eq!(
+            (config.batch_size, config.crop_height, config.crop_width),
+            (16, 384, 512)
+        );
+        assert!(config.validate().is_ok());
+        assert!(DataConfig::new().with_batch_size(0).validate().is_err());
+    }
+}

@@ -1,0 +1,90 @@
+//! The training samples of a manifest: the views of every `train` sample,
+//! resolved to files, with the rig that relates them.
+
+use std::path::{Path, PathBuf};
+
+use mbs_core::Rig;
+use mbs_dataset::Manifest;
+use mbs_dataset::manifest::{Split, resolve};
+
+use crate::error::TrainError;
+
+/// The views of one sample, left to right.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewPaths {
+    /// The sample's id.
+    pub id: String,
+    /// One image per camera.
+    pub views: Vec<PathBuf>,
+    /// `(width, height)` of the images.
+    pub size: (u32, u32),
+}
+
+/// Every training sample of a manifest.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrainingSamples {
+    /// The camera rig (positions give the baseline ratios).
+    pub rig: Rig,
+    /// The samples of the `train` split.
+    pub samples: Vec<ViewPaths>,
+}
+
+impl TrainingSamples {
+    /// The `train` samples of the manifest at `path`; every one must have
+    /// one view per camera and images at least `crop` (height, width).
+    pub fn load(path: &Path, crop: (usize, usize)) -> Result<Self, TrainError> {
+        let manifest = Manifest::load(path).map_err(|e| TrainError::data(path, e))?;
+        Self::from_manifest(path, &manifest, crop)
+    }
+
+    /// As [`TrainingSamples::load`] on a manifest already read from `path`.
+    pub fn from_manifest(
+        path: &Path,
+        manifest: &Manifest,
+        (crop_height, crop_width): (usize, usize),
+    ) -> Result<Self, TrainError> {
+        let rig = manifest.rig;
+        if rig.num_views < 2 {
+            return Err(TrainError::data(
+                path,
+                format!(
+                    "the rig has {} camera(s); S3 needs at least 2",
+                    rig.num_views
+                ),
+            ));
+        }
+        let mut samples = Vec::new();
+        for sample in manifest.samples.iter().filter(|s| s.split == Split::Train) {
+            if sample.views.len() != rig.num_views {
+                return Err(TrainError::data(
+                    path,
+                    format!(
+                        "sample {} has {} views for a {}-camera rig",
+                        sample.id,
+                        sample.views.len(),
+                        rig.num_views
+                    ),
+                ));
+            }
+            let size = sample.size(&rig);
+            if (size.1 as usize) < crop_height || (size.0 as usize) < crop_width {
+                return Err(TrainError::data(
+                    path,
+                    format!(
+                        "sample {} is {}x{} (height x width), smaller than the {crop_height}x{crop_width} crop; choose a smaller crop",
+                        sample.id, size.1, size.0
+                    ),
+                ));
+            }
+            samples.push(ViewPaths {
+                id: sample.id.clone(),
+                views: sample.views.iter().map(|v| resolve(path, v)).collect(),
+                size,
+            });
+        }
+        if samples.is_empty() {
+            return Err(TrainError::data(path, "no sample of the `train` split"));
+        }
+        Ok(Self { rig, samples })
+    }
+}
