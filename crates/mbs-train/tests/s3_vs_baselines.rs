@@ -7,46 +7,22 @@
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
-use mbs_core::Rig;
 use mbs_core::metrics::Region;
-use mbs_synth::dataset::DatasetSpec;
-use mbs_synth::{SceneConfig, Weather};
 use mbs_train::RunConfig;
 use mbs_train::data::validation::ValidationMetrics;
 use mbs_train::run::{End, Quiet, TrainingRun};
 
+mod common;
+
 const WIDTH: u32 = 192;
 const HEIGHT: u32 = 96;
 
+/// An integer setting from the environment (e.g. `S3_TEST_STEPS`), or `default`.
 fn env(name: &str, default: usize) -> usize {
     std::env::var(name)
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(default)
-}
-
-/// A small MBS20K-style set: two training towns, one held-out town.
-fn synthesise(root: &Path) -> std::path::PathBuf {
-    let rig = Rig::centred(5, 0.5, f64::from(WIDTH) / 2.0, WIDTH, HEIGHT);
-    let spec = DatasetSpec {
-        rig,
-        towns: vec!["Town01".into(), "Town02".into(), "Town10".into()],
-        weathers: vec![Weather::ClearNoon, Weather::ClearSunset],
-        frames: env("S3_TEST_FRAMES", 6),
-        seed: 11,
-        test_towns: vec!["Town10".into()],
-        scene: SceneConfig::default(),
-        supersample: 2,
-        max_depth_m: 200.0,
-        checksums: false,
-    };
-    for frame in spec.frames() {
-        spec.write_frame(root, &frame).unwrap();
-    }
-    let manifest = spec.manifest(root).unwrap();
-    let path = root.join("manifest.json");
-    manifest.save(&path).unwrap();
-    path
 }
 
 fn config(steps: usize, overrides: &[&str]) -> RunConfig {
@@ -107,7 +83,12 @@ fn summary(name: &str, m: &ValidationMetrics) {
 #[test]
 fn full_s3_beats_untrained_and_photometric_smoothness_only() {
     let dir = tempfile::tempdir().unwrap();
-    let manifest = synthesise(&dir.path().join("data"));
+    let manifest = common::synthesise(
+        &dir.path().join("data"),
+        env("S3_TEST_FRAMES", 6),
+        WIDTH,
+        HEIGHT,
+    );
     let steps = env("S3_TEST_STEPS", 400);
     let (untrained, full) = train(&manifest, &dir.path().join("full"), config(steps, &[]));
     let (_, photometric) = train(

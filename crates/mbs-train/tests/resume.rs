@@ -1,0 +1,157 @@
+//! Checkpoints and resumption: a run stopped and resumed takes the same
+//! steps with the same losses as an uninterrupted one.
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use mbs_train::RunConfig;
+use mbs_train::checkpoint::Checkpoint;
+use mbs_train::run::{End, Observer, Quiet, Start, TrainingRun};
+use mbs_train::step::StepReport;
+use serde_json::Value;
+
+const STEPS: usize = 8;
+
+fn config(overrides: &[&str]) -> RunConfig {
+    let mut all: Vec<String> = vec![
+        format!("trainer.lr.total_steps={STEPS}"),
+        "trainer.lr.max_lr=0.002".into(),
+        "trainer.ema_base=0.9".into(),
+        "network.max_disparity=32".into(),
+        "network.features=8".into(),
+        "network.hidden=8".into(),
+        "data.batch_size=2".into(),
+        "data.crop_height=48".into(),
+        "data.crop_width=96".into(),
+        "augment.occlusion_min_side=8".into(),
+        "augment.occlusion_max_side=16".into(),
+        "log_every=1".into(),
+        "val_every=4".into(),
+        "checkpoint_every=100".into(),
+        "seed=9".into(),
+    ];
+    all.extend(overrides.iter().map(|s| s.to_string()));
+    RunConfig::layered(None, &all).unwrap()
+}
+
+/// Sets the stop flag after a given step, as Ctrl-C would.
+struct StopAfter<'a> {
+    step: usize,
+    flag: &'a AtomicBool,
+}
+
+impl Observer for StopAfter<'_> {
+    fn on_step(&mut self, report: &StepReport, _: f64) {
+        if report.step + 1 == self.step {
+            self.flag.store(true, Ordering::Relaxed);
+        }
+    }
+}
+
+fn log(path: &Path) -> Vec<Value> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+fn field(lines: &[Value], key: &str) -> Vec<f64> {
+    lines.iter().map(|l| l[key].as_f64().unwrap()).collect()
+}
+
+#[test]
+fn a_stopped_and_resumed_run_matches_an_uninterrupted_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = common::synthesise(&dir.path().join("data"), 1, 128, 64);
+    let never = AtomicBool::new(false);
+
+    let straight = dir.path().join("straight");
+    let (mut run, start) = TrainingRun::open(&manifest, &straight, config(&[])).unwrap();
+    assert_eq!(start, Start::Fresh);
+    assert!(matches!(
+        run.run(&mut Quiet, &never).unwrap(),
+        End::Finished { .. }
+    ));
+
+    let resumed = dir.path().join("resumed");
+    let stop = AtomicBool::new(false);
+    let (mut run, _) = TrainingRun::open(&manifest, &resumed, config(&[])).unwrap();
+    let end = run
+        .run(
+            &mut StopAfter {
+                step: 3,
+                flag: &stop,
+            },
+            &stop,
+        )
+        .unwrap();
+    assert_eq!(end, End::Stopped(3));
+    let checkpoint = Checkpoint::latest(&resumed).unwrap().unwrap();
+    assert_eq!(checkpoint.state.steps, 3);
+    assert_eq!(checkpoint.state.rng.next_step, 3);
+    for file in ["student.bpk", "teacher.bpk", "optimizer.bpk", "state.json"] {
+        assert!(checkpoint.dir.join(file).is_file(), "{file}");
+    }
+    // A settings change that alters the computation is refused by name.
+    let refused = TrainingRun::open(&manifest, &resumed, config(&["trainer.loss.omega=3"]))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        refused.contains("trainer.loss.omega: 2.0 -> 3.0"),
+        "{refused}"
+    );
+
+    let (mut run, start) = TrainingRun::open(&manifest, &resumed, config(&[])).unwrap();
+    assert_eq!(start, Start::Resumed(3));
+    assert_eq!(run.steps_taken(), 3);
+    assert!(matches!(
+        run.run(&mut Quiet, &never).unwrap(),
+        End::Finished { .. }
+    ));
+
+    let (a, b) = (
+        log(&straight.join("train.jsonl")),
+        log(&resumed.join("train.jsonl")),
+    );
+    assert_eq!(
+        field(&a, "step"),
+        (1..=STEPS).map(|s| s as f64).collect::<Vec<_>>()
+    );
+    assert_eq!(field(&a, "step"), field(&b, "step"));
+    for key in [
+        "loss",
+        "geometry",
+        "photometric",
+        "smoothness",
+        "lr",
+        "momentum",
+    ] {
+        for (step, (x, y)) in field(&a, key).iter().zip(field(&b, key)).enumerate() {
+            assert!(
+                (x - y).abs() <= 1e-4 * x.abs().max(1e-3),
+                "{key} at step {}: {x} uninterrupted, {y} resumed",
+                step + 1
+            );
+        }
+    }
+    let (a, b) = (
+        log(&straight.join("val.jsonl")),
+        log(&resumed.join("val.jsonl")),
+    );
+    assert_eq!(field(&a, "step"), vec![0.0, 4.0, 8.0]);
+    assert_eq!(field(&a, "step"), field(&b, "step"));
+    let epe = |lines: &[Value]| -> Vec<f64> {
+        lines
+            .iter()
+            .map(|l| l["ALL"]["epe"].as_f64().unwrap())
+            .collect()
+    };
+    for (x, y) in epe(&a).iter().zip(epe(&b)) {
+        assert!((x - y).abs() <= 1e-3, "validation EPE {x} vs {y}");
+    }
+}
