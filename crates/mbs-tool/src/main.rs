@@ -35,6 +35,8 @@ enum Command {
     Scan(commands::scan::Args),
     /// Check a dataset manifest against its schema and the files on disk.
     Validate(commands::validate::Args),
+    /// Train a stereo network without ground truth (S3 teacher-student).
+    Train(commands::train::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -48,6 +50,7 @@ fn main() -> std::process::ExitCode {
         Command::Extrapolate(args) => commands::extrapolate::run(args),
         Command::Scan(args) => commands::scan::run(args),
         Command::Validate(args) => commands::validate::run(args),
+        Command::Train(args) => commands::train::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

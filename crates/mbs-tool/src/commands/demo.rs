@@ -10,7 +10,7 @@ use mbs_core::quality::psnr;
 use mbs_dataset::Manifest;
 use mbs_dataset::mbs20k::Counts;
 
-use super::{decode_depth, extrapolate, synth, validate};
+use super::{decode_depth, eval, extrapolate, synth, train, validate};
 
 /// Arguments of `demo`.
 #[derive(Parser)]
@@ -21,8 +21,10 @@ Steps: synth (a small MBS20K-style dataset with exact ground truth) ->
 validate (schema + files) -> decode-depth (CARLA depth -> metres and
 disparity for every pair) -> a check of the decoded disparity against the
 renderer's ground truth -> extrapolate (two new views from a stereo pair,
-with the built-in matcher) compared with the rendered views. Re-running
-reuses finished outputs.")]
+with the built-in matcher) compared with the rendered views -> train (a
+short S3 run on a second, smaller synthetic set, with the validation error
+falling) -> eval of the trained teacher on held-out scenes. Re-running
+reuses finished outputs (the training run resumes or is skipped).")]
 pub struct Args {
     /// Output folder.
     #[arg(long, default_value = "mbs-demo")]
@@ -30,6 +32,9 @@ pub struct Args {
     /// Scenes per town.
     #[arg(long, default_value_t = 2)]
     pub frames: usize,
+    /// Steps of the training run.
+    #[arg(long, default_value_t = 300)]
+    pub train_steps: usize,
 }
 
 fn step(title: &str, command: &[String]) {
@@ -132,6 +137,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!("{new} vs rendered camera {rendered}: PSNR {db:.2} dB");
     }
 
+    train_and_evaluate(&args)?;
+
     println!(
         "\nSets per town and weather:\n{}",
         Counts::of(&manifest_data).table()
@@ -153,7 +160,94 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "  {}/image_1.png, image_4.png, mask_*.png, preview.png   extrapolated views",
         extrapolated.display()
     );
+    println!(
+        "  {}/loss.png, val.png, visuals/, checkpoints/        the training run",
+        args.out.join("run").display()
+    );
     Ok(())
+}
+
+/// Steps 6 and 7: a short S3 run on small synthetic scenes (two training
+/// towns, Town10 held out) and the trained teacher's scores.
+fn train_and_evaluate(args: &Args) -> anyhow::Result<()> {
+    let data = args.out.join("train-data");
+    let run = args.out.join("run");
+    let manifest = data.join("manifest.json").display().to_string();
+    let synth_args = strings(&[
+        "synth",
+        "--out",
+        &data.display().to_string(),
+        "--frames",
+        "6",
+        "--towns",
+        "Town01,Town02,Town10",
+        "--weathers",
+        "ClearNoon,ClearSunset",
+        "--width",
+        "192",
+        "--height",
+        "96",
+        "--focal",
+        "96",
+        "--no-checksums",
+    ]);
+    step(
+        "6a. Synthesise small scenes to train on (Town10 is held out for validation)",
+        &synth_args,
+    );
+    synth::run(synth::Args::try_parse_from(&synth_args)?)?;
+
+    let steps = args.train_steps.to_string();
+    let train_args = strings(&[
+        "train",
+        &manifest,
+        "--out",
+        &run.display().to_string(),
+        "--steps",
+        &steps,
+        "--batch-size",
+        "4",
+        "--crop",
+        "96x160",
+        "--lr",
+        "0.002",
+        "--max-disparity",
+        "64",
+        "--val-every",
+        "100",
+        "--set",
+        "trainer.ema_base=0.9",
+        "--set",
+        "trainer.lr.pct_start=0.1",
+        "--set",
+        "augment.occlusion_min_side=10",
+        "--set",
+        "augment.occlusion_max_side=30",
+        "--set",
+        "data.val_pairs=[[0,1],[2,1],[2,3]]",
+    ]);
+    step(
+        "6b. Train the built-in network with S3, no ground truth (about a minute)",
+        &train_args,
+    );
+    train::run(train::Args::try_parse_from(&train_args)?)?;
+
+    let eval_args = strings(&[
+        "eval",
+        "--checkpoint",
+        &run.display().to_string(),
+        "--manifest",
+        &manifest,
+        "--pair",
+        "0:1",
+        "--split",
+        "test",
+    ]);
+    step(
+        "7. Score the trained teacher on the held-out scenes (pair 0:1)",
+        &eval_args,
+    );
+    eval::run(eval::Args::try_parse_from(&eval_args)?)
 }
 
 /// Mean |decoded disparity - exact GT| for pair 0:4 over all samples.

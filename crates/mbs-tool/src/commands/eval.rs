@@ -4,15 +4,17 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::cli::checkpoint::CheckpointMatcher;
 use crate::cli::pair::parse_pair;
 use anyhow::{Context, bail};
 use clap::Parser;
 use mbs_core::formats::{read_disparity, rgb};
 use mbs_core::metrics::{MeanMetrics, Metrics, Region, RegionSums, evaluate, valid_mask};
 use mbs_core::{FloatImage, MaskImage};
-use mbs_dataset::Manifest;
-use mbs_dataset::kitti::KittiVersion;
+use mbs_dataset::kitti::{KittiFolder, KittiVersion};
 use mbs_dataset::manifest::resolve;
+use mbs_dataset::{Manifest, Split};
+use mbs_infer::StereoMatcher;
 use rayon::prelude::*;
 use serde_json::{Value, json};
 
@@ -22,16 +24,23 @@ use serde_json::{Value, json};
   mbs-tool eval pred/disp_0 --kitti /data/kitti2015/training
   mbs-tool eval pred/im2.pfm --gt teddy/disp2.png --gt-scale 4 --json
   mbs-tool eval pred --manifest mbs-demo/manifest.json --pair 0:1
+  mbs-tool eval --checkpoint mbs-demo/run --manifest mbs-demo/train-data/manifest.json --split test
 
 Predictions are looked up as <PREDICTIONS>/<name>.pfm, .png (KITTI 16-bit)
 or .exr, <name> being the GT file stem (KITTI) or the sample id (manifest).
+With --checkpoint, the run's teacher network predicts every pair instead.
 A missing prediction value (+inf/NaN, 0 in PNGs) counts as an outlier for
 Out-x and D1 and is left out of EPE; the density column says how many
 pixels had one. ALL = valid GT; NOC = valid non-occluded GT (KITTI
 disp_noc, a --noc mask, or the manifest's occlusion mask); OCC = ALL - NOC.")]
 pub struct Args {
     /// A folder of predicted disparities, or one file with --gt.
-    pub predictions: PathBuf,
+    #[arg(required_unless_present = "checkpoint")]
+    pub predictions: Option<PathBuf>,
+    /// Predict with the teacher of a training run (or of one of its
+    /// checkpoints/step-N folders) instead of reading PREDICTIONS.
+    #[arg(long, value_name = "RUN|CHECKPOINT", conflicts_with_all = ["predictions", "gt"])]
+    pub checkpoint: Option<PathBuf>,
     /// A KITTI 2015 (disp_occ_0, disp_noc_0) or 2012 (disp_occ, disp_noc)
     /// training folder.
     #[arg(long, conflicts_with_all = ["gt", "manifest"])]
@@ -50,6 +59,9 @@ pub struct Args {
     /// Camera pair of the manifest's ground truth, REFERENCE:TARGET.
     #[arg(long, default_value = "0:1", value_parser = parse_pair)]
     pub pair: (usize, usize),
+    /// Only the manifest's samples of this split (train, val or test).
+    #[arg(long, requires = "manifest", value_parser = parse_split)]
+    pub split: Option<Split>,
     /// GT PNG/PGM codes per pixel of disparity [default: 256 for 16-bit
     /// images (KITTI), 1 for 8-bit ones; Middlebury 2003 quarter size: 4,
     /// Tsukuba: 16].
@@ -72,7 +84,7 @@ pub struct Item {
     /// Name in the table.
     pub name: String,
     /// The predicted disparity.
-    pub prediction: PathBuf,
+    pub prediction: Prediction,
     /// Ground truth over all valid pixels.
     pub gt: PathBuf,
     /// The ground truth is this times the file's values (manifests share
@@ -80,6 +92,22 @@ pub struct Item {
     pub gt_factor: f32,
     /// Where the non-occluded pixels are.
     pub noc: Option<Noc>,
+}
+
+/// Where a prediction comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Prediction {
+    /// A disparity file.
+    File(PathBuf),
+    /// A pair the `--checkpoint` network predicts.
+    Pair {
+        /// The reference view.
+        reference: PathBuf,
+        /// The target view.
+        target: PathBuf,
+        /// Whether the target lies left of the reference.
+        target_on_left: bool,
+    },
 }
 
 /// A source of the non-occluded mask.
@@ -96,27 +124,36 @@ pub enum Noc {
 /// Runs `eval`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
-    let items = if let Some(gt) = &args.gt {
+    let predictions = args.predictions.as_deref();
+    let items = if let (Some(gt), Some(predictions)) = (&args.gt, predictions) {
         vec![Item {
-            name: args.predictions.file_name().map_or_else(
-                || args.predictions.display().to_string(),
+            name: predictions.file_name().map_or_else(
+                || predictions.display().to_string(),
                 |n| n.to_string_lossy().into_owned(),
             ),
-            prediction: args.predictions.clone(),
+            prediction: Prediction::File(predictions.to_path_buf()),
             gt: gt.clone(),
             gt_factor: 1.0,
             noc: args.noc.clone().map(Noc::Mask),
         }]
     } else if let Some(dir) = &args.kitti {
-        kitti_items(dir, &args.predictions)?
+        kitti_items(dir, predictions)?
     } else if let Some(manifest) = &args.manifest {
-        manifest_items(manifest, args.pair, &args.predictions)?
+        manifest_items(manifest, args.pair, args.split, predictions)?
     } else {
         bail!("no ground truth: give --kitti DIR, --gt FILE or --manifest FILE");
     };
+    let network = args
+        .checkpoint
+        .as_deref()
+        .map(CheckpointMatcher::open)
+        .transpose()?;
     let results: Vec<anyhow::Result<RegionSums>> = items
         .par_iter()
-        .map(|item| score(item, args.gt_scale, &args.thresholds))
+        .map(|item| {
+            let prediction = predict(&item.prediction, network.as_ref())?;
+            score(item, &prediction, args.gt_scale, &args.thresholds)
+        })
         .collect();
     let mut scored = Vec::new();
     let mut failed = 0;
@@ -144,6 +181,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+fn parse_split(text: &str) -> Result<Split, String> {
+    match text {
+        "train" => Ok(Split::Train),
+        "val" => Ok(Split::Val),
+        "test" => Ok(Split::Test),
+        _ => Err(format!("`{text}` is not a split: train, val or test")),
+    }
+}
+
 /// Finds a prediction `<dir>/<name>.{pfm,png,exr}`.
 fn find_prediction(dir: &Path, name: &str) -> anyhow::Result<PathBuf> {
     ["pfm", "png", "exr"]
@@ -159,7 +205,7 @@ fn find_prediction(dir: &Path, name: &str) -> anyhow::Result<PathBuf> {
 }
 
 /// The images of a KITTI training folder with their predictions.
-pub fn kitti_items(dir: &Path, predictions: &Path) -> anyhow::Result<Vec<Item>> {
+pub fn kitti_items(dir: &Path, predictions: Option<&Path>) -> anyhow::Result<Vec<Item>> {
     let (occ, noc) = [KittiVersion::Kitti2015, KittiVersion::Kitti2012]
         .into_iter()
         .map(|v| (dir.join(v.gt_dirs().0), dir.join(v.gt_dirs().1)))
@@ -180,13 +226,27 @@ pub fn kitti_items(dir: &Path, predictions: &Path) -> anyhow::Result<Vec<Item>> 
     if names.is_empty() {
         bail!("{}: no ground-truth PNGs", occ.display());
     }
+    // The views are only needed when a network predicts them.
+    let views = match predictions {
+        Some(_) => None,
+        None => Some(KittiFolder::open(dir)?),
+    };
     names
         .into_iter()
         .map(|file| {
             let name = file.trim_end_matches(".png").to_string();
             let noc_map = noc.join(&file);
+            let prediction = match (predictions, &views) {
+                (Some(folder), _) => Prediction::File(find_prediction(folder, &name)?),
+                (None, Some(views)) => Prediction::Pair {
+                    reference: views.left(&name),
+                    target: views.right(&name),
+                    target_on_left: false,
+                },
+                (None, None) => bail!("{}: no predictions folder", dir.display()),
+            };
             Ok(Item {
-                prediction: find_prediction(predictions, &name)?,
+                prediction,
                 gt: occ.join(&file),
                 gt_factor: 1.0,
                 noc: noc_map.is_file().then_some(Noc::Map(noc_map)),
@@ -200,18 +260,35 @@ pub fn kitti_items(dir: &Path, predictions: &Path) -> anyhow::Result<Vec<Item>> 
 pub fn manifest_items(
     path: &Path,
     (reference, target): (usize, usize),
-    predictions: &Path,
+    split: Option<Split>,
+    predictions: Option<&Path>,
 ) -> anyhow::Result<Vec<Item>> {
     let manifest = Manifest::load(path)?;
     let items: Vec<Item> = manifest
         .samples
         .iter()
+        .filter(|s| split.is_none_or(|split| s.split == split))
         .filter_map(|s| {
             let gt = s
                 .ground_truth
                 .iter()
                 .find(|g| g.reference == reference && g.target == target)?;
-            Some(find_prediction(predictions, &s.id).map(|prediction| {
+            let prediction = match predictions {
+                Some(folder) => find_prediction(folder, &s.id).map(Prediction::File),
+                None => match (s.views.get(reference), s.views.get(target)) {
+                    (Some(r), Some(t)) => Ok(Prediction::Pair {
+                        reference: resolve(path, r),
+                        target: resolve(path, t),
+                        target_on_left: target < reference,
+                    }),
+                    _ => Err(anyhow::anyhow!(
+                        "{}: sample {} has no view {reference} or {target}",
+                        path.display(),
+                        s.id
+                    )),
+                },
+            };
+            Some(prediction.map(|prediction| {
                 Item {
                     name: s.id.clone(),
                     prediction,
@@ -227,15 +304,50 @@ pub fn manifest_items(
         .collect::<anyhow::Result<_>>()?;
     if items.is_empty() {
         bail!(
-            "{}: no sample has ground truth for pair {reference}:{target}",
-            path.display()
+            "{}: no sample{} has ground truth for pair {reference}:{target}",
+            path.display(),
+            split.map_or(String::new(), |s| format!(" of the {s:?} split"))
         );
     }
     Ok(items)
 }
 
-fn score(item: &Item, gt_scale: Option<f32>, thresholds: &[f32]) -> anyhow::Result<RegionSums> {
-    let prediction = read_disparity(&item.prediction, None)?;
+/// Reads a prediction, or computes it with the checkpoint's network.
+fn predict(
+    prediction: &Prediction,
+    network: Option<&CheckpointMatcher>,
+) -> anyhow::Result<(FloatImage, PathBuf)> {
+    match (prediction, network) {
+        (Prediction::File(path), _) => Ok((read_disparity(path, None)?, path.clone())),
+        (
+            Prediction::Pair {
+                reference,
+                target,
+                target_on_left,
+            },
+            Some(network),
+        ) => {
+            let reference_image = rgb::read_rgb(reference)?;
+            let target_image = rgb::read_rgb(target)?;
+            let disparity = if *target_on_left {
+                network.predict_right(&target_image, &reference_image)?
+            } else {
+                network.predict(&reference_image, &target_image)?
+            };
+            Ok((disparity.disparity, reference.clone()))
+        }
+        (Prediction::Pair { reference, .. }, None) => {
+            bail!("{}: no prediction and no --checkpoint", reference.display())
+        }
+    }
+}
+
+fn score(
+    item: &Item,
+    (prediction, source): &(FloatImage, PathBuf),
+    gt_scale: Option<f32>,
+    thresholds: &[f32],
+) -> anyhow::Result<RegionSums> {
     let mut gt = read_disparity(&item.gt, gt_scale)?;
     if item.gt_factor != 1.0 {
         gt.iter_mut().for_each(|d| *d *= item.gt_factor);
@@ -251,8 +363,8 @@ fn score(item: &Item, gt_scale: Option<f32>, thresholds: &[f32]) -> anyhow::Resu
             Some(mask)
         }
     };
-    check_size(&prediction, &gt, &item.prediction)?;
-    Ok(evaluate(&prediction, &gt, noc.as_ref(), thresholds)?)
+    check_size(prediction, &gt, source)?;
+    Ok(evaluate(prediction, &gt, noc.as_ref(), thresholds)?)
 }
 
 fn check_size(prediction: &FloatImage, gt: &FloatImage, path: &Path) -> anyhow::Result<()> {

@@ -7,4 +7,5 @@ pub mod extrapolate;
 pub mod predict;
 pub mod scan;
 pub mod synth;
+pub mod train;
 pub mod validate;

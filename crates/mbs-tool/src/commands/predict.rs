@@ -14,6 +14,7 @@ use mbs_infer::onnx::{ModelCard, OnnxStereo};
 use mbs_infer::{Disparity, Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max_disparity};
 
 use crate::cli::batch::{self, Outcome};
+use crate::cli::checkpoint::CheckpointMatcher;
 use crate::cli::onnx::OnnxArgs;
 use crate::cli::pair::parse_pair;
 use crate::cli::shard::Shard;
@@ -25,6 +26,7 @@ use crate::cli::shard::Shard;
   mbs-tool predict --kitti /data/kitti2015/training --format png16 --out pred/disp_0
   mbs-tool predict --manifest mbs-demo/manifest.json --pair 2:1 --out pred
   mbs-tool predict --kitti DIR --model igev.onnx --card igev --device cuda --out pred
+  mbs-tool predict --manifest data/manifest.json --pair 0:1 --checkpoint runs/demo --out pred
 
 Outputs: <out>/<name>.pfm (+inf = invalid) or <out>/<name>.png (KITTI 16-bit,
 value/256, 0 = invalid), where <name> is the left view's file stem (pairs and
@@ -67,6 +69,10 @@ pub struct Args {
     /// How to feed --model: a built-in card name or a card FILE.json.
     #[arg(long, value_name = "NAME|FILE.json", requires = "model")]
     pub card: Option<String>,
+    /// A training run (or one of its checkpoints/step-N folders): predict
+    /// with its teacher network instead of the built-in matcher.
+    #[arg(long, value_name = "RUN|CHECKPOINT", conflicts_with = "model")]
+    pub checkpoint: Option<PathBuf>,
     /// ONNX Runtime settings (with --model).
     #[command(flatten)]
     pub onnx: OnnxArgs,
@@ -154,20 +160,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(shard) => shard.select(jobs),
         None => jobs,
     };
-    let network = match (&args.model, &args.card) {
+    let network: Option<Box<dyn StereoMatcher>> = match (&args.model, &args.card) {
         (Some(model), Some(card)) => {
             let stereo = OnnxStereo::open(model, ModelCard::load(card)?, &args.onnx.options())?;
             args.onnx
                 .report_fallback(&model.display().to_string(), stereo.device());
-            Some(stereo)
+            Some(Box::new(stereo))
         }
-        _ => None,
+        _ => match &args.checkpoint {
+            Some(path) => Some(Box::new(CheckpointMatcher::open(path)?)),
+            None => None,
+        },
     };
     let summary = batch::run(
         &jobs,
         "pairs",
         |j| j.reference.display().to_string(),
-        |j| predict_one(&args, network.as_ref(), j),
+        |j| predict_one(&args, network.as_deref(), j),
     );
     summary.finish("predict", "pairs")
 }
@@ -229,7 +238,11 @@ pub fn manifest_jobs(path: &Path, (reference, target): (usize, usize)) -> anyhow
         .collect()
 }
 
-fn predict_one(args: &Args, network: Option<&OnnxStereo>, job: &Job) -> anyhow::Result<Outcome> {
+fn predict_one(
+    args: &Args,
+    network: Option<&dyn StereoMatcher>,
+    job: &Job,
+) -> anyhow::Result<Outcome> {
     let out = args
         .out
         .join(format!("{}.{}", job.name, args.format.extension()));

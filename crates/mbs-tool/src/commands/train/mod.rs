@@ -1,0 +1,210 @@
+//! `mbs-tool train`: S3 self-supervised training of the built-in stereo
+//! network on a manifest's multi-view samples (SPEC §5), with periodic
+//! validation, checkpoints and resumption.
+
+mod report;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use anyhow::{Context, bail};
+use clap::Parser;
+use mbs_train::RunConfig;
+use mbs_train::checkpoint::CHECKPOINTS_DIR;
+use mbs_train::run::{End, Start, TrainingRun};
+
+use report::Report;
+
+/// Arguments of `train`.
+#[derive(Parser)]
+#[command(after_help = "Examples:
+  mbs-tool train mbs-demo/data/manifest.json --out runs/demo --steps 300 --batch-size 4 --crop 128x256
+  mbs-tool train mbs20k.json --out runs/pretrain                      # the paper's pretraining settings
+  mbs-tool train kitti-ext.json --out runs/ft --config ft.json --set trainer.loss.omega=3
+  mbs-tool train data.json --out runs/ablation --set trainer.loss.geometry=false   # Table 3 (A)
+  mbs-tool train --print-config > my.json                             # every setting, with defaults
+
+Training uses the manifest's `train` samples; validation scores the
+teacher on the `val` samples (or `test` when there is no `val`) that have
+ground truth for the validation pairs. Outputs in --out: config.json,
+train.jsonl (loss terms, LR, samples/s), val.jsonl (EPE, Out-1/2/3 over
+ALL/NOC/OCC), loss.png and val.png (curves), visuals/step-N/*.png (reference
+| teacher | student | GT | weight map: red = occluded for the teacher, green
+= seen by the teacher only), checkpoints/step-N/.
+
+Ctrl-C saves a checkpoint and stops; running the same command again
+resumes from the newest checkpoint (--restart discards them). The settings
+are the paper's defaults, overlaid by --config, then by the flags below and
+--set KEY=VALUE (see schemas/train-config.schema.json).")]
+pub struct Args {
+    /// The dataset manifest (see `mbs-tool scan`, `synth`, `extrapolate`).
+    #[arg(required_unless_present = "print_config")]
+    pub manifest: Option<PathBuf>,
+    /// Output folder of the run.
+    #[arg(long, required_unless_present = "print_config")]
+    pub out: Option<PathBuf>,
+    /// A JSON file with any subset of the settings.
+    #[arg(long, value_name = "FILE.json")]
+    pub config: Option<PathBuf>,
+    /// Any setting, e.g. `trainer.loss.omega=3` or `data.val_pairs=[[0,1],[2,1]]`
+    /// (repeatable; applied after the flags below).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub set: Vec<String>,
+    /// Optimiser steps (trainer.lr.total_steps).
+    #[arg(long)]
+    pub steps: Option<usize>,
+    /// Batch size (data.batch_size).
+    #[arg(long)]
+    pub batch_size: Option<usize>,
+    /// Random crop HEIGHTxWIDTH (data.crop_height, data.crop_width).
+    #[arg(long, value_name = "HxW", value_parser = parse_crop)]
+    pub crop: Option<(usize, usize)>,
+    /// Peak learning rate (trainer.lr.max_lr).
+    #[arg(long)]
+    pub lr: Option<f64>,
+    /// Largest disparity of the network, a multiple of 4 (network.max_disparity).
+    #[arg(long)]
+    pub max_disparity: Option<usize>,
+    /// Seed of the weights and of every random choice (seed).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Validate every N steps (val_every).
+    #[arg(long)]
+    pub val_every: Option<usize>,
+    /// Save a checkpoint every N steps (checkpoint_every).
+    #[arg(long)]
+    pub checkpoint_every: Option<usize>,
+    /// Discard the checkpoints in --out and start from fresh weights.
+    #[arg(long)]
+    pub restart: bool,
+    /// Print the effective settings as JSON and exit.
+    #[arg(long)]
+    pub print_config: bool,
+    /// Worker threads for the network (0 = one per core).
+    #[arg(long, default_value_t = 0)]
+    pub jobs: usize,
+}
+
+fn parse_crop(text: &str) -> Result<(usize, usize), String> {
+    let (h, w) = text
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("`{text}` is not HEIGHTxWIDTH, e.g. 256x512"))?;
+    let number = |s: &str| {
+        s.trim()
+            .parse::<usize>()
+            .map_err(|_| format!("`{text}` is not HEIGHTxWIDTH, e.g. 256x512"))
+    };
+    Ok((number(h)?, number(w)?))
+}
+
+impl Args {
+    /// The flags as `KEY=VALUE` overrides, before the `--set` ones.
+    fn overrides(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        let mut push = |key: &str, value: Option<String>| {
+            if let Some(value) = value {
+                out.push(format!("{key}={value}"));
+            }
+        };
+        push("trainer.lr.total_steps", self.steps.map(|v| v.to_string()));
+        push("data.batch_size", self.batch_size.map(|v| v.to_string()));
+        push("data.crop_height", self.crop.map(|c| c.0.to_string()));
+        push("data.crop_width", self.crop.map(|c| c.1.to_string()));
+        push("trainer.lr.max_lr", self.lr.map(|v| v.to_string()));
+        push(
+            "network.max_disparity",
+            self.max_disparity.map(|v| v.to_string()),
+        );
+        push("seed", self.seed.map(|v| v.to_string()));
+        push("val_every", self.val_every.map(|v| v.to_string()));
+        push(
+            "checkpoint_every",
+            self.checkpoint_every.map(|v| v.to_string()),
+        );
+        out.extend(self.set.iter().cloned());
+        out
+    }
+
+    /// The effective configuration.
+    fn run_config(&self) -> anyhow::Result<RunConfig> {
+        let file = match &self.config {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .with_context(|| format!("cannot read {}", path.display()))?;
+                Some(
+                    serde_json::from_str(&text)
+                        .with_context(|| format!("{}: not JSON", path.display()))?,
+                )
+            }
+            None => None,
+        };
+        RunConfig::layered(file.as_ref(), &self.overrides()).with_context(|| match &self.config {
+            Some(path) => format!("settings from {} and the flags", path.display()),
+            None => "settings from the flags".into(),
+        })
+    }
+}
+
+/// Runs `train`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let config = args.run_config()?;
+    if args.print_config {
+        println!("{:#}", config.to_json()?);
+        return Ok(());
+    }
+    let (Some(manifest), Some(out)) = (&args.manifest, &args.out) else {
+        bail!("give a MANIFEST and --out DIR");
+    };
+    crate::cli::set_threads(args.jobs)?;
+    if args.restart {
+        let checkpoints = out.join(CHECKPOINTS_DIR);
+        if checkpoints.exists() {
+            std::fs::remove_dir_all(&checkpoints)
+                .with_context(|| format!("cannot remove {}", checkpoints.display()))?;
+        }
+    }
+    let (mut training, start) = TrainingRun::open(manifest, out, config)?;
+    let total = training.config().steps();
+    match start {
+        Start::Fresh => eprintln!("train: {total} steps into {}", out.display()),
+        Start::Resumed(steps) if steps >= total => {
+            eprintln!(
+                "train: {} is complete ({steps} of {total} steps); --restart to train again",
+                out.display()
+            );
+            return Ok(());
+        }
+        Start::Resumed(steps) => eprintln!(
+            "train: resuming {} at step {steps} of {total}",
+            out.display()
+        ),
+    }
+    if training.validation().is_empty() {
+        eprintln!(
+            "train: no held-out sample has ground truth for {:?}: validation is off",
+            training.config().data.val_pairs
+        );
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    ctrlc::set_handler(move || {
+        if flag.swap(true, Ordering::Relaxed) {
+            // A second Ctrl-C while the checkpoint is written: give up now.
+            std::process::exit(130);
+        }
+    })
+    .context("cannot install the Ctrl-C handler")?;
+    let mut report = Report::new(out, training.config(), training.steps_taken())?;
+    let end = training.run(&mut report, &stop)?;
+    report.finish()?;
+    match end {
+        End::Stopped(steps) => bail!(
+            "stopped after step {steps} of {total}; a checkpoint is saved, run the same command to resume"
+        ),
+        End::Finished { metrics } => {
+            report.summary(metrics.as_deref());
+            Ok(())
+        }
+    }
+}

@@ -1,0 +1,321 @@
+//! `mbs-tool train` end to end: outputs, settings errors, Ctrl-C and
+//! resumption, and the trained teacher through `eval` and `predict
+//! --checkpoint`.
+#![allow(clippy::unwrap_used)]
+
+mod common;
+
+use std::path::Path;
+use std::process::Stdio;
+use std::time::{Duration, Instant};
+
+use common::{mbs_tool, run, text};
+use serde_json::Value;
+
+/// A small synthetic set: Town01 for training, Town10 held out.
+fn synth(root: &Path) -> String {
+    let out = root.display().to_string();
+    let output = run(&[
+        "synth",
+        "--out",
+        &out,
+        "--frames",
+        "2",
+        "--towns",
+        "Town01,Town10",
+        "--weathers",
+        "ClearNoon",
+        "--width",
+        "128",
+        "--height",
+        "64",
+        "--focal",
+        "64",
+        "--no-checksums",
+    ]);
+    assert!(output.status.success(), "{}", text(&output));
+    root.join("manifest.json").display().to_string()
+}
+
+/// Small, fast settings.
+const SMALL: [&str; 12] = [
+    "--batch-size",
+    "2",
+    "--crop",
+    "48x96",
+    "--max-disparity",
+    "32",
+    "--set",
+    "network.features=8",
+    "--set",
+    "augment.occlusion_max_side=20",
+    "--set",
+    "augment.occlusion_min_side=5",
+];
+
+fn lines(path: &Path) -> Vec<Value> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+#[test]
+fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = synth(&dir.path().join("data"));
+    let out = dir.path().join("run");
+    let out_s = out.display().to_string();
+    let mut args = vec![
+        "train",
+        &manifest,
+        "--out",
+        &out_s,
+        "--steps",
+        "6",
+        "--val-every",
+        "3",
+    ];
+    args.extend(SMALL);
+    let output = run(&args);
+    assert!(output.status.success(), "{}", text(&output));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("step 6: validation on"), "{stderr}");
+
+    let config: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("config.json")).unwrap()).unwrap();
+    assert_eq!(config["data"]["batch_size"], 2);
+    assert_eq!(config["network"]["features"], 8);
+    assert_eq!(
+        config["trainer"]["loss"]["omega"], 2.0,
+        "paper default kept"
+    );
+    let train = lines(&out.join("train.jsonl"));
+    assert_eq!(train.last().unwrap()["step"], 6);
+    assert!(
+        train
+            .iter()
+            .all(|l| l["loss"].as_f64().unwrap().is_finite())
+    );
+    let val = lines(&out.join("val.jsonl"));
+    let steps: Vec<u64> = val.iter().map(|l| l["step"].as_u64().unwrap()).collect();
+    assert_eq!(steps, vec![0, 3, 6]);
+    for region in ["ALL", "NOC", "OCC"] {
+        assert!(val[2][region]["out3"].as_f64().is_some(), "{region}");
+    }
+    for plot in ["loss.png", "val.png"] {
+        let image = image::open(out.join(plot)).unwrap();
+        assert_eq!((image.width(), image.height()), (800, 480), "{plot}");
+    }
+    let sheets: Vec<_> = std::fs::read_dir(out.join("visuals/step-0000006"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert!(!sheets.is_empty());
+    // Reference | teacher | student | GT | weight map, 128 px each with 4 px gutters.
+    let sheet = image::open(&sheets[0]).unwrap();
+    assert_eq!((sheet.width(), sheet.height()), (5 * 128 + 4 * 4, 64));
+    assert!(out.join("checkpoints/step-0000006/teacher.bpk").is_file());
+
+    // A finished run is not trained again.
+    let again = run(&args);
+    assert!(again.status.success(), "{}", text(&again));
+    assert!(String::from_utf8_lossy(&again.stderr).contains("is complete"));
+
+    // eval --checkpoint scores the teacher on the held-out split, and gives
+    // the same EPE as the last validation of pair 0:1.
+    let eval = run(&[
+        "eval",
+        "--checkpoint",
+        &out_s,
+        "--manifest",
+        &manifest,
+        "--pair",
+        "0:1",
+        "--split",
+        "test",
+        "--json",
+    ]);
+    assert!(eval.status.success(), "{}", text(&eval));
+    let report: Value = serde_json::from_slice(&eval.stdout).unwrap();
+    let pooled_epe = report["pooled"]["ALL"]["epe"].as_f64().unwrap();
+    let validated_epe = val[2]["ALL"]["epe"].as_f64().unwrap();
+    assert!(
+        (pooled_epe - validated_epe).abs() < 1e-3,
+        "eval {pooled_epe} vs validation {validated_epe}"
+    );
+
+    // predict --checkpoint writes a disparity per sample.
+    let pred = dir.path().join("pred");
+    let output = run(&[
+        "predict",
+        "--manifest",
+        &manifest,
+        "--pair",
+        "1:0",
+        "--checkpoint",
+        &out_s,
+        "--out",
+        &pred.display().to_string(),
+    ]);
+    assert!(output.status.success(), "{}", text(&output));
+    let map =
+        mbs_core::formats::pfm::read_pfm_grey(&pred.join("Town10/ClearNoon/000000.pfm")).unwrap();
+    assert_eq!(map.dimensions(), (128, 64));
+    assert!(
+        map.iter()
+            .all(|d| d.is_finite() && (0.0..=32.0).contains(d))
+    );
+}
+
+#[test]
+fn ctrl_c_saves_a_checkpoint_and_the_same_command_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = synth(&dir.path().join("data"));
+    let out = dir.path().join("run");
+    let out_s = out.display().to_string();
+    let mut args = vec![
+        "train",
+        &manifest,
+        "--out",
+        &out_s,
+        "--steps",
+        "400",
+        "--val-every",
+        "1000",
+        "--set",
+        "log_every=1",
+    ];
+    args.extend(SMALL);
+    let mut child = mbs_tool()
+        .args(&args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait for a few logged steps, then interrupt as Ctrl-C does.
+    let start = Instant::now();
+    while !out.join("train.jsonl").is_file() || lines(&out.join("train.jsonl")).len() < 3 {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no training progress"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let kill = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{stderr}");
+    assert!(stderr.contains("a checkpoint is saved"), "{stderr}");
+    let state: Value = serde_json::from_str(
+        &std::fs::read_to_string(
+            std::fs::read_dir(out.join("checkpoints"))
+                .unwrap()
+                .map(|e| e.unwrap().path())
+                .find(|p| !p.to_string_lossy().ends_with(".partial"))
+                .unwrap()
+                .join("state.json"),
+        )
+        .unwrap(),
+    )
+    .unwrap();
+    let stopped = state["steps"].as_u64().unwrap();
+    assert!((3..400).contains(&stopped), "{stopped}");
+
+    // The same command resumes at that step (here with fewer total steps
+    // refused: the schedule would change).
+    let mut shorter = args.clone();
+    shorter[5] = "300";
+    let refused = run(&shorter);
+    assert!(!refused.status.success());
+    assert!(
+        String::from_utf8_lossy(&refused.stderr).contains("trainer.lr.total_steps: 400 -> 300"),
+        "{}",
+        text(&refused)
+    );
+    let mut resumed = mbs_tool()
+        .args(&args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while lines(&out.join("train.jsonl")).len() <= stopped as usize + 1 {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no progress after resuming"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    resumed.kill().unwrap();
+    let output = resumed.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains(&format!("resuming {out_s} at step {stopped} of 400")),
+        "{stderr}"
+    );
+    let steps: Vec<u64> = lines(&out.join("train.jsonl"))
+        .iter()
+        .map(|l| l["step"].as_u64().unwrap())
+        .collect();
+    assert_eq!(
+        steps[..stopped as usize + 1],
+        (1..=stopped + 1).collect::<Vec<_>>()[..]
+    );
+}
+
+#[test]
+fn bad_settings_and_inputs_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run").display().to_string();
+    let missing = dir.path().join("nope.json").display().to_string();
+    let output = run(&["train", &missing, "--out", &out]);
+    assert!(!output.status.success());
+    assert!(
+        String::from_utf8_lossy(&output.stderr).contains(&missing),
+        "{}",
+        text(&output)
+    );
+
+    let output = run(&["train", "--print-config", "--set", "trainer.loss.omgea=3"]);
+    assert!(!output.status.success());
+    assert!(
+        String::from_utf8_lossy(&output.stderr).contains("unknown key `trainer.loss.omgea`"),
+        "{}",
+        text(&output)
+    );
+
+    // --print-config gives every setting, with the flags applied.
+    let output = run(&[
+        "train",
+        "--print-config",
+        "--steps",
+        "77",
+        "--crop",
+        "256x512",
+    ]);
+    assert!(output.status.success(), "{}", text(&output));
+    let config: Value = serde_json::from_slice(&output.stdout).unwrap();
+    assert_eq!(config["trainer"]["lr"]["total_steps"], 77);
+    assert_eq!(config["data"]["crop_height"], 256);
+    assert_eq!(config["trainer"]["lr"]["max_lr"], 2e-4);
+
+    let output = run(&["train", "--print-config", "--crop", "256by512"]);
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("HEIGHTxWIDTH"));
+
+    // A crop larger than the images is refused with the sample's size.
+    let manifest = synth(&dir.path().join("data"));
+    let output = run(&["train", &manifest, "--out", &out, "--crop", "384x512"]);
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("is 64x128") && stderr.contains("smaller than the 384x512 crop"),
+        "{stderr}"
+    );
+}
