@@ -188,7 +188,7 @@ fn ctrl_c_saves_a_checkpoint_and_the_same_command_resumes() {
         "log_every=1",
     ];
     args.extend(SMALL);
-    let mut child = mbs_tool()
+    let child = mbs_tool()
         .args(&args)
         .stdout(Stdio::null())
         .stderr(Stdio::piped())

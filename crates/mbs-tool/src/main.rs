@@ -3,7 +3,6 @@
 
 mod cli;
 mod commands;
-#[allow(dead_code, unused_imports)] // used by the train command (next commit)
 mod visual;
 
 use clap::{Parser, Subcommand};

@@ -104,8 +104,10 @@ fn drawable(series: &Series, log_y: bool) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// Where the parts of the picture went, in pixels.
+/// Where the parts of the picture went, in pixels (the tests check the
+/// drawing against it).
 #[derive(Debug)]
+#[cfg_attr(not(test), allow(dead_code))]
 struct Layout {
     /// The plot area, inside the frame.
     plot: Rect,
