@@ -121,13 +121,24 @@ pub struct TrainingRun {
 }
 
 impl TrainingRun {
-    /// Opens the run in `out` on the training data of `manifest`: resumes
-    /// from the newest checkpoint there, or starts fresh. Resuming with a
-    /// configuration that changes what is computed is refused.
+    /// Opens the run in `out` on the training data of `manifest`, on the CPU
+    /// (see [`TrainingRun::open_on`]).
     pub fn open(
         manifest: &Path,
         out: &Path,
         config: RunConfig,
+    ) -> Result<(Self, Start), TrainError> {
+        Self::open_on(manifest, out, config, Device::flex())
+    }
+
+    /// Opens the run in `out` on the training data of `manifest`, training on
+    /// `device`: resumes from the newest checkpoint there, or starts fresh.
+    /// Resuming with a configuration that changes what is computed is refused.
+    pub fn open_on(
+        manifest: &Path,
+        out: &Path,
+        config: RunConfig,
+        device: Device,
     ) -> Result<(Self, Start), TrainError> {
         config.validate()?;
         let parsed = Manifest::load(manifest).map_err(|e| TrainError::data(manifest, e))?;
@@ -139,7 +150,6 @@ impl TrainingRun {
             &config.data.val_pairs,
             config.data.val_samples,
         )?;
-        let device = Device::flex();
         let train_device = device.clone().autodiff();
         let latest = Checkpoint::latest(out)?;
         if latest.is_none() {

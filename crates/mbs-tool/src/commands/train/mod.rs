@@ -75,6 +75,9 @@ pub struct Args {
     /// Save a checkpoint every N steps (checkpoint_every).
     #[arg(long)]
     pub checkpoint_every: Option<usize>,
+    /// Where to train: cpu, or cuda[:N] in a build with `--features cuda`.
+    #[arg(long, default_value = "cpu")]
+    pub device: String,
     /// Discard the checkpoints in --out and start from fresh weights.
     #[arg(long)]
     pub restart: bool,
@@ -157,6 +160,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("give a MANIFEST and --out DIR");
     };
     crate::cli::set_threads(args.jobs)?;
+    // Before anything is removed or written: a bad device name is an input error.
+    let device = mbs_train::device::parse_device(&args.device)?;
     if args.restart {
         let checkpoints = out.join(CHECKPOINTS_DIR);
         if checkpoints.exists() {
@@ -164,7 +169,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .with_context(|| format!("cannot remove {}", checkpoints.display()))?;
         }
     }
-    let (mut training, start) = TrainingRun::open(manifest, out, config)?;
+    let (mut training, start) = TrainingRun::open_on(manifest, out, config, device)?;
     let total = training.config().steps();
     match start {
         Start::Fresh => eprintln!("train: {total} steps into {}", out.display()),
