@@ -281,6 +281,7 @@ mod tests {
                 "trainer.lr.total_steps=50".into(),
                 "trainer.loss.geometry=false".into(),
                 "data.val_pairs=[[1,2],[1,0]]".into(),
+                "data.val_split=train".into(),
             ],
         )
         .expect("valid");
@@ -293,6 +294,11 @@ mod tests {
         assert_eq!(config.data.batch_size, 2);
         assert_eq!(config.steps(), 50);
         assert_eq!(config.data.val_pairs, vec![[1, 2], [1, 0]]);
+        assert_eq!(config.data.val_split, Some(mbs_dataset::Split::Train));
+        assert!(
+            RunConfig::layered(None, &["data.val_split=holdout".into()]).is_err(),
+            "not a split"
+        );
     }
 
     #[test]

@@ -148,6 +148,7 @@ impl TrainingRun {
             manifest,
             &parsed,
             &config.data.val_pairs,
+            config.data.val_split,
             config.data.val_samples,
         )?;
         let train_device = device.clone().autodiff();
@@ -372,7 +373,7 @@ fn check_resumable(checkpoint: &Checkpoint, config: &RunConfig) -> Result<(), Tr
             for key in OPERATIONAL_KEYS {
                 if key == "data" {
                     if let Some(Value::Object(data)) = map.get_mut("data") {
-                        for operational in ["workers", "val_pairs", "val_samples"] {
+                        for operational in ["workers", "val_pairs", "val_samples", "val_split"] {
                             data.remove(operational);
                         }
                     }

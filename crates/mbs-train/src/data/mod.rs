@@ -13,6 +13,7 @@ pub mod samples;
 pub mod validation;
 
 use burn::config::Config;
+use mbs_dataset::Split;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -45,6 +46,11 @@ pub struct DataConfig {
     /// Validate on at most this many held-out samples (0 = all).
     #[config(default = 32)]
     pub val_samples: usize,
+    /// The split validation scores; `None` takes `val`, or `test` when the
+    /// manifest has no `val` sample. `train` suits sets whose only ground
+    /// truth is on the training samples (extrapolated KITTI).
+    #[config(default = "None")]
+    pub val_split: Option<Split>,
 }
 
 impl DataConfig {

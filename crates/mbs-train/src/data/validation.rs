@@ -88,14 +88,15 @@ pub struct ValidationSet {
 }
 
 impl ValidationSet {
-    /// Pairs `pairs` of the held-out samples of a manifest read from
-    /// `path`: the `val` split, or the `test` split when there is no `val`
-    /// sample; at most `limit` samples (0 = all). Samples without ground
+    /// Pairs `pairs` of the samples of `split` of a manifest read from
+    /// `path` (`None`: the `val` split, or `test` when there is no `val`
+    /// sample); at most `limit` samples (0 = all). Samples without ground
     /// truth for a pair are skipped, so the set may be empty.
     pub fn from_manifest(
         path: &Path,
         manifest: &Manifest,
         pairs: &[[usize; 2]],
+        split: Option<Split>,
         limit: usize,
     ) -> Result<Self, TrainError> {
         let views = manifest.rig.num_views;
@@ -110,11 +111,11 @@ impl ValidationSet {
             }
         }
         let held_out = |split| manifest.samples.iter().filter(move |s| s.split == split);
-        let split = if held_out(Split::Val).next().is_some() {
+        let split = split.unwrap_or(if held_out(Split::Val).next().is_some() {
             Split::Val
         } else {
             Split::Test
-        };
+        });
         let limit = if limit == 0 { usize::MAX } else { limit };
         let mut set = ValidationSet::default();
         for sample in held_out(split).take(limit) {
