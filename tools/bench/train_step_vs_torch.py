@@ -32,7 +32,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 TORCH_STEP = Path(__file__).resolve().parent / "s3_torch.py"
 # (batch, height, width, max disparity, timed steps, warm-up steps)
-CONFIGS = [(2, 256, 512, 128, 5, 2), (4, 64, 128, 32, 20, 3)]
+CONFIGS = [(2, 256, 512, 128, 10, 3), (4, 64, 128, 32, 30, 5)]
 # Keeps freed memory in the heap instead of returning it to the kernel, so
 # large tensors do not page-fault in afresh at every op (--glibc-tunables).
 TUNABLES = "glibc.malloc.mmap_threshold=4294967296:glibc.malloc.trim_threshold=68719476736"
@@ -80,8 +80,8 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--rounds", type=int, default=3, help="alternating runs of each framework per configuration")
     parser.add_argument("--threads", type=int, default=2, help="RAYON_NUM_THREADS and torch.set_num_threads")
-    parser.add_argument("--steps", type=int, help="timed steps (default 5 at 256x512, 20 at 64x128)")
-    parser.add_argument("--warmup", type=int, help="untimed steps first (default 2 at 256x512, 3 at 64x128)")
+    parser.add_argument("--steps", type=int, help="timed steps (default 10 at 256x512, 30 at 64x128)")
+    parser.add_argument("--warmup", type=int, help="untimed steps first (default 3 at 256x512, 5 at 64x128)")
     parser.add_argument("--breakdown", action="store_true", help="also time the phases of the step (one more round)")
     parser.add_argument("--glibc-tunables", action="store_true",
                         help="also run both with GLIBC_TUNABLES keeping freed memory in the heap")
