@@ -1,0 +1,310 @@
+//! Times the S3 training step ([`S3Trainer::step`]) of a [`CostVolumeNet`]
+//! on the CPU (`flex` backend); called by
+//! `tools/bench/train_step_vs_torch.py`. Run in release:
+//!
+//! ```text
+//! RAYON_NUM_THREADS=2 cargo run --release -p mbs-train --example step_time -- \
+//!     --batch 2 --height 256 --width 512 --max-disparity 128 --steps 5 --warmup 2
+//! ```
+//!
+//! The network has the default 16 feature and 32 hidden channels and the
+//! loss the paper's defaults. The batch is random images (fixed seed) with
+//! the student's targets alternately right and left of the reference (so
+//! every other item goes through the mirroring), teacher targets on the
+//! right and baseline ratios alternately 1 and 1/2, as the ignored test
+//! `step_time_at_256x512`. The student's input is the clean pair (no
+//! augmentation: it is not part of the step). After `--warmup` steps, times
+//! `--steps` steps and prints one JSON line:
+//!
+//! ```text
+//! {"framework":"burn-flex","batch":2,"height":256,"width":512,"max_disparity":128,"ms_per_step":...,"peak_rss_mib":...}
+//! ```
+//!
+//! (plus the step counts, the thread count and the last loss). `peak_rss_mib`
+//! is `VmHWM` of `/proc/self/status` (`null` where there is none).
+//!
+//! `--breakdown` adds `breakdown_ms`: the same step taken apart with the
+//! crate's public pieces and timed phase by phase (teacher forward, student
+//! forward, loss, backward, clipping + Adam + EMA), averaged over `--steps`
+//! more steps after the timed ones. The flex backend runs eagerly, so each
+//! phase's time is its own.
+
+use std::fmt::Write as _;
+use std::time::Instant;
+
+use burn::module::Module;
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::tensor::{Device, Distribution, Tensor};
+use mbs_core::geometry::Side;
+use mbs_train::backbone::predict;
+use mbs_train::clip::clip_global_norm;
+use mbs_train::ema::ema_update;
+use mbs_train::schedule::OneCycleConfig;
+use mbs_train::{
+    CostVolumeNet, CostVolumeNetConfig, LossConfig, LossInputs, S3Loss, S3Trainer, StepBatch,
+    TrainerConfig,
+};
+
+type BoxError = Box<dyn std::error::Error>;
+
+const USAGE: &str = "usage: step_time [--batch B] [--height H] [--width W] [--max-disparity D] \
+[--steps N] [--warmup K] [--features F] [--hidden C] [--seed S] [--breakdown]
+defaults: --batch 2 --height 256 --width 512 --max-disparity 128 --steps 5 --warmup 2 \
+--features 16 --hidden 32 --seed 42";
+
+/// What the command line sets.
+#[derive(Debug)]
+struct Args {
+    batch: usize,
+    height: usize,
+    width: usize,
+    max_disparity: usize,
+    steps: usize,
+    warmup: usize,
+    features: usize,
+    hidden: usize,
+    seed: u64,
+    breakdown: bool,
+}
+
+impl Args {
+    /// Parses `--name value` pairs (and the `--breakdown` switch).
+    fn parse(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
+        let mut out = Args {
+            batch: 2,
+            height: 256,
+            width: 512,
+            max_disparity: 128,
+            steps: 5,
+            warmup: 2,
+            features: 16,
+            hidden: 32,
+            seed: 42,
+            breakdown: false,
+        };
+        while let Some(flag) = args.next() {
+            if flag == "--help" || flag == "-h" {
+                return Err(USAGE.into());
+            }
+            if flag == "--breakdown" {
+                out.breakdown = true;
+                continue;
+            }
+            let slot: &mut usize = match flag.as_str() {
+                "--batch" => &mut out.batch,
+                "--height" => &mut out.height,
+                "--width" => &mut out.width,
+                "--max-disparity" => &mut out.max_disparity,
+                "--steps" => &mut out.steps,
+                "--warmup" => &mut out.warmup,
+                "--features" => &mut out.features,
+                "--hidden" => &mut out.hidden,
+                "--seed" => {
+                    let value = args.next().ok_or("--seed needs a value")?;
+                    out.seed = value
+                        .parse()
+                        .map_err(|_| format!("--seed expects an integer >= 0, got '{value}'"))?;
+                    continue;
+                }
+                other => return Err(format!("unknown argument '{other}'\n{USAGE}")),
+            };
+            let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
+            *slot = value
+                .parse()
+                .map_err(|_| format!("{flag} expects an integer >= 0, got '{value}'"))?;
+        }
+        for (name, value) in [
+            ("--batch", out.batch),
+            ("--height", out.height),
+            ("--width", out.width),
+            ("--steps", out.steps),
+        ] {
+            if value == 0 {
+                return Err(format!("{name} must be at least 1"));
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// Peak resident set size (`VmHWM`) in MiB, on Linux.
+fn peak_rss_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|line| line.starts_with("VmHWM:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib / 1024.0)
+}
+
+/// The benchmark batch: random clean images, the student's input un-augmented.
+fn batch(args: &Args, device: &Device) -> StepBatch {
+    let image = || {
+        Tensor::<4>::random(
+            [args.batch, 3, args.height, args.width],
+            Distribution::Default,
+            device,
+        )
+    };
+    let reference = image();
+    let student_target = image();
+    let teacher_target = image();
+    let even = |i: &usize| i % 2 == 0;
+    StepBatch {
+        augmented_reference: reference.clone(),
+        augmented_target: student_target.clone(),
+        reference,
+        student_target,
+        teacher_target,
+        student_sides: (0..args.batch)
+            .map(|i| if even(&i) { Side::Right } else { Side::Left })
+            .collect(),
+        teacher_sides: vec![Side::Right; args.batch],
+        ratios: (0..args.batch)
+            .map(|i| if even(&i) { 1.0 } else { 0.5 })
+            .collect(),
+    }
+}
+
+/// Milliseconds since `start`.
+fn millis(start: Instant) -> f64 {
+    start.elapsed().as_secs_f64() * 1e3
+}
+
+/// The step taken apart into its phases, as `S3Trainer::step` runs them;
+/// returns the mean milliseconds of each phase over `steps` steps.
+fn breakdown(
+    student: CostVolumeNet,
+    config: &TrainerConfig,
+    batch: &StepBatch,
+    steps: usize,
+) -> Result<Vec<(&'static str, f64)>, BoxError> {
+    let mut student = student;
+    let mut teacher = student.valid();
+    let loss = S3Loss::new(config.loss.clone())?;
+    let schedule = config.lr.init()?;
+    let mut optimizer: ModuleOptimizer = AdamConfig::new().init();
+    let names = [
+        "teacher_forward",
+        "student_forward",
+        "loss",
+        "backward",
+        "clip_adam_ema",
+    ];
+    let mut totals = [0.0f64; 5];
+    for step in 0..steps {
+        let batch = batch.clone();
+        let start = Instant::now();
+        let teacher_disparity = predict(
+            &teacher,
+            batch.reference.clone(),
+            batch.teacher_target.clone(),
+            &batch.teacher_sides,
+        );
+        totals[0] += millis(start);
+        let start = Instant::now();
+        let student_disparity = predict(
+            &student,
+            batch.augmented_reference,
+            batch.augmented_target,
+            &batch.student_sides,
+        );
+        totals[1] += millis(start);
+        let start = Instant::now();
+        let out = loss.compute(LossInputs {
+            reference: batch.reference,
+            student_target: batch.student_target,
+            teacher_target: batch.teacher_target,
+            student_disparity,
+            teacher_disparity,
+            student_sides: batch.student_sides,
+            teacher_sides: batch.teacher_sides,
+            ratios: batch.ratios,
+        })?;
+        // The step reads the loss back; so does this.
+        out.total.clone().into_data();
+        totals[2] += millis(start);
+        let start = Instant::now();
+        let mut grads = GradientsParams::from_grads(out.total.backward(), &student);
+        totals[3] += millis(start);
+        let start = Instant::now();
+        clip_global_norm(&student, &mut grads, config.grad_clip_norm)?;
+        student = optimizer.step(schedule.lr(step), student, grads);
+        teacher = ema_update(teacher, &student.valid(), config.ema_base)?;
+        totals[4] += millis(start);
+    }
+    Ok(names
+        .into_iter()
+        .zip(totals)
+        .map(|(name, total)| (name, total / steps as f64))
+        .collect())
+}
+
+fn run(args: &Args) -> Result<String, BoxError> {
+    let device = Device::flex();
+    let train_device = device.clone().autodiff();
+    // Seeds the weights and the random images.
+    train_device.seed(args.seed);
+    device.seed(args.seed);
+    let net = CostVolumeNetConfig::new()
+        .with_max_disparity(args.max_disparity)
+        .with_features(args.features)
+        .with_hidden(args.hidden);
+    let total_steps = args.warmup + 2 * args.steps;
+    let config = TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(2e-4, total_steps));
+    let student = net.init(&train_device)?;
+    let mut trainer = S3Trainer::new(student.clone(), &config)?;
+    let batch = batch(args, &device);
+    for _ in 0..args.warmup {
+        trainer.step(batch.clone())?;
+    }
+    let start = Instant::now();
+    let mut loss = f32::NAN;
+    for _ in 0..args.steps {
+        loss = trainer.step(batch.clone())?.loss;
+    }
+    let ms_per_step = millis(start) / args.steps as f64;
+    let parts = if args.breakdown {
+        Some(breakdown(student, &config, &batch, args.steps)?)
+    } else {
+        None
+    };
+    let threads = std::env::var("RAYON_NUM_THREADS").unwrap_or_else(|_| "default".into());
+    let rss = peak_rss_mib().map_or("null".to_string(), |mib| format!("{mib:.1}"));
+    let loss = if loss.is_finite() {
+        loss.to_string()
+    } else {
+        "null".to_string()
+    };
+    let mut line = format!(
+        "{{\"framework\":\"burn-flex\",\"batch\":{},\"height\":{},\"width\":{},\"max_disparity\":{},\
+         \"ms_per_step\":{ms_per_step:.2},\"peak_rss_mib\":{rss},\"steps\":{},\"warmup\":{},\
+         \"rayon_threads\":\"{threads}\",\"loss\":{loss}",
+        args.batch, args.height, args.width, args.max_disparity, args.steps, args.warmup,
+    );
+    if let Some(parts) = parts {
+        line.push_str(",\"breakdown_ms\":{");
+        for (i, (name, ms)) in parts.iter().enumerate() {
+            let comma = if i == 0 { "" } else { "," };
+            write!(line, "{comma}\"{name}\":{ms:.2}")?;
+        }
+        line.push('}');
+    }
+    line.push('}');
+    Ok(line)
+}
+
+fn main() {
+    let args = match Args::parse(std::env::args().skip(1)) {
+        Ok(args) => args,
+        Err(message) => {
+            eprintln!("step_time: {message}");
+            std::process::exit(2);
+        }
+    };
+    match run(&args) {
+        Ok(line) => println!("{line}"),
+        Err(error) => {
+            eprintln!("step_time: {error}");
+            std::process::exit(1);
+        }
+    }
+}
