@@ -7,6 +7,12 @@ mod visual;
 
 use clap::{Parser, Subcommand};
 
+/// mimalloc keeps freed memory for reuse; glibc's allocator hands every
+/// large freed tensor back to the kernel, which made a training step about
+/// a third slower (BENCHMARKS.md).
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 /// Multi-baseline stereo toolkit: build training data for stereo networks
 /// (CARLA depth decoding, synthetic scenes, novel-view extrapolation of stereo
 /// pairs), match and score stereo pairs, and check datasets.

@@ -29,6 +29,10 @@
 //! more steps after the timed ones. The flex backend runs eagerly, so each
 //! phase's time is its own.
 
+/// The allocator `mbs-tool` uses, so the timings are what users get.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 use std::fmt::Write as _;
 use std::time::Instant;
 
