@@ -19,11 +19,12 @@ use report::Report;
 /// Arguments of `train`.
 #[derive(Parser)]
 #[command(after_help = "Examples:
-  mbs-tool train mbs-demo/data/manifest.json --out runs/demo --steps 300 --batch-size 4 --crop 128x256
-  mbs-tool train mbs20k.json --out runs/pretrain                      # the paper's pretraining settings
-  mbs-tool train kitti-ext.json --out runs/ft --config ft.json --set trainer.loss.omega=3
-  mbs-tool train data.json --out runs/ablation --set trainer.loss.geometry=false   # Table 3 (A)
-  mbs-tool train --print-config > my.json                             # every setting, with defaults
+  mbs-tool train mbs-demo/train-data/manifest.json --out runs/demo \
+      --steps 300 --batch-size 4 --crop 96x160 --max-disparity 64
+  mbs-tool train mbs20k.json --out runs/pretrain     # the paper's pretraining
+  mbs-tool train kitti.json --out runs/ft --config ft.json --set trainer.loss.omega=3
+  mbs-tool train data.json --out runs/a --set trainer.loss.geometry=false   # Table 3 (A)
+  mbs-tool train --print-config > my.json            # every setting, with defaults
 
 Training uses the manifest's `train` samples; validation scores the
 teacher on the `val` samples (or `test` when there is no `val`) that have
@@ -35,8 +36,8 @@ ALL/NOC/OCC), loss.png and val.png (curves), visuals/step-N/*.png (reference
 
 Ctrl-C saves a checkpoint and stops; running the same command again
 resumes from the newest checkpoint (--restart discards them). The settings
-are the paper's defaults, overlaid by --config, then by the flags below and
---set KEY=VALUE (see schemas/train-config.schema.json).")]
+are the paper's defaults, overlaid by --config, then by the named flags,
+then by --set KEY=VALUE (see schemas/train-config.schema.json).")]
 pub struct Args {
     /// The dataset manifest (see `mbs-tool scan`, `synth`, `extrapolate`).
     #[arg(required_unless_present = "print_config")]
@@ -48,7 +49,7 @@ pub struct Args {
     #[arg(long, value_name = "FILE.json")]
     pub config: Option<PathBuf>,
     /// Any setting, e.g. `trainer.loss.omega=3` or `data.val_pairs=[[0,1],[2,1]]`
-    /// (repeatable; applied after the flags below).
+    /// (repeatable; applied after the named flags).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub set: Vec<String>,
     /// Optimiser steps (trainer.lr.total_steps).
