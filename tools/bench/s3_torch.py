@@ -159,22 +159,23 @@ def window_sums(tensor, dim, window):
     return prefix.narrow(dim, window, outputs) - prefix.narrow(dim, 0, outputs)
 
 
-def box_mean(image, window, pool):
-    pad = window // 2
-    padded = F.pad(image, (pad, pad, pad, pad), mode="reflect")
+def window_means(tensor, window, pool):
+    """Means over every window x window box that fits (no padding)."""
     if pool == "avgpool":
-        return F.avg_pool2d(padded, window, stride=1)
-    return window_sums(window_sums(padded, 2, window), 3, window) / (window * window)
+        return F.avg_pool2d(tensor, window, stride=1)
+    return window_sums(window_sums(tensor, 2, window), 3, window) / (window * window)
 
 
 def ssim(x, y, window, pool):
-    channels = x.shape[1]
-    x, y = x - 0.5, y - 0.5
-    means = box_mean(torch.cat([x, y, x * x, y * y, x * y], 1), window, pool)
-    mx, my, mxx, myy, mxy = means.split(channels, 1)
-    sigma_x = mxx - mx * mx
-    sigma_y = myy - my * my
-    sigma_xy = mxy - mx * my
+    # As photometric.rs: the centred images are reflection-padded once and
+    # each moment is filtered on its own.
+    pad = window // 2
+    x = F.pad(x - 0.5, (pad, pad, pad, pad), mode="reflect")
+    y = F.pad(y - 0.5, (pad, pad, pad, pad), mode="reflect")
+    mx, my = window_means(x, window, pool), window_means(y, window, pool)
+    sigma_x = window_means(x * x, window, pool) - mx * mx
+    sigma_y = window_means(y * y, window, pool) - my * my
+    sigma_xy = window_means(x * y, window, pool) - mx * my
     mu_x, mu_y = mx + 0.5, my + 0.5
     numerator = (mu_x * mu_y * 2.0 + C1) * (sigma_xy * 2.0 + C2)
     denominator = (mu_x * mu_x + mu_y * mu_y + C1) * (sigma_x + sigma_y + C2)

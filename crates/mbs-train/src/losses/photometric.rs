@@ -21,12 +21,10 @@ fn window_sums(tensor: Tensor<4>, dim: usize, window: usize) -> Tensor<4> {
     prefix.clone().narrow(dim, window, outputs) - prefix.narrow(dim, 0, outputs)
 }
 
-/// Mean over a `window x window` box around every pixel, with reflection
-/// padding so the output has the input's size.
-fn box_mean(image: Tensor<4>, window: usize) -> Tensor<4> {
-    let pad = window / 2;
-    let padded = image.pad((pad, pad, pad, pad), PadMode::Reflect);
-    let rows = window_sums(padded, 2, window);
+/// Means over every `window x window` box that fits in `tensor` (an
+/// output `window - 1` smaller in both image dimensions).
+fn window_means(tensor: Tensor<4>, window: usize) -> Tensor<4> {
+    let rows = window_sums(tensor, 2, window);
     window_sums(rows, 3, window) / (window * window) as f64
 }
 
@@ -38,27 +36,18 @@ fn box_mean(image: Tensor<4>, window: usize) -> Tensor<4> {
 /// When the shapes differ or `window` is larger than `2 * min(H, W) - 1`
 /// (reflection padding needs `window / 2 < min(H, W)`).
 pub fn ssim(x: Tensor<4>, y: Tensor<4>, window: usize) -> Tensor<4> {
-    let channels = x.dims()[1];
-    // Moments of the images centred on 0.5: the (co)variances are the same,
-    // with less f32 cancellation in E[x^2] - E[x]^2.
-    let (x, y) = (x - 0.5, y - 0.5);
-    // One filtering pass over the five moments, stacked along channels.
-    let moments = Tensor::cat(
-        vec![
-            x.clone(),
-            y.clone(),
-            x.clone() * x.clone(),
-            y.clone() * y.clone(),
-            x * y,
-        ],
-        1,
-    );
-    let means = box_mean(moments, window);
-    let moment = |i: usize| means.clone().narrow(1, i * channels, channels);
-    let (centred_x, centred_y) = (moment(0), moment(1));
-    let sigma_x = moment(2) - centred_x.clone() * centred_x.clone();
-    let sigma_y = moment(3) - centred_y.clone() * centred_y.clone();
-    let sigma_xy = moment(4) - centred_x.clone() * centred_y.clone();
+    // The images, centred on 0.5 (the (co)variances are the same, with less
+    // f32 cancellation in E[x^2] - E[x]^2), are padded once: products of
+    // reflected pixels are the reflected products, so each moment is
+    // filtered without a padding of its own.
+    let pad = window / 2;
+    let reflect = |image: Tensor<4>| (image - 0.5).pad((pad, pad, pad, pad), PadMode::Reflect);
+    let (x, y) = (reflect(x), reflect(y));
+    let mean = |moment: Tensor<4>| window_means(moment, window);
+    let (centred_x, centred_y) = (mean(x.clone()), mean(y.clone()));
+    let sigma_x = mean(x.clone() * x.clone()) - centred_x.clone() * centred_x.clone();
+    let sigma_y = mean(y.clone() * y.clone()) - centred_y.clone() * centred_y.clone();
+    let sigma_xy = mean(x * y) - centred_x.clone() * centred_y.clone();
     let (mu_x, mu_y) = (centred_x + 0.5, centred_y + 0.5);
     let numerator = (mu_x.clone() * mu_y.clone() * 2.0 + C1) * (sigma_xy * 2.0 + C2);
     let denominator = (mu_x.clone() * mu_x + mu_y.clone() * mu_y + C1) * (sigma_x + sigma_y + C2);
