@@ -8,6 +8,7 @@ use burn::optim::GradientsParams;
 use burn::tensor::Tensor;
 
 use crate::error::TrainError;
+use crate::readback::read_scalar;
 
 /// Sums the squared gradients of a module's float parameters (on the device).
 struct SquaredNorm<'a> {
@@ -53,12 +54,7 @@ pub fn clip_global_norm<M: Module>(
     let Some(squares) = norm.total else {
         return Ok(0.0);
     };
-    let squares = squares
-        .into_data()
-        .try_to_vec::<f32>()
-        .ok()
-        .and_then(|v| v.first().copied())
-        .ok_or(TrainError::Readback("the gradient norm"))?;
+    let squares = read_scalar(squares, "the gradient norm")?;
     let total = f64::from(squares).sqrt();
     let factor = max_norm / (total + 1e-6);
     if factor < 1.0 {

@@ -29,6 +29,7 @@ pub mod inference;
 pub mod losses;
 pub mod mask;
 pub mod mirror;
+mod readback;
 pub mod run;
 pub mod sampling;
 pub mod schedule;

@@ -20,7 +20,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::Device;
 use mbs_core::atomic::write_bytes_atomic;
 use mbs_core::metrics::{Metrics, Region};
 use mbs_core::{FloatImage, RgbImage};
@@ -31,7 +31,7 @@ use crate::backbone::CostVolumeNet;
 use crate::checkpoint::{self, Checkpoint};
 use crate::config::RunConfig;
 use crate::data::validation::{ValidationMetrics, ValidationPair};
-use crate::data::{BatchLoader, TrainingSamples, ValidationSet, image_to_chw};
+use crate::data::{BatchLoader, TrainingSamples, ValidationSet, image_tensor};
 use crate::error::TrainError;
 use crate::step::{S3Trainer, StepBatch, StepReport};
 
@@ -326,10 +326,7 @@ impl TrainingRun {
         let wide = mbs_core::formats::rgb::read_rgb(wide_path)
             .map_err(|e| TrainError::data(wide_path, e))?;
         let (width, height) = loaded.reference.dimensions();
-        let shape = [1, 3, height as usize, width as usize];
-        let tensor = |image: &RgbImage| {
-            Tensor::<4>::from_data(TensorData::new(image_to_chw(image), shape), &self.device)
-        };
+        let tensor = |image: &RgbImage| image_tensor(image, &self.device);
         let reference = tensor(&loaded.reference);
         let wide_target = tensor(&wide);
         let diagnosis = self.trainer.diagnose(StepBatch {

@@ -12,6 +12,7 @@ use crate::clip::clip_global_norm;
 use crate::ema::ema_update;
 use crate::error::TrainError;
 use crate::losses::{LossConfig, LossInputs, LossOutput, S3Loss};
+use crate::readback::{read_all, read_scalar};
 use crate::schedule::{CosineMomentum, OneCycle, OneCycleConfig};
 
 /// Everything a training run sets besides the network.
@@ -291,24 +292,6 @@ impl<B: Backbone> S3Trainer<B> {
         self.step += 1;
         Ok(report)
     }
-}
-
-/// The first value of a tensor as f32.
-fn read_scalar(tensor: Tensor<1>, what: &'static str) -> Result<f32, TrainError> {
-    tensor
-        .into_data()
-        .try_to_vec::<f32>()
-        .ok()
-        .and_then(|values| values.first().copied())
-        .ok_or(TrainError::Readback(what))
-}
-
-/// Every value of a tensor as f32, row-major.
-fn read_all<const D: usize>(tensor: Tensor<D>, what: &'static str) -> Result<Vec<f32>, TrainError> {
-    tensor
-        .into_data()
-        .try_to_vec::<f32>()
-        .map_err(|_| TrainError::Readback(what))
 }
 
 #[cfg(test)]

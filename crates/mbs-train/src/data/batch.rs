@@ -74,15 +74,20 @@ pub fn load_batch(
             height,
             width,
         };
-        for (view, out) in [
-            (triplet.reference, &mut batch.reference),
-            (triplet.student, &mut batch.student_target),
-            (triplet.teacher, &mut batch.teacher_target),
-        ] {
+        let decode = |view: usize| {
             let path = &sample.views[view];
             let image = read_rgb(path).map_err(|e| TrainError::data(path, e))?;
             check_size(path, &image, sample.size)?;
-            window.append_chw(&image, out);
+            Ok::<_, TrainError>(image)
+        };
+        window.append_chw(&decode(triplet.reference)?, &mut batch.reference);
+        let student = decode(triplet.student)?;
+        window.append_chw(&student, &mut batch.student_target);
+        // Targets are drawn with replacement: the same view is decoded once.
+        if triplet.teacher == triplet.student {
+            window.append_chw(&student, &mut batch.teacher_target);
+        } else {
+            window.append_chw(&decode(triplet.teacher)?, &mut batch.teacher_target);
         }
         batch.ratios.push(triplet.ratio(&samples.rig));
         batch.triplets.push(triplet);
@@ -137,17 +142,18 @@ impl Window {
     }
 }
 
-/// A whole image as planar RGB in `[0, 1]` (`[3, H, W]` row-major).
-pub fn image_to_chw(image: &RgbImage) -> Vec<f32> {
-    let mut out = Vec::with_capacity(3 * image.width() as usize * image.height() as usize);
+/// A whole image as a `[1, 3, H, W]` tensor in `[0, 1]` on `device`.
+pub fn image_tensor(image: &RgbImage, device: &Device) -> Tensor<4> {
+    let (height, width) = (image.height() as usize, image.width() as usize);
+    let mut out = Vec::with_capacity(3 * width * height);
     Window {
         top: 0,
         left: 0,
-        height: image.height() as usize,
-        width: image.width() as usize,
+        height,
+        width,
     }
     .append_chw(image, &mut out);
-    out
+    Tensor::from_data(TensorData::new(out, [1, 3, height, width]), device)
 }
 
 impl HostBatch {
