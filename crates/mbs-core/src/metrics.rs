@@ -110,7 +110,13 @@ impl ErrorSums {
 
     /// Adds the sums of `other` (pixel pooling). Both must track the same
     /// thresholds; counts of thresholds `other` lacks are left as they are.
+    /// Sums with no pixel yet take `other` as it is (thresholds included),
+    /// so `ErrorSums::default()` can start any pool.
     pub fn merge(&mut self, other: &ErrorSums) {
+        if self.pixels == 0 {
+            *self = other.clone();
+            return;
+        }
         self.pixels += other.pixels;
         self.missing += other.missing;
         self.abs_error_sum += other.abs_error_sum;
@@ -460,6 +466,31 @@ mod tests {
         assert!(close(pooled.all.metrics().out(2.0), 75.0));
         assert!(close(mean.mean().out(2.0), 50.0));
         assert_eq!(mean.images(), 2);
+    }
+
+    #[test]
+    fn default_sums_start_a_pool_with_any_thresholds() {
+        // Out-0.5 is not among the default thresholds: the first merge into
+        // empty sums must take them from the image.
+        let thresholds = [0.5];
+        let gt = map(2, 1, vec![2.0, 2.0]);
+        let noc = MaskImage::from_raw(2, 1, vec![255, 0]).unwrap();
+        let a = evaluate(&map(2, 1, vec![2.0, 3.0]), &gt, Some(&noc), &thresholds).unwrap();
+        let b = evaluate(&map(2, 1, vec![2.0, 2.0]), &gt, Some(&noc), &thresholds).unwrap();
+        let mut pooled = RegionSums::default();
+        pooled.merge(&a);
+        assert_eq!(pooled, a);
+        pooled.merge(&b);
+        // One outlier (the occluded pixel of `a`) in 4 pixels.
+        assert!(close(pooled.all.metrics().out(0.5), 25.0));
+        assert!(close(
+            pooled.get(Region::Occ).unwrap().metrics().out(0.5),
+            50.0
+        ));
+        assert!(close(
+            pooled.get(Region::Noc).unwrap().metrics().out(0.5),
+            0.0
+        ));
     }
 
     #[test]

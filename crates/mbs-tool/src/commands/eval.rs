@@ -388,17 +388,11 @@ pub struct Report {
 impl Report {
     /// Pools the images' sums.
     pub fn new(images: Vec<(String, RegionSums)>) -> Self {
-        let mut pooled: Option<RegionSums> = None;
+        let mut pooled = RegionSums::default();
         for (_, sums) in &images {
-            match pooled.as_mut() {
-                Some(p) => p.merge(sums),
-                None => pooled = Some(sums.clone()),
-            }
+            pooled.merge(sums);
         }
-        Self {
-            pooled: pooled.unwrap_or_default(),
-            images,
-        }
+        Self { pooled, images }
     }
 
     /// Per-image mean of `region` (images without the region are left out).

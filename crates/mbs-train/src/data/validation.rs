@@ -171,19 +171,13 @@ impl ValidationSet {
         device: &Device,
     ) -> Result<ValidationMetrics, TrainError> {
         let mut pooled = RegionSums::default();
-        let mut first = true;
         for pair in &self.pairs {
             let loaded = pair.load()?;
             let prediction =
                 predict_image(net, &loaded.reference, &loaded.target, pair.side, device)?;
             let sums = evaluate(&prediction, &loaded.gt, loaded.noc.as_ref(), &THRESHOLDS)
                 .map_err(|e| TrainError::data(&pair.gt, e))?;
-            if first {
-                pooled = sums;
-                first = false;
-            } else {
-                pooled.merge(&sums);
-            }
+            pooled.merge(&sums);
         }
         Ok(ValidationMetrics {
             pairs: self.pairs.len(),
