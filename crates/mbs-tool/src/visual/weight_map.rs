@@ -4,6 +4,7 @@
 //! disparities coloured with [`mbs_core::colormap::colorize_disparity`]).
 
 use anyhow::{bail, ensure};
+use image::GenericImage;
 use mbs_core::RgbImage;
 
 /// Brightness of the grey-scale reference under the weight map.
@@ -74,9 +75,7 @@ pub(crate) fn side_by_side(images: &[&RgbImage]) -> anyhow::Result<RgbImage> {
     let mut sheet = RgbImage::from_pixel(width, height, image::Rgb(GUTTER_COLOR));
     let mut x0 = 0;
     for img in images {
-        for (x, y, p) in img.enumerate_pixels() {
-            sheet.put_pixel(x0 + x, y, *p);
-        }
+        sheet.copy_from(*img, x0, 0)?;
         x0 += img.width() + GUTTER;
     }
     Ok(sheet)
