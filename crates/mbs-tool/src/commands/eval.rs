@@ -181,13 +181,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A split by its manifest name (the names `Split` is serialised with).
 fn parse_split(text: &str) -> Result<Split, String> {
-    match text {
-        "train" => Ok(Split::Train),
-        "val" => Ok(Split::Val),
-        "test" => Ok(Split::Test),
-        _ => Err(format!("`{text}` is not a split: train, val or test")),
-    }
+    serde_json::from_value(Value::from(text))
+        .map_err(|_| format!("`{text}` is not a split: train, val or test"))
 }
 
 /// Finds a prediction `<dir>/<name>.{pfm,png,exr}`.
@@ -496,4 +493,20 @@ fn metrics_json(m: &Metrics) -> Value {
         v[format!("out{x}")] = json!(value);
     }
     v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn splits_parse_by_their_manifest_names() {
+        assert_eq!(parse_split("train"), Ok(Split::Train));
+        assert_eq!(parse_split("val"), Ok(Split::Val));
+        assert_eq!(parse_split("test"), Ok(Split::Test));
+        assert_eq!(
+            parse_split("Test"),
+            Err("`Test` is not a split: train, val or test".into())
+        );
+    }
 }
