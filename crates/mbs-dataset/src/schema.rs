@@ -1,7 +1,10 @@
-//! The manifest's JSON Schema (`schemas/manifest.schema.json`, embedded at
-//! build time) and validation of a JSON document against it.
+//! JSON Schemas embedded at build time, compiled on first use: the
+//! manifest's (`schemas/manifest.schema.json`) and any other crate's (the
+//! training configuration's), and validation of a document against them.
 
 use std::sync::OnceLock;
+
+use serde_json::Value;
 
 /// The manifest JSON Schema text.
 pub const MANIFEST_SCHEMA: &str = include_str!("../../../schemas/manifest.schema.json");
@@ -23,25 +26,45 @@ impl SchemaIssue {
     }
 }
 
-fn validator() -> &'static jsonschema::Validator {
-    static VALIDATOR: OnceLock<jsonschema::Validator> = OnceLock::new();
-    VALIDATOR.get_or_init(|| {
-        // The schema is part of this crate and checked by its tests.
-        let schema: serde_json::Value =
-            serde_json::from_str(MANIFEST_SCHEMA).expect("embedded schema is JSON");
-        jsonschema::validator_for(&schema).expect("embedded schema is a valid JSON Schema")
-    })
+/// A JSON Schema whose text is part of a crate (`include_str!`), compiled
+/// the first time a document is checked.
+pub struct EmbeddedSchema {
+    text: &'static str,
+    compiled: OnceLock<jsonschema::Validator>,
 }
 
+impl EmbeddedSchema {
+    /// A schema from its text; the owning crate's tests must check that
+    /// the text is a valid JSON Schema.
+    pub const fn new(text: &'static str) -> Self {
+        Self {
+            text,
+            compiled: OnceLock::new(),
+        }
+    }
+
+    /// Every place where `document` breaks the schema (empty if valid).
+    pub fn issues(&self, document: &Value) -> Vec<SchemaIssue> {
+        let validator = self.compiled.get_or_init(|| {
+            // Embedded schemas are part of their crates and checked by their tests.
+            let schema: Value = serde_json::from_str(self.text).expect("embedded schema is JSON");
+            jsonschema::validator_for(&schema).expect("embedded schema is a valid JSON Schema")
+        });
+        validator
+            .iter_errors(document)
+            .map(|e| SchemaIssue {
+                pointer: e.instance_path().to_string(),
+                message: e.to_string(),
+            })
+            .collect()
+    }
+}
+
+static MANIFEST: EmbeddedSchema = EmbeddedSchema::new(MANIFEST_SCHEMA);
+
 /// Every place where `document` breaks the manifest schema (empty if valid).
-pub fn manifest_schema_issues(document: &serde_json::Value) -> Vec<SchemaIssue> {
-    validator()
-        .iter_errors(document)
-        .map(|e| SchemaIssue {
-            pointer: e.instance_path().to_string(),
-            message: e.to_string(),
-        })
-        .collect()
+pub fn manifest_schema_issues(document: &Value) -> Vec<SchemaIssue> {
+    MANIFEST.issues(document)
 }
 
 #[cfg(test)]

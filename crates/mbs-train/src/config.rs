@@ -6,9 +6,8 @@
 //! result is checked against the schema and then against each part's
 //! ranges.
 
-use std::sync::OnceLock;
-
 use burn::config::Config;
+use mbs_dataset::schema::EmbeddedSchema;
 use serde_json::Value;
 
 use crate::augment::AugmentConfig;
@@ -93,14 +92,14 @@ impl RunConfig {
     /// A complete configuration document (as saved in a checkpoint),
     /// checked against the schema and the ranges.
     pub fn from_document(document: &Value) -> Result<Self, TrainError> {
-        let issues: Vec<String> = validator()
-            .iter_errors(document)
-            .map(|e| {
-                let at = e.instance_path().to_string();
-                if at.is_empty() {
-                    e.to_string()
+        let issues: Vec<String> = SCHEMA
+            .issues(document)
+            .into_iter()
+            .map(|issue| {
+                if issue.pointer.is_empty() {
+                    issue.message
                 } else {
-                    format!("{at}: {e}")
+                    format!("{}: {}", issue.pointer, issue.message)
                 }
             })
             .collect();
@@ -137,15 +136,8 @@ impl RunConfig {
     }
 }
 
-fn validator() -> &'static jsonschema::Validator {
-    static VALIDATOR: OnceLock<jsonschema::Validator> = OnceLock::new();
-    VALIDATOR.get_or_init(|| {
-        // The schema is part of this crate and checked by its tests.
-        let schema: Value =
-            serde_json::from_str(TRAIN_CONFIG_SCHEMA).expect("embedded schema is JSON");
-        jsonschema::validator_for(&schema).expect("embedded schema is a valid JSON Schema")
-    })
-}
+/// The schema every configuration document is checked against.
+static SCHEMA: EmbeddedSchema = EmbeddedSchema::new(TRAIN_CONFIG_SCHEMA);
 
 /// Overlays `top` on `base`: objects merge key by key, anything else replaces.
 fn merge(base: &mut Value, top: &Value) {
