@@ -17,7 +17,7 @@ use burn::module::Module;
 use burn::optim::{AdamConfig, ModuleOptimizer};
 use burn::store::{BurnpackStore, ModuleSnapshot};
 use burn::tensor::{Bytes, Device};
-use mbs_core::atomic::write_bytes_atomic;
+use mbs_core::atomic::partial_path;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
@@ -75,7 +75,7 @@ pub fn save<M: Module>(
 ) -> Result<PathBuf, TrainError> {
     let root = run.join(CHECKPOINTS_DIR);
     let done = root.join(folder_name(steps));
-    let partial = root.join(format!("{}.partial", folder_name(steps)));
+    let partial = partial_path(&done);
     let io = |path: &Path, e: std::io::Error| TrainError::checkpoint(path, e);
     if partial.exists() {
         fs::remove_dir_all(&partial).map_err(|e| io(&partial, e))?;
@@ -106,8 +106,10 @@ pub fn save<M: Module>(
     Ok(done)
 }
 
+/// Writes one file of a checkpoint; it sits in the `.partial` folder, whose
+/// rename is what makes the checkpoint complete.
 fn write_file(path: &Path, bytes: &[u8]) -> Result<(), TrainError> {
-    write_bytes_atomic(path, bytes).map_err(|e| TrainError::checkpoint(path, e))
+    fs::write(path, bytes).map_err(|e| TrainError::checkpoint(path, e))
 }
 
 fn write_module<M: Module>(path: &Path, module: &M) -> Result<(), TrainError> {
