@@ -276,11 +276,15 @@ fn bad_settings_and_inputs_are_named() {
     let missing = dir.path().join("nope.json").display().to_string();
     let output = run(&["train", &missing, "--out", &out]);
     assert!(!output.status.success());
-    assert!(
-        String::from_utf8_lossy(&output.stderr).contains(&missing),
+    // Named once (the reader's message is not prefixed with the path again),
+    // and nothing is written.
+    assert_eq!(
+        String::from_utf8_lossy(&output.stderr).matches(&missing).count(),
+        1,
         "{}",
         text(&output)
     );
+    assert!(!std::path::Path::new(&out).exists());
 
     let output = run(&["train", "--print-config", "--set", "trainer.loss.omgea=3"]);
     assert!(!output.status.success());

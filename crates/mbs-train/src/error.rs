@@ -29,6 +29,10 @@ pub enum TrainError {
     /// A training configuration (file, `--set` override) is malformed.
     #[error("configuration: {0}")]
     Config(String),
+    /// A data file could not be read or written; the reader's message
+    /// already names the file.
+    #[error("{0}")]
+    Input(String),
     /// A data file (manifest, image, ground truth) could not be used.
     #[error("{path}: {reason}")]
     Data {
@@ -45,6 +49,18 @@ pub enum TrainError {
         /// What went wrong.
         reason: String,
     },
+}
+
+impl From<mbs_core::FormatError> for TrainError {
+    fn from(e: mbs_core::FormatError) -> Self {
+        TrainError::Input(e.to_string())
+    }
+}
+
+impl From<mbs_dataset::DatasetError> for TrainError {
+    fn from(e: mbs_dataset::DatasetError) -> Self {
+        TrainError::Input(e.to_string())
+    }
 }
 
 impl TrainError {

@@ -141,7 +141,7 @@ impl TrainingRun {
         device: Device,
     ) -> Result<(Self, Start), TrainError> {
         config.validate()?;
-        let parsed = Manifest::load(manifest).map_err(|e| TrainError::data(manifest, e))?;
+        let parsed = Manifest::load(manifest)?;
         let crop = (config.data.crop_height, config.data.crop_width);
         let samples = TrainingSamples::from_manifest(manifest, &parsed, crop)?;
         let validation = ValidationSet::from_manifest(
@@ -186,8 +186,7 @@ impl TrainingRun {
         let config_json = serde_json::to_vec_pretty(&config.to_json()?)
             .map_err(|e| TrainError::Config(e.to_string()))?;
         let config_path = out.join(CONFIG_FILE);
-        write_bytes_atomic(&config_path, &config_json)
-            .map_err(|e| TrainError::data(&config_path, e))?;
+        write_bytes_atomic(&config_path, &config_json)?;
         Ok((
             Self {
                 out: out.to_path_buf(),
@@ -323,8 +322,7 @@ impl TrainingRun {
     fn visual(&self, pair: &ValidationPair) -> Result<Visual, TrainError> {
         let loaded = pair.load()?;
         let (wide_path, ratio) = &pair.wide_target;
-        let wide = mbs_core::formats::rgb::read_rgb(wide_path)
-            .map_err(|e| TrainError::data(wide_path, e))?;
+        let wide = mbs_core::formats::rgb::read_rgb(wide_path)?;
         let (width, height) = loaded.reference.dimensions();
         let tensor = |image: &RgbImage| image_tensor(image, &self.device);
         let reference = tensor(&loaded.reference);
@@ -438,7 +436,7 @@ fn truncate_log(path: &Path, steps: usize) -> Result<(), TrainError> {
         })
         .map(|line| format!("{line}\n"))
         .collect();
-    write_bytes_atomic(path, kept.as_bytes()).map_err(|e| TrainError::data(path, e))
+    Ok(write_bytes_atomic(path, kept.as_bytes())?)
 }
 
 fn open_log(path: &Path) -> Result<fs::File, TrainError> {

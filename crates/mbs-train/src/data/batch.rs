@@ -76,7 +76,7 @@ pub fn load_batch(
         };
         let decode = |view: usize| {
             let path = &sample.views[view];
-            let image = read_rgb(path).map_err(|e| TrainError::data(path, e))?;
+            let image = read_rgb(path)?;
             check_size(path, &image, sample.size)?;
             Ok::<_, TrainError>(image)
         };

@@ -33,7 +33,7 @@ impl TrainingSamples {
     /// The `train` samples of the manifest at `path`; every one must have
     /// one view per camera and images at least `crop` (height, width).
     pub fn load(path: &Path, crop: (usize, usize)) -> Result<Self, TrainError> {
-        let manifest = Manifest::load(path).map_err(|e| TrainError::data(path, e))?;
+        let manifest = Manifest::load(path)?;
         Self::from_manifest(path, &manifest, crop)
     }
 

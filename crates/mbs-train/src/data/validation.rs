@@ -57,14 +57,14 @@ pub struct LoadedPair {
 impl ValidationPair {
     /// Reads the pair's files.
     pub fn load(&self) -> Result<LoadedPair, TrainError> {
-        let image = |p: &Path| read_rgb(p).map_err(|e| TrainError::data(p, e));
-        let mut gt = read_disparity(&self.gt, None).map_err(|e| TrainError::data(&self.gt, e))?;
+        let image = |p: &Path| read_rgb(p);
+        let mut gt = read_disparity(&self.gt, None)?;
         if self.gt_scale != 1.0 {
             gt.iter_mut().for_each(|d| *d *= self.gt_scale);
         }
         let noc = match &self.occlusion {
             Some(path) => {
-                let mut mask = read_mask(path).map_err(|e| TrainError::data(path, e))?;
+                let mut mask = read_mask(path)?;
                 mask.iter_mut()
                     .for_each(|v| *v = if *v == 0 { 255 } else { 0 });
                 Some(mask)
