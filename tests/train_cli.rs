@@ -279,7 +279,9 @@ fn bad_settings_and_inputs_are_named() {
     // Named once (the reader's message is not prefixed with the path again),
     // and nothing is written.
     assert_eq!(
-        String::from_utf8_lossy(&output.stderr).matches(&missing).count(),
+        String::from_utf8_lossy(&output.stderr)
+            .matches(&missing)
+            .count(),
         1,
         "{}",
         text(&output)

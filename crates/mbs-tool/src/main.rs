@@ -62,7 +62,7 @@ fn main() -> std::process::ExitCode {
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", cli::report_error::describe(&e));
             std::process::ExitCode::FAILURE
         }
     }

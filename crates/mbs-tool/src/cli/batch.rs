@@ -4,6 +4,7 @@
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
+use crate::cli::report_error::describe_item;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
@@ -87,7 +88,7 @@ where
             Ok(Outcome::Done) => done.fetch_add(1, Ordering::Relaxed),
             Ok(Outcome::Skipped) => skipped.fetch_add(1, Ordering::Relaxed),
             Err(e) => {
-                bar.suspend(|| eprintln!("error: {}: {e:#}", name(item)));
+                bar.suspend(|| eprintln!("error: {}", describe_item(&name(item), &e)));
                 failed.fetch_add(1, Ordering::Relaxed)
             }
         };

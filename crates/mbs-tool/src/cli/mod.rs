@@ -5,6 +5,7 @@ pub mod batch;
 pub mod checkpoint;
 pub mod onnx;
 pub mod pair;
+pub mod report_error;
 pub mod rig;
 pub mod shard;
 

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use crate::cli::checkpoint::CheckpointMatcher;
 use crate::cli::pair::parse_pair;
+use crate::cli::report_error::describe_item;
 use anyhow::{Context, bail};
 use clap::Parser;
 use mbs_core::formats::{read_disparity, rgb};
@@ -161,7 +162,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         match result {
             Ok(sums) => scored.push((item.name.clone(), sums)),
             Err(e) => {
-                eprintln!("error: {}: {e:#}", item.name);
+                eprintln!("error: {}", describe_item(&item.name, &e));
                 failed += 1;
             }
         }

@@ -14,6 +14,7 @@ use mbs_train::run::{Observer, TRAIN_LOG, VAL_LOG, Visual};
 use mbs_train::step::StepReport;
 use serde_json::Value;
 
+use crate::cli::report_error::describe;
 use crate::visual::{Series, side_by_side, weight_map_image, write_loss_plot};
 
 /// The curves of a run.
@@ -122,7 +123,7 @@ impl Report {
 
     fn keep_error(&mut self, result: anyhow::Result<()>) {
         if let Err(e) = result {
-            self.line(&format!("warning: {e:#}"));
+            self.line(&format!("warning: {}", describe(&e)));
             self.error.get_or_insert(e);
         }
     }
