@@ -29,7 +29,7 @@ import time
 import cv2
 import numpy as np
 
-TSUKUBA = os.path.join(os.path.dirname(__file__), "../../../shared/data/middlebury-tsukuba-row3")
+TSUKUBA = os.path.join(os.path.dirname(__file__), "../../testdata/middlebury-tsukuba-row3")
 
 
 def read_pfm(path):
@@ -111,8 +111,8 @@ def main():
     parser.add_argument("--rounds", type=int, default=3, help="alternating rounds (fastest median kept)")
     parser.add_argument("--dilate", type=int, default=None, help="dilate holes by a disc of this radius (both pipelines)")
     args = parser.parse_args()
-    cmd_base = ["cargo", "run", "--release", "-q", "-p", "mbs-infer", "--example", "extrapolate_bench", "--"]
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "mbs-infer", "--example", "extrapolate_bench"], check=True)
+    cmd_base = ["cargo", "run", "--release", "-q", "-p", "mbs-extrapolate", "--example", "extrapolate_bench", "--"]
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "mbs-extrapolate", "--example", "extrapolate_bench"], check=True)
     with tempfile.TemporaryDirectory() as out:
 
         def rust(threads):

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Generates the small ONNX test models of tests/fixtures/onnx/.
+"""Generates the small ONNX test models of testdata/onnx/.
 
 Each model's output is an exact, known function of its inputs, so the Rust
 tests can check mbs's pre- and post-processing (padding, mirroring, sign,
@@ -119,7 +119,7 @@ def migan_graph():
 
 
 def main():
-    out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[2] / "tests/fixtures/onnx"
+    out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[2] / "testdata/onnx"
     out.mkdir(parents=True, exist_ok=True)
     dynamic = ["N", 3, "H", "W"]
     save(stereo_graph("stereo_dynamic", dynamic, "disparity", False), out / "stereo_dynamic.onnx")

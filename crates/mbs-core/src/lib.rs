@@ -7,7 +7,6 @@
 //! and `0` in integer files.
 
 pub mod atomic;
-pub mod colormap;
 pub mod error;
 pub mod formats;
 pub mod geometry;

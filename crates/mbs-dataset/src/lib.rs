@@ -1,8 +1,9 @@
 //! Dataset layouts (MBS20K, KITTI), the manifest model with its JSON Schema,
-//! and the on-disk checks behind `mbs-tool validate`.
+//! pairs with ground truth, and the on-disk checks behind `mbs-tool validate`.
 
 pub mod checksum;
 pub mod error;
+pub mod ground_truth;
 pub mod kitti;
 pub mod manifest;
 pub mod mbs20k;

@@ -1,5 +1,5 @@
 //! Accuracy of the built-in matchers on real Middlebury pairs
-//! (`../shared/data`, see its README): Teddy (quarter size) and Tsukuba.
+//! (`testdata/`, see its README): Teddy (quarter size) and Tsukuba.
 
 use std::path::{Path, PathBuf};
 
@@ -9,7 +9,7 @@ use mbs_infer::{BlockMatcher, Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_
 
 fn data(rel: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data")
+        .join("../../testdata")
         .join(rel)
 }
 

@@ -28,7 +28,7 @@ fn shipped_cards_follow_the_schema() {
     let validator = jsonschema::validator_for(&schema).unwrap();
     let cards: Vec<PathBuf> = [
         json_files(&root().join("crates/mbs-infer/models/cards")),
-        json_files(&root().join("tests/fixtures/onnx")),
+        json_files(&root().join("testdata/onnx")),
     ]
     .concat();
     assert_eq!(cards.len(), 11);

@@ -1,5 +1,5 @@
 //! ONNX backends on real ONNX Runtime with the test models of
-//! `tests/fixtures/onnx/` (made by `tools/onnx/make_test_models.py`), whose
+//! `testdata/onnx/` (made by `tools/onnx/make_test_models.py`), whose
 //! outputs are exact functions of their inputs. The runtime comes from
 //! `tools/setup-ort.sh` (`tools/test.sh` runs it): without it these tests
 //! fail, they never skip.
@@ -14,7 +14,7 @@ use mbs_infer::onnx::{ModelCard, OnnxInpainter, OnnxStereo, RuntimeOptions};
 
 fn fixture(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../tests/fixtures/onnx")
+        .join("../../testdata/onnx")
         .join(name)
 }
 

@@ -3,7 +3,6 @@
 
 mod cli;
 mod commands;
-mod visual;
 
 use clap::{Parser, Subcommand};
 

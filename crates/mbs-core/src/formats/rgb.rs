@@ -96,7 +96,7 @@ mod tests {
     #[test]
     fn reads_real_middlebury_ppm() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../../shared/data/middlebury-tsukuba-row3/scene1.row3.col1.ppm");
+            .join("../../testdata/middlebury-tsukuba-row3/scene1.row3.col1.ppm");
         let img = read_rgb(&path).unwrap();
         assert_eq!(img.dimensions(), (384, 288));
     }

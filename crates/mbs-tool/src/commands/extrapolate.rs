@@ -2,26 +2,21 @@
 //! further left and one further right (SPEC §4), for one pair or a whole
 //! KITTI folder.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use anyhow::{Context, bail, ensure};
+use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};
-use mbs_core::formats::pfm::{Endian, write_pfm_grey};
-use mbs_core::formats::read_float_map;
-use mbs_core::formats::rgb::{read_rgb, write_mask_png, write_rgb_png};
-use mbs_core::{FloatImage, RgbImage, Side};
 use mbs_dataset::kitti::KittiFolder;
+use mbs_extrapolate::{
+    DisparitySource, Extrapolator, Frame, four_view_manifest, kitti_frames, pair_frame,
+};
 use mbs_infer::inpaint::{BackgroundFill, Inpainter, IsotropicFill};
 use mbs_infer::onnx::{ModelCard, OnnxInpainter, OnnxStereo};
-use mbs_infer::{Sgm, SgmConfig, StereoMatcher, estimate_max_disparity};
-use mbs_warp::{Dilation, extrapolate_view, fill_disparity_background, forward_warp};
+use mbs_warp::Dilation;
 
 use crate::cli::batch::{self, Outcome};
 use crate::cli::onnx::OnnxArgs;
 use crate::cli::shard::Shard;
-
-mod manifest;
-mod preview;
 
 /// Arguments of `extrapolate`.
 #[derive(Parser)]
@@ -75,7 +70,7 @@ pub struct Args {
     /// (the built-in semi-global matcher) or `onnx:MODEL.onnx` (a stereo
     /// network fed as --card says); left view, and right view by mirroring.
     #[arg(long, value_name = "sgm|onnx:MODEL", value_parser = parse_disparity_source)]
-    pub disparity: Option<DisparitySource>,
+    pub disparity: Option<DisparityKind>,
     /// How to feed `--disparity onnx:MODEL`: a built-in card name or a card FILE.json.
     #[arg(long, value_name = "NAME|FILE.json")]
     pub card: Option<String>,
@@ -121,17 +116,17 @@ pub struct Args {
 
 /// Disparity estimators for frames without disparity files.
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum DisparitySource {
+pub enum DisparityKind {
     /// The built-in semi-global matcher (`mbs-tool predict`).
     Sgm,
     /// An ONNX stereo network (`onnx:MODEL.onnx`).
     Onnx(PathBuf),
 }
 
-fn parse_disparity_source(s: &str) -> Result<DisparitySource, String> {
+fn parse_disparity_source(s: &str) -> Result<DisparityKind, String> {
     match (s, s.strip_prefix("onnx:")) {
-        ("sgm", _) => Ok(DisparitySource::Sgm),
-        (_, Some(model)) if !model.is_empty() => Ok(DisparitySource::Onnx(model.into())),
+        ("sgm", _) => Ok(DisparityKind::Sgm),
+        (_, Some(model)) if !model.is_empty() => Ok(DisparityKind::Onnx(model.into())),
         _ => Err(format!(
             "invalid disparity source {s:?}: expected sgm or onnx:MODEL.onnx"
         )),
@@ -175,107 +170,44 @@ fn parse_inpaint(s: &str) -> Result<InpaintKind, String> {
     }
 }
 
-/// Where disparities come from for frames without files.
-enum Matcher {
-    /// The built-in semi-global matcher, built per frame.
-    Sgm,
-    /// An ONNX stereo network.
-    Onnx(Box<OnnxStereo>),
-}
-
-/// The input and output files of one frame.
-struct Frame {
-    name: String,
-    left: PathBuf,
-    right: PathBuf,
-    left_disparity: Option<PathBuf>,
-    right_disparity: Option<PathBuf>,
-    image_1: PathBuf,
-    image_4: PathBuf,
-    mask_1: PathBuf,
-    mask_4: PathBuf,
-    disparity_2: PathBuf,
-    disparity_3: PathBuf,
-    preview: PathBuf,
-    /// KITTI ground truth of the left view, recorded in the manifest.
-    ground_truth: Option<PathBuf>,
-}
-
-impl Frame {
-    fn outputs(&self) -> [&PathBuf; 6] {
-        [
-            &self.image_1,
-            &self.image_4,
-            &self.mask_1,
-            &self.mask_4,
-            &self.disparity_2,
-            &self.disparity_3,
-        ]
-    }
-}
-
-/// What every frame is processed with.
-struct Settings {
-    dilation: Dilation,
-    inpainter: Box<dyn Inpainter>,
-    matcher: Option<Matcher>,
-    max_disparity: u32,
-    preview: bool,
-}
-
 /// Runs `extrapolate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
-    let r = args.dilate_radius;
-    let settings = Settings {
-        dilation: match args.dilation {
-            DilationKind::None => Dilation::None,
-            DilationKind::Square => Dilation::Square(r),
-            DilationKind::Ellipse => Dilation::Ellipse(r),
-            DilationKind::BackgroundSide => Dilation::BackgroundSide(r),
-            DilationKind::ForegroundSide => Dilation::ForegroundSide(r),
-        },
-        inpainter: match &args.inpaint {
-            InpaintKind::Background => Box::new(BackgroundFill::default()),
-            InpaintKind::Isotropic => Box::new(IsotropicFill),
-            InpaintKind::Onnx(model) => {
-                let card = args
-                    .inpaint_card
-                    .as_deref()
-                    .context("--inpaint onnx:MODEL needs --inpaint-card NAME|FILE.json")?;
-                let net = OnnxInpainter::open(model, ModelCard::load(card)?, &args.onnx.options())?;
-                args.onnx
-                    .report_fallback(&model.display().to_string(), net.device());
-                Box::new(net)
-            }
-        },
-        matcher: match &args.disparity {
-            None => None,
-            Some(DisparitySource::Sgm) => Some(Matcher::Sgm),
-            Some(DisparitySource::Onnx(model)) => {
-                let card = args
-                    .card
-                    .as_deref()
-                    .context("--disparity onnx:MODEL needs --card NAME|FILE.json")?;
-                let net = OnnxStereo::open(model, ModelCard::load(card)?, &args.onnx.options())?;
-                args.onnx
-                    .report_fallback(&model.display().to_string(), net.device());
-                Some(Matcher::Onnx(Box::new(net)))
-            }
-        },
-        max_disparity: args.max_disparity,
-        preview: args.preview,
-    };
     let (frames, out) = match &args.kitti {
-        Some(root) => (
-            kitti_frames(root, &args)?,
-            args.out.clone().unwrap_or_else(|| root.clone()),
-        ),
-        None => (
-            vec![pair_frame(&args)?],
-            args.out.clone().unwrap_or_default(),
-        ),
+        Some(root) => {
+            let out = args.out.clone().unwrap_or_else(|| root.clone());
+            let dirs = match &args.disparity_dir {
+                Some(dir) => (Some(dir.join("disparity_2")), Some(dir.join("disparity_3"))),
+                None => (
+                    args.left_disparity_dir.clone(),
+                    args.right_disparity_dir.clone(),
+                ),
+            };
+            let folder = KittiFolder::open(root)?;
+            let frames = kitti_frames(&folder, &out, (dirs.0.as_deref(), dirs.1.as_deref()));
+            (frames, out)
+        }
+        None => {
+            let (Some(left), Some(right), Some(out)) = (&args.left, &args.right, &args.out) else {
+                bail!("give --left, --right and --out, or --kitti");
+            };
+            let files = (args.left_disparity.clone(), args.right_disparity.clone());
+            let frame = pair_frame(left, right, out, files, args.disparity_dir.as_deref())?;
+            if frame.left_disparity.is_none()
+                && frame.right_disparity.is_none()
+                && args.disparity.is_none()
+            {
+                bail!(
+                    "no disparity for {}: give --left-disparity and/or --right-disparity, \
+                     --disparity-dir, or --disparity sgm|onnx:MODEL",
+                    left.display()
+                );
+            }
+            (vec![frame], out.clone())
+        }
     };
+    let extrapolator = Extrapolator::new(dilation(&args), inpainter(&args)?);
+    let source = disparity_source(&args)?;
     let selected: Vec<&Frame> = match args.shard {
         Some(shard) => shard.select(frames.iter().collect()),
         None => frames.iter().collect(),
@@ -284,12 +216,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &selected,
         "frames",
         |f| f.name.clone(),
-        |f| process(f, &settings),
+        |f| {
+            if f.is_done(args.preview) {
+                return Ok(Outcome::Skipped);
+            }
+            f.process(&extrapolator, source.as_ref(), args.preview)?;
+            Ok(Outcome::Done)
+        },
     );
     let result = summary.finish("extrapolate", "frames");
     if args.shard.is_none() {
-        let manifest =
-            manifest::four_view_manifest(&frames_done(&frames), &out, args.focal, args.baseline)?;
+        let done: Vec<_> = frames
+            .iter()
+            .filter(|f| f.is_done(false))
+            .map(Frame::files)
+            .collect();
+        let manifest = four_view_manifest(&done, &out, args.focal, args.baseline)?;
         let path = out.join("manifest.json");
         manifest.save(&path)?;
         eprintln!(
@@ -301,216 +243,52 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     result
 }
 
-/// The frames whose outputs are all written, as manifest entries.
-fn frames_done(frames: &[Frame]) -> Vec<manifest::FourViews<'_>> {
-    frames
-        .iter()
-        .filter(|f| f.outputs().iter().all(|p| p.exists()))
-        .map(|f| manifest::FourViews {
-            id: f.name.trim_end_matches(".png"),
-            views: [&f.image_1, &f.left, &f.right, &f.image_4],
-            masks: [&f.mask_1, &f.mask_4],
-            ground_truth: f.ground_truth.as_deref(),
-        })
-        .collect()
+/// The mask dilation the flags ask for.
+fn dilation(args: &Args) -> Dilation {
+    let r = args.dilate_radius;
+    match args.dilation {
+        DilationKind::None => Dilation::None,
+        DilationKind::Square => Dilation::Square(r),
+        DilationKind::Ellipse => Dilation::Ellipse(r),
+        DilationKind::BackgroundSide => Dilation::BackgroundSide(r),
+        DilationKind::ForegroundSide => Dilation::ForegroundSide(r),
+    }
 }
 
-/// The one frame of `--left/--right` mode.
-fn pair_frame(args: &Args) -> anyhow::Result<Frame> {
-    let (Some(left), Some(right), Some(out)) = (&args.left, &args.right, &args.out) else {
-        bail!("give --left, --right and --out, or --kitti");
-    };
-    let (left_disparity, right_disparity) = match &args.disparity_dir {
-        Some(dir) => (find_map(dir, "disparity_2"), find_map(dir, "disparity_3")),
-        None => (args.left_disparity.clone(), args.right_disparity.clone()),
-    };
-    if let Some(dir) = &args.disparity_dir {
-        ensure!(
-            left_disparity.is_some() || right_disparity.is_some(),
-            "{}: no disparity_2 or disparity_3 file (.pfm, .exr or .png) in this folder",
-            dir.display()
-        );
-    }
-    Ok(Frame {
-        name: left.display().to_string(),
-        left: left.clone(),
-        right: right.clone(),
-        left_disparity,
-        right_disparity,
-        image_1: out.join("image_1.png"),
-        image_4: out.join("image_4.png"),
-        mask_1: out.join("mask_1.png"),
-        mask_4: out.join("mask_4.png"),
-        disparity_2: out.join("disparity_2.pfm"),
-        disparity_3: out.join("disparity_3.pfm"),
-        preview: out.join("preview.png"),
-        ground_truth: None,
+/// The inpainter the flags ask for (an ONNX network is opened here).
+fn inpainter(args: &Args) -> anyhow::Result<Box<dyn Inpainter>> {
+    Ok(match &args.inpaint {
+        InpaintKind::Background => Box::new(BackgroundFill::default()),
+        InpaintKind::Isotropic => Box::new(IsotropicFill),
+        InpaintKind::Onnx(model) => {
+            let card = args
+                .inpaint_card
+                .as_deref()
+                .context("--inpaint onnx:MODEL needs --inpaint-card NAME|FILE.json")?;
+            let net = OnnxInpainter::open(model, ModelCard::load(card)?, &args.onnx.options())?;
+            args.onnx
+                .report_fallback(&model.display().to_string(), net.device());
+            Box::new(net)
+        }
     })
 }
 
-/// The frames of a KITTI split folder (2015 or 2012, training or testing):
-/// every left view with its namesake on the right.
-fn kitti_frames(root: &Path, args: &Args) -> anyhow::Result<Vec<Frame>> {
-    let folder = KittiFolder::open(root)?;
-    let out = args.out.as_deref().unwrap_or(root);
-    let (left_disp_dir, right_disp_dir) = match &args.disparity_dir {
-        Some(dir) => (Some(dir.join("disparity_2")), Some(dir.join("disparity_3"))),
-        None => (
-            args.left_disparity_dir.clone(),
-            args.right_disparity_dir.clone(),
-        ),
-    };
-    Ok(folder
-        .frames
-        .iter()
-        .map(|stem| {
-            let name = format!("{stem}.png");
-            Frame {
-                left: folder.left(stem),
-                right: folder.right(stem),
-                left_disparity: left_disp_dir.as_deref().and_then(|d| find_map(d, stem)),
-                right_disparity: right_disp_dir.as_deref().and_then(|d| find_map(d, stem)),
-                image_1: out.join("image_1").join(&name),
-                image_4: out.join("image_4").join(&name),
-                mask_1: out.join("mask_1").join(&name),
-                mask_4: out.join("mask_4").join(&name),
-                disparity_2: out.join("disparity_2").join(format!("{stem}.pfm")),
-                disparity_3: out.join("disparity_3").join(format!("{stem}.pfm")),
-                preview: out.join("preview").join(&name),
-                ground_truth: folder.disparity_occ(stem),
-                name,
-            }
-        })
-        .collect())
-}
-
-/// `dir/stem.pfm`, `.exr` or `.png`, the first that exists.
-fn find_map(dir: &Path, stem: &str) -> Option<PathBuf> {
-    ["pfm", "exr", "png"]
-        .iter()
-        .map(|ext| dir.join(format!("{stem}.{ext}")))
-        .find(|p| p.is_file())
-}
-
-/// Extrapolates one frame, unless all its outputs exist.
-fn process(frame: &Frame, settings: &Settings) -> anyhow::Result<Outcome> {
-    if frame.outputs().iter().all(|p| p.exists()) && (!settings.preview || frame.preview.exists()) {
-        return Ok(Outcome::Skipped);
-    }
-    let left = read_rgb(&frame.left)?;
-    let right = read_rgb(&frame.right)?;
-    ensure!(
-        left.dimensions() == right.dimensions(),
-        "{} is {:?} but {} is {:?} (width, height): not a rectified pair",
-        frame.left.display(),
-        left.dimensions(),
-        frame.right.display(),
-        right.dimensions()
-    );
-    let (disp_left, disp_right) = disparities(frame, &left, &right, settings)?;
-    let views = [
-        (&left, &disp_left, Side::Left, &frame.image_1, &frame.mask_1),
-        (
-            &right,
-            &disp_right,
-            Side::Right,
-            &frame.image_4,
-            &frame.mask_4,
-        ),
-    ];
-    let mut new_views = Vec::with_capacity(2);
-    for (image, disparity, side, image_path, mask_path) in views {
-        let view = extrapolate_view(image, disparity, side, settings.dilation)?;
-        let filled = settings
-            .inpainter
-            .inpaint(&view.image, &view.mask, Some(&view.disparity))
-            .with_context(|| format!("inpainting {}", image_path.display()))?;
-        write_mask_png(mask_path, &view.mask)?;
-        write_rgb_png(image_path, &filled)?;
-        new_views.push((filled, view.mask));
-    }
-    if settings.preview {
-        let sheet = preview::contact_sheet(
-            [&new_views[0].0, &left, &right, &new_views[1].0],
-            [&new_views[0].1, &new_views[1].1],
-            [&disp_left, &disp_right],
-        );
-        write_rgb_png(&frame.preview, &sheet)?;
-    }
-    write_pfm_grey(&frame.disparity_2, &disp_left, Endian::Little)?;
-    write_pfm_grey(&frame.disparity_3, &disp_right, Endian::Little)?;
-    Ok(Outcome::Done)
-}
-
-/// The disparities of both views: read, or derived from the other view's.
-fn disparities(
-    frame: &Frame,
-    left: &RgbImage,
-    right: &RgbImage,
-    settings: &Settings,
-) -> anyhow::Result<(FloatImage, FloatImage)> {
-    let load = |path: &Path| -> anyhow::Result<FloatImage> {
-        let map = read_float_map(path)?;
-        let bad = map.iter().filter(|d| d.is_nan() || **d < 0.0).count();
-        ensure!(
-            bad == 0,
-            "{}: {bad} NaN or negative disparities (disparity is a non-negative magnitude; mark invalid pixels +inf or 0 in PNGs)",
-            path.display()
-        );
-        ensure!(
-            map.dimensions() == left.dimensions(),
-            "{}: disparity is {:?} but the views are {:?} (width, height)",
-            path.display(),
-            map.dimensions(),
-            left.dimensions()
-        );
-        ensure!(
-            map.iter().any(|d| d.is_finite()),
-            "{}: no valid disparity at all",
-            path.display()
-        );
-        Ok(fill_disparity_background(&map))
-    };
-    // The other view's disparity: warp this one there, fill the disocclusions.
-    let derive = |view: &RgbImage, disparity: &FloatImage, side: Side| {
-        forward_warp(view, disparity, side).map(|w| fill_disparity_background(&w.disparity))
-    };
-    Ok(match (&frame.left_disparity, &frame.right_disparity) {
-        (Some(l), Some(r)) => (load(l)?, load(r)?),
-        (Some(l), None) => {
-            let dl = load(l)?;
-            let dr = derive(left, &dl, Side::Right)?;
-            (dl, dr)
+/// The disparity source for frames without files, if the flags give one.
+fn disparity_source(args: &Args) -> anyhow::Result<Option<DisparitySource>> {
+    Ok(match &args.disparity {
+        None => None,
+        Some(DisparityKind::Sgm) => Some(DisparitySource::Sgm {
+            max_disparity: args.max_disparity,
+        }),
+        Some(DisparityKind::Onnx(model)) => {
+            let card = args
+                .card
+                .as_deref()
+                .context("--disparity onnx:MODEL needs --card NAME|FILE.json")?;
+            let net = OnnxStereo::open(model, ModelCard::load(card)?, &args.onnx.options())?;
+            args.onnx
+                .report_fallback(&model.display().to_string(), net.device());
+            Some(DisparitySource::Matcher(Box::new(net)))
         }
-        (None, Some(r)) => {
-            let dr = load(r)?;
-            let dl = derive(right, &dr, Side::Left)?;
-            (dl, dr)
-        }
-        (None, None) if settings.matcher.is_some() => {
-            let sgm;
-            let matcher: &dyn StereoMatcher = match &settings.matcher {
-                Some(Matcher::Onnx(net)) => net.as_ref(),
-                _ => {
-                    let max_disparity = match settings.max_disparity {
-                        0 => estimate_max_disparity(left, right, 256)?,
-                        n => n,
-                    };
-                    sgm = Sgm::new(SgmConfig::with_max_disparity(max_disparity));
-                    &sgm
-                }
-            };
-            let dl = matcher.predict(left, right)?.disparity;
-            let dr = matcher.predict_right(left, right)?.disparity;
-            (
-                fill_disparity_background(&dl),
-                fill_disparity_background(&dr),
-            )
-        }
-        (None, None) => bail!(
-            "no disparity for {}: give --left-disparity and/or --right-disparity \
-             (KITTI: --left-disparity-dir / --right-disparity-dir), --disparity-dir, or --disparity sgm|onnx:MODEL",
-            frame.left.display()
-        ),
     })
 }

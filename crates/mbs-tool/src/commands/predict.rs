@@ -5,13 +5,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};
-use mbs_core::colormap::colorize_disparity;
 use mbs_core::formats::{pfm, png16, rgb};
 use mbs_dataset::Manifest;
 use mbs_dataset::kitti::KittiFolder;
 use mbs_dataset::manifest::resolve;
 use mbs_infer::onnx::{ModelCard, OnnxStereo};
 use mbs_infer::{Disparity, Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max_disparity};
+use mbs_viz::colorize_disparity;
 
 use crate::cli::batch::{self, Outcome};
 use crate::cli::checkpoint::CheckpointMatcher;

@@ -6,7 +6,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
-use mbs_core::colormap::colorize_disparity;
 use mbs_core::formats::rgb::write_rgb_png;
 use mbs_train::RunConfig;
 use mbs_train::data::validation::ValidationMetrics;
@@ -15,7 +14,7 @@ use mbs_train::step::StepReport;
 use serde_json::Value;
 
 use crate::cli::report_error::describe;
-use crate::visual::{Series, side_by_side, weight_map_image, write_loss_plot};
+use mbs_viz::{LineChart, Series, colorize_disparity, side_by_side, weight_map_image};
 
 /// The curves of a run.
 pub const LOSS_PLOT: &str = "loss.png";
@@ -97,26 +96,30 @@ impl Report {
             .filter(|s| !s.points.is_empty())
             .collect();
         if !losses.is_empty() {
-            write_loss_plot(
-                &self.out.join(LOSS_PLOT),
-                "S3 loss terms (unweighted) per step",
-                &losses,
-                true,
-            )?;
+            LineChart {
+                title: "S3 loss terms (unweighted)".into(),
+                x_label: "training step".into(),
+                y_label: "loss (log scale)".into(),
+                log_y: true,
+                series: losses,
+            }
+            .write_png(&self.out.join(LOSS_PLOT))?;
         }
         let val = read_log(&self.out.join(VAL_LOG))?;
         let out3: Vec<Series> = ["ALL", "NOC", "OCC"]
             .iter()
-            .map(|region| series(&val, &format!("out-3 {region} %"), &[region, "out3"]))
+            .map(|region| series(&val, &format!("Out-3 {region}"), &[region, "out3"]))
             .filter(|s| !s.points.is_empty())
             .collect();
         if !out3.is_empty() {
-            write_loss_plot(
-                &self.out.join(VAL_PLOT),
-                "validation: teacher out-3 (%) per step",
-                &out3,
-                false,
-            )?;
+            LineChart {
+                title: "Validation: teacher Out-3 on held-out pairs".into(),
+                x_label: "training step".into(),
+                y_label: "Out-3 (% of pixels)".into(),
+                log_y: false,
+                series: out3,
+            }
+            .write_png(&self.out.join(VAL_PLOT))?;
         }
         Ok(())
     }

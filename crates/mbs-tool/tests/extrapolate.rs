@@ -15,7 +15,7 @@ use mbs_core::{FloatImage, MaskImage};
 
 fn tsukuba(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/middlebury-tsukuba-row3")
+        .join("../../testdata/middlebury-tsukuba-row3")
         .join(name)
 }
 

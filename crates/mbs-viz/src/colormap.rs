@@ -1,6 +1,6 @@
 //! Colour maps for looking at disparity and depth maps.
 
-use crate::{FloatImage, RgbImage};
+use mbs_core::{FloatImage, RgbImage};
 
 /// Google's Turbo colour map at `t` in `[0, 1]` (polynomial fit, Mikhailov
 /// 2019): dark at 0, blue, green, yellow, to dark red at 1.

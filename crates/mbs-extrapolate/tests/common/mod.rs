@@ -8,12 +8,13 @@ use std::path::{Path, PathBuf};
 use mbs_core::formats::rgb::read_rgb;
 use mbs_core::quality::{psnr, ssim};
 use mbs_core::{FloatImage, MaskImage, RgbImage, Side};
-use mbs_infer::inpaint::Inpainter;
-use mbs_warp::{Dilation, extrapolate_view, fill_disparity_background, forward_warp};
+use mbs_extrapolate::disparity::derive_other_view;
+use mbs_extrapolate::{Disparities, Extrapolator};
+use mbs_warp::fill_disparity_background;
 
 /// The Middlebury Tsukuba row-3 folder of the shared data.
 pub fn tsukuba_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/middlebury-tsukuba-row3")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/middlebury-tsukuba-row3")
 }
 
 /// Views col2..col5 and the one-step disparities of col3 and col4.
@@ -46,8 +47,7 @@ pub fn load() -> Tsukuba {
         }])
     });
     let disp3 = fill_disparity_background(&raw);
-    let to4 = forward_warp(&views[2], &disp3, Side::Right).expect("same size");
-    let disp4 = fill_disparity_background(&to4.disparity);
+    let disp4 = derive_other_view(&views[2], &disp3, Side::Right).expect("same size");
     Tsukuba {
         views,
         disp3,
@@ -64,20 +64,23 @@ pub struct Synth {
 }
 
 /// Synthesises col2 from col3 and col5 from col4.
-pub fn extrapolate(t: &Tsukuba, dilation: Dilation, inpainter: &dyn Inpainter) -> [Synth; 2] {
-    let run = |image: &RgbImage, disp: &FloatImage, side: Side| {
-        let view = extrapolate_view(image, disp, side, dilation).expect("same size");
-        let filled = inpainter
-            .inpaint(&view.image, &view.mask, Some(&view.disparity))
-            .expect("inpainting");
-        Synth {
-            image: filled,
-            holes: view.holes,
-        }
+pub fn extrapolate(t: &Tsukuba, extrapolator: &Extrapolator) -> [Synth; 2] {
+    let disparities = Disparities {
+        left: t.disp3.clone(),
+        right: t.disp4.clone(),
     };
+    let views = extrapolator
+        .extrapolate(&t.views[2], &t.views[3], &disparities)
+        .expect("same size");
     [
-        run(&t.views[2], &t.disp3, Side::Left),
-        run(&t.views[3], &t.disp4, Side::Right),
+        Synth {
+            image: views.image_1,
+            holes: views.holes_1,
+        },
+        Synth {
+            image: views.image_4,
+            holes: views.holes_4,
+        },
     ]
 }
 

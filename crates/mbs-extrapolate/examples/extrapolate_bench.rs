@@ -4,7 +4,7 @@
 //! `tools/bench/extrapolate_vs_numpy.py`, which runs the numpy/OpenCV peer on
 //! the inputs this example writes.
 //!
-//! `cargo run --release -p mbs-infer --example extrapolate_bench -- OUT_DIR [FRAMES [RADIUS]]`
+//! `cargo run --release -p mbs-extrapolate --example extrapolate_bench -- OUT_DIR [FRAMES [RADIUS]]`
 //! (RADIUS: dilate the holes by a disc of that radius; default none, the
 //! measured best on Tsukuba) writes into OUT_DIR the KITTI-size frame
 //! (`left.png`, `right.png`, `disp_left.pfm`, `disp_right.pfm`) and
@@ -19,9 +19,10 @@ use std::time::Instant;
 
 use mbs_core::formats::pfm::{Endian, write_pfm_grey};
 use mbs_core::formats::rgb::write_rgb_png;
-use mbs_core::{FloatImage, RgbImage, Side};
-use mbs_infer::inpaint::{BackgroundFill, Inpainter};
-use mbs_warp::{Dilation, extrapolate_view};
+use mbs_core::{FloatImage, RgbImage};
+use mbs_extrapolate::{Disparities, Extrapolator};
+use mbs_infer::inpaint::BackgroundFill;
+use mbs_warp::Dilation;
 
 /// KITTI 2015 frame size.
 const WIDTH: u32 = 1242;
@@ -53,7 +54,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some(r) => Dilation::Ellipse(r.parse()?),
         None => Dilation::default(),
     };
-    let inpainter = BackgroundFill::default();
+    let extrapolator = Extrapolator::new(dilation, Box::new(BackgroundFill::default()));
 
     let t = common::load();
     let (left, right) = (tile_rgb(&t.views[2]), tile_rgb(&t.views[3]));
@@ -65,18 +66,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     write_pfm_grey(&out.join("tsukuba_disp3.pfm"), &t.disp3, Endian::Little)?;
     write_pfm_grey(&out.join("tsukuba_disp4.pfm"), &t.disp4, Endian::Little)?;
 
-    let frame = || -> Result<[RgbImage; 2], Box<dyn std::error::Error>> {
-        let mut views = Vec::with_capacity(2);
-        for (image, disp, side) in [
-            (&left, &disp_left, Side::Left),
-            (&right, &disp_right, Side::Right),
-        ] {
-            let view = extrapolate_view(image, disp, side, dilation)?;
-            views.push(inpainter.inpaint(&view.image, &view.mask, Some(&view.disparity))?);
-        }
-        let [a, b]: [RgbImage; 2] = views.try_into().map_err(|_| "two views")?;
-        Ok([a, b])
+    let disparities = Disparities {
+        left: disp_left,
+        right: disp_right,
     };
+    let frame = || extrapolator.extrapolate(&left, &right, &disparities);
     frame()?; // warm-up
     let mut times = Vec::with_capacity(frames);
     for _ in 0..frames {
@@ -88,7 +82,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let median = times[times.len() / 2];
     let mean = times.iter().sum::<f64>() / times.len() as f64;
 
-    let s = common::score(&t, &common::extrapolate(&t, dilation, &inpainter));
+    let s = common::score(&t, &common::extrapolate(&t, &extrapolator));
     println!(
         "{{\"frames\": {frames}, \"threads\": {}, \"dilation\": \"{dilation:?}\", \"ms_median\": {median:.3}, \"ms_mean\": {mean:.3}, \
          \"tsukuba_psnr_all\": {:.3}, \"tsukuba_psnr_holes\": {:.3}, \"tsukuba_ssim_all\": {:.4}, \"tsukuba_ssim_holes\": {:.4}}}",

@@ -5,15 +5,16 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use anyhow::Context;
 use mbs_core::Rig;
 use mbs_dataset::manifest::{
     FORMAT, Manifest, PairGroundTruth, Provenance, Sample, Split, relative_path,
 };
 use mbs_dataset::probe::probe;
 
+use crate::ExtrapolateError;
+
 /// The files of one extrapolated frame.
-pub struct FourViews<'a> {
+pub struct FourViewFiles<'a> {
     /// Sample id (the frame's name).
     pub id: &'a str,
     /// image_1, image_2, image_3, image_4.
@@ -25,10 +26,11 @@ pub struct FourViews<'a> {
 }
 
 /// `path` relative to the folder `out`, as a manifest string.
-fn relative(out: &Path, path: &Path) -> anyhow::Result<String> {
+fn relative(out: &Path, path: &Path) -> Result<String, ExtrapolateError> {
     let dir = path.parent().unwrap_or(Path::new(""));
-    let rel = relative_path(out, dir)
-        .with_context(|| format!("cannot relate {} to {}", path.display(), out.display()))?;
+    let rel = relative_path(out, dir).map_err(|e| {
+        ExtrapolateError::input(path, format!("cannot relate it to {}: {e}", out.display()))
+    })?;
     let name = path.file_name().unwrap_or_default();
     Ok(rel.join(name).to_string_lossy().into_owned())
 }
@@ -37,23 +39,23 @@ fn relative(out: &Path, path: &Path) -> anyhow::Result<String> {
 /// the left views' headers; frames of another size than the first record
 /// their own `image_size`.
 pub fn four_view_manifest(
-    frames: &[FourViews<'_>],
+    frames: &[FourViewFiles<'_>],
     out: &Path,
     focal: f64,
     baseline: f64,
-) -> anyhow::Result<Manifest> {
+) -> Result<Manifest, ExtrapolateError> {
     let mut rig: Option<Rig> = None;
     let mut samples = Vec::with_capacity(frames.len());
     for frame in frames {
         let info = probe(frame.views[1], false)
-            .map_err(|e| anyhow::anyhow!("{}: {e}", frame.views[1].display()))?;
+            .map_err(|e| ExtrapolateError::input(frame.views[1], e.to_string()))?;
         let size = (info.width, info.height);
         let rig = *rig.get_or_insert_with(|| Rig::centred(4, baseline, focal, size.0, size.1));
         let views = frame
             .views
             .iter()
             .map(|v| relative(out, v))
-            .collect::<anyhow::Result<Vec<_>>>()?;
+            .collect::<Result<Vec<_>, _>>()?;
         let ground_truth = match frame.ground_truth {
             Some(gt) => vec![PairGroundTruth {
                 reference: 1,

@@ -1,5 +1,5 @@
 //! End-to-end tests of `mbs-tool predict` and `mbs-tool eval` on the real
-//! Middlebury Teddy pair (`../shared/data`), as a single pair and laid out
+//! Middlebury Teddy pair (`testdata/`), as a single pair and laid out
 //! as a KITTI 2015 training folder.
 
 mod common;
@@ -12,7 +12,7 @@ use serde_json::Value;
 
 fn teddy(file: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/middlebury-teddy")
+        .join("../../testdata/middlebury-teddy")
         .join(file)
 }
 

@@ -1,6 +1,6 @@
 //! `mbs-tool predict --model … --card …` and `mbs-tool extrapolate
 //! --disparity onnx:… --inpaint onnx:…` on the test models of
-//! `tests/fixtures/onnx/` with real ONNX Runtime (from tools/setup-ort.sh).
+//! `testdata/onnx/` with real ONNX Runtime (from tools/setup-ort.sh).
 
 mod common;
 
@@ -14,7 +14,7 @@ use mbs_core::formats::{pfm, rgb};
 
 fn fixture(name: &str) -> String {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../tests/fixtures/onnx")
+        .join("../../testdata/onnx")
         .join(name)
         .display()
         .to_string()

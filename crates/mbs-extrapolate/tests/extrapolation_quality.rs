@@ -6,8 +6,12 @@ mod common;
 
 use common::Tsukuba;
 use mbs_core::FloatImage;
+use mbs_extrapolate::Extrapolator;
 use mbs_infer::inpaint::{BackgroundFill, Inpainter, IsotropicFill};
 use mbs_warp::Dilation;
+
+/// Builds a fresh inpainter.
+type MakeInpainter = fn() -> Box<dyn Inpainter>;
 
 /// The same task with disparities that err at depth edges like an
 /// estimated one: each pixel takes `reduce` of the disparities within
@@ -33,14 +37,14 @@ fn bleeding(t: &Tsukuba, radius: u32, reduce: fn(&[f32]) -> f32) -> Tsukuba {
 /// the defaults: no dilation, [`BackgroundFill`]), with the accurate
 /// disparity and with two that bleed 2 px across depth edges.
 #[test]
-#[ignore = "measurement table (about 30 s): cargo test -p mbs-infer --test extrapolation_quality -- --ignored --nocapture"]
+#[ignore = "measurement table (about 30 s): cargo test -p mbs-extrapolate --test extrapolation_quality -- --ignored --nocapture"]
 fn measure_inpainters_and_dilations_on_tsukuba() {
     let accurate = common::load();
     let fattened = bleeding(&accurate, 2, |w| w.iter().copied().fold(f32::MIN, f32::max));
     let smoothed = bleeding(&accurate, 2, |w| w.iter().sum::<f32>() / w.len() as f32);
-    let inpainters: [(&str, &dyn Inpainter); 2] = [
-        ("background", &BackgroundFill::default()),
-        ("isotropic", &IsotropicFill),
+    let inpainters: [(&str, MakeInpainter); 2] = [
+        ("background", || Box::new(BackgroundFill::default())),
+        ("isotropic", || Box::new(IsotropicFill)),
     ];
     let dilations = [
         Dilation::None,
@@ -68,7 +72,8 @@ fn measure_inpainters_and_dilations_on_tsukuba() {
     for (disparity, t) in cases {
         for (name, inpainter) in inpainters {
             for dilation in dilations {
-                let s = common::score(t, &common::extrapolate(t, dilation, inpainter));
+                let extrapolator = Extrapolator::new(dilation, inpainter());
+                let s = common::score(t, &common::extrapolate(t, &extrapolator));
                 println!(
                     "{disparity:<9} {name:<12} {:<18} {:>8.3} {:>8.3} {:>7.4} {:>7.4}",
                     format!("{dilation:?}"),
@@ -89,11 +94,17 @@ fn default_pipeline_quality_on_tsukuba() {
     let t = common::load();
     let ours = common::score(
         &t,
-        &common::extrapolate(&t, Dilation::default(), &BackgroundFill::default()),
+        &common::extrapolate(
+            &t,
+            &Extrapolator::new(Dilation::default(), Box::new(BackgroundFill::default())),
+        ),
     );
     let iso = common::score(
         &t,
-        &common::extrapolate(&t, Dilation::default(), &IsotropicFill),
+        &common::extrapolate(
+            &t,
+            &Extrapolator::new(Dilation::default(), Box::new(IsotropicFill)),
+        ),
     );
     println!("background fill: {ours:?}\nisotropic fill:  {iso:?}");
     // Measured: 29.74 dB, 20.21 dB in holes, SSIM 0.9232 (0.619 in holes).

@@ -20,7 +20,7 @@ fn s(path: &Path) -> &str {
 
 fn tsukuba(col: u32) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(format!(
-        "../../../shared/data/middlebury-tsukuba-row3/scene1.row3.col{col}.ppm"
+        "../../testdata/middlebury-tsukuba-row3/scene1.row3.col{col}.ppm"
     ))
 }
 

@@ -1,0 +1,204 @@
+//! The disparities of both views of a pair: read from files and checked,
+//! derived from the other view's by warping, or estimated by a matcher
+//! (the right view's by mirroring the pair).
+
+use std::path::Path;
+
+use mbs_core::formats::read_float_map;
+use mbs_core::{FloatImage, RgbImage, Side};
+use mbs_infer::{Sgm, SgmConfig, StereoMatcher, estimate_max_disparity};
+use mbs_warp::{fill_disparity_background, forward_warp};
+
+use crate::ExtrapolateError;
+
+/// The largest disparity range the built-in matcher estimates per pair.
+pub const MAX_ESTIMATED_DISPARITY: u32 = 256;
+
+/// The disparities of a pair, each on its own view's grid, every pixel
+/// finite (unknown pixels filled from the background side).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Disparities {
+    /// Disparity of the left view (towards the right one).
+    pub left: FloatImage,
+    /// Disparity of the right view (towards the left one).
+    pub right: FloatImage,
+}
+
+/// Where disparities come from for a pair without disparity files.
+pub enum DisparitySource {
+    /// The built-in semi-global matcher searching `max_disparity`
+    /// disparities (0 = estimate per pair, up to 256).
+    Sgm {
+        /// Number of disparities searched (0 = estimate).
+        max_disparity: u32,
+    },
+    /// Any other matcher, e.g. an ONNX network or a trained teacher.
+    Matcher(Box<dyn StereoMatcher>),
+}
+
+impl DisparitySource {
+    /// Estimates both views' disparities of the pair.
+    pub fn disparities(
+        &self,
+        left: &RgbImage,
+        right: &RgbImage,
+    ) -> Result<Disparities, ExtrapolateError> {
+        let sgm;
+        let matcher: &dyn StereoMatcher = match self {
+            DisparitySource::Matcher(matcher) => matcher.as_ref(),
+            DisparitySource::Sgm { max_disparity } => {
+                let max_disparity = match *max_disparity {
+                    0 => estimate_max_disparity(left, right, MAX_ESTIMATED_DISPARITY)?,
+                    n => n,
+                };
+                sgm = Sgm::new(SgmConfig::with_max_disparity(max_disparity));
+                &sgm
+            }
+        };
+        let dl = matcher.predict(left, right)?.disparity;
+        let dr = matcher.predict_right(left, right)?.disparity;
+        Ok(Disparities {
+            left: fill_disparity_background(&dl),
+            right: fill_disparity_background(&dr),
+        })
+    }
+}
+
+/// Reads a disparity map for views of `size` (width, height): PFM, EXR or
+/// KITTI 16-bit PNG. NaN or negative values, another size, or no valid
+/// pixel at all are errors naming the file; unknown pixels (`+inf`, 0 in
+/// PNGs) are filled from the background side.
+pub fn load_disparity(path: &Path, size: (u32, u32)) -> Result<FloatImage, ExtrapolateError> {
+    let map = read_float_map(path)?;
+    let bad = map.iter().filter(|d| d.is_nan() || **d < 0.0).count();
+    if bad > 0 {
+        return Err(ExtrapolateError::input(
+            path,
+            format!(
+                "{bad} NaN or negative disparities (disparity is a non-negative magnitude; mark invalid pixels +inf or 0 in PNGs)"
+            ),
+        ));
+    }
+    if map.dimensions() != size {
+        return Err(ExtrapolateError::input(
+            path,
+            format!(
+                "disparity is {:?} but the views are {size:?} (width, height)",
+                map.dimensions()
+            ),
+        ));
+    }
+    if !map.iter().any(|d| d.is_finite()) {
+        return Err(ExtrapolateError::input(path, "no valid disparity at all"));
+    }
+    Ok(fill_disparity_background(&map))
+}
+
+/// The disparity of the other view of the pair: `disparity` (of `view`)
+/// warped towards `side` with a z-buffer, disocclusions filled from the
+/// background side.
+pub fn derive_other_view(
+    view: &RgbImage,
+    disparity: &FloatImage,
+    side: Side,
+) -> Result<FloatImage, ExtrapolateError> {
+    let warped = forward_warp(view, disparity, side)?;
+    Ok(fill_disparity_background(&warped.disparity))
+}
+
+impl Disparities {
+    /// Both views' disparities from the files given (one or both): a view
+    /// without a file gets the other's warped to it. `None` when neither
+    /// file is given.
+    pub fn from_files(
+        left_file: Option<&Path>,
+        right_file: Option<&Path>,
+        left: &RgbImage,
+        right: &RgbImage,
+    ) -> Result<Option<Disparities>, ExtrapolateError> {
+        let size = left.dimensions();
+        Ok(Some(match (left_file, right_file) {
+            (Some(l), Some(r)) => Disparities {
+                left: load_disparity(l, size)?,
+                right: load_disparity(r, size)?,
+            },
+            (Some(l), None) => {
+                let dl = load_disparity(l, size)?;
+                let dr = derive_other_view(left, &dl, Side::Right)?;
+                Disparities {
+                    left: dl,
+                    right: dr,
+                }
+            }
+            (None, Some(r)) => {
+                let dr = load_disparity(r, size)?;
+                let dl = derive_other_view(right, &dr, Side::Left)?;
+                Disparities {
+                    left: dl,
+                    right: dr,
+                }
+            }
+            (None, None) => return Ok(None),
+        }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mbs_core::formats::pfm::{Endian, write_pfm_grey};
+
+    #[test]
+    fn bad_disparity_files_are_named_with_the_problem() {
+        let dir = tempfile::tempdir().unwrap();
+        let write = |name: &str, map: &FloatImage| {
+            let path = dir.path().join(name);
+            write_pfm_grey(&path, map, Endian::Little).unwrap();
+            path
+        };
+        let mut nan = FloatImage::from_pixel(4, 3, image::Luma([2.0]));
+        nan.put_pixel(1, 1, image::Luma([f32::NAN]));
+        nan.put_pixel(2, 1, image::Luma([-1.0]));
+        let cases = [
+            (
+                write("nan.pfm", &nan),
+                "nan.pfm: 2 NaN or negative disparities",
+            ),
+            (
+                write("small.pfm", &FloatImage::new(2, 2)),
+                "small.pfm: disparity is (2, 2) but the views are (4, 3)",
+            ),
+            (
+                write(
+                    "empty.pfm",
+                    &FloatImage::from_pixel(4, 3, image::Luma([f32::INFINITY])),
+                ),
+                "empty.pfm: no valid disparity at all",
+            ),
+        ];
+        for (path, expected) in cases {
+            let err = load_disparity(&path, (4, 3)).unwrap_err().to_string();
+            assert!(err.contains(expected), "{err}");
+        }
+    }
+
+    #[test]
+    fn one_file_gives_both_views_and_unknown_pixels_are_filled() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut map = FloatImage::from_pixel(8, 2, image::Luma([1.0]));
+        map.put_pixel(7, 0, image::Luma([f32::INFINITY]));
+        let path = dir.path().join("d.pfm");
+        write_pfm_grey(&path, &map, Endian::Little).unwrap();
+        let view = RgbImage::from_pixel(8, 2, image::Rgb([50, 60, 70]));
+        let both = Disparities::from_files(Some(&path), None, &view, &view)
+            .unwrap()
+            .unwrap();
+        assert!(both.left.iter().all(|d| *d == 1.0), "{:?}", both.left);
+        assert!(both.right.iter().all(|d| *d == 1.0), "{:?}", both.right);
+        assert!(
+            Disparities::from_files(None, None, &view, &view)
+                .unwrap()
+                .is_none()
+        );
+    }
+}

@@ -1,0 +1,50 @@
+//! The error type of extrapolation: every variant names the file or says
+//! which input is at fault.
+
+use std::path::PathBuf;
+
+/// Why a pair could not be extrapolated.
+#[derive(Debug, thiserror::Error)]
+pub enum ExtrapolateError {
+    /// An input or output file could not be read or written.
+    #[error(transparent)]
+    Format(#[from] mbs_core::FormatError),
+    /// A dataset folder or manifest is not as expected.
+    #[error(transparent)]
+    Dataset(#[from] mbs_dataset::DatasetError),
+    /// The warp refused its inputs.
+    #[error(transparent)]
+    Warp(#[from] mbs_warp::WarpError),
+    /// Disparity estimation or inpainting failed.
+    #[error(transparent)]
+    Infer(#[from] mbs_infer::InferError),
+    /// A contact sheet could not be drawn.
+    #[error(transparent)]
+    Picture(#[from] mbs_viz::VizError),
+    /// An input file holds something extrapolation cannot use.
+    #[error("{}: {message}", path.display())]
+    Input {
+        /// The file at fault.
+        path: PathBuf,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// Inpainting one of the new views failed.
+    #[error("inpainting {view}: {source}")]
+    Inpaint {
+        /// The new view: `image_1` or `image_4`.
+        view: &'static str,
+        /// The inpainter's error.
+        source: mbs_infer::inpaint::InpaintError,
+    },
+}
+
+impl ExtrapolateError {
+    /// An [`ExtrapolateError::Input`] about `path`.
+    pub fn input(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        ExtrapolateError::Input {
+            path: path.into(),
+            message: message.into(),
+        }
+    }
+}

@@ -1,0 +1,204 @@
+//! A frame on disk: the input pair, its disparity files if any, and where
+//! each output goes, for one pair (`OUT/image_1.png`…) or a KITTI folder
+//! (sibling folders `image_1/`, `mask_1/`… beside `image_2/`). Processing a
+//! frame reads, extrapolates and writes it, each file atomically.
+
+use std::path::{Path, PathBuf};
+
+use mbs_core::formats::pfm::{Endian, write_pfm_grey};
+use mbs_core::formats::rgb::{read_rgb, write_mask_png, write_rgb_png};
+use mbs_dataset::ground_truth::find_map;
+use mbs_dataset::kitti::KittiFolder;
+use mbs_viz::extrapolation_sheet;
+
+use crate::{Disparities, DisparitySource, ExtrapolateError, Extrapolator, FourViewFiles};
+
+/// The input and output files of one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frame {
+    /// Shown in progress and errors: the left view's path or KITTI file name.
+    pub name: String,
+    /// The left input view (camera 2 of 4).
+    pub left: PathBuf,
+    /// The right input view (camera 3 of 4).
+    pub right: PathBuf,
+    /// Disparity file of the left view, if any.
+    pub left_disparity: Option<PathBuf>,
+    /// Disparity file of the right view, if any.
+    pub right_disparity: Option<PathBuf>,
+    /// Output: the new view left of the left view.
+    pub image_1: PathBuf,
+    /// Output: the new view right of the right view.
+    pub image_4: PathBuf,
+    /// Output: synthesised pixels of `image_1`.
+    pub mask_1: PathBuf,
+    /// Output: synthesised pixels of `image_4`.
+    pub mask_4: PathBuf,
+    /// Output: the left view's disparity used (PFM).
+    pub disparity_2: PathBuf,
+    /// Output: the right view's disparity used (PFM).
+    pub disparity_3: PathBuf,
+    /// Output: the contact sheet, when asked for.
+    pub preview: PathBuf,
+    /// KITTI ground truth of the left view, recorded in the manifest.
+    pub ground_truth: Option<PathBuf>,
+}
+
+/// The one frame of a pair written into `out`; disparity files from
+/// `left_disparity`/`right_disparity`, or found as `disparity_2.*` and
+/// `disparity_3.*` in `disparity_dir` (an error if it has neither).
+pub fn pair_frame(
+    left: &Path,
+    right: &Path,
+    out: &Path,
+    (left_disparity, right_disparity): (Option<PathBuf>, Option<PathBuf>),
+    disparity_dir: Option<&Path>,
+) -> Result<Frame, ExtrapolateError> {
+    let (left_disparity, right_disparity) = match disparity_dir {
+        Some(dir) => {
+            let found = (find_map(dir, "disparity_2"), find_map(dir, "disparity_3"));
+            if found.0.is_none() && found.1.is_none() {
+                return Err(ExtrapolateError::input(
+                    dir,
+                    "no disparity_2 or disparity_3 file (.pfm, .png or .exr) in this folder",
+                ));
+            }
+            found
+        }
+        None => (left_disparity, right_disparity),
+    };
+    Ok(Frame {
+        name: left.display().to_string(),
+        left: left.to_path_buf(),
+        right: right.to_path_buf(),
+        left_disparity,
+        right_disparity,
+        image_1: out.join("image_1.png"),
+        image_4: out.join("image_4.png"),
+        mask_1: out.join("mask_1.png"),
+        mask_4: out.join("mask_4.png"),
+        disparity_2: out.join("disparity_2.pfm"),
+        disparity_3: out.join("disparity_3.pfm"),
+        preview: out.join("preview.png"),
+        ground_truth: None,
+    })
+}
+
+/// The frames of a KITTI split folder (2015 or 2012, training or testing):
+/// every left view with its namesake on the right, outputs in sibling
+/// folders under `out`, disparities found by frame name in the folders
+/// given (a view without a file gets none).
+pub fn kitti_frames(
+    folder: &KittiFolder,
+    out: &Path,
+    (left_dir, right_dir): (Option<&Path>, Option<&Path>),
+) -> Vec<Frame> {
+    folder
+        .frames
+        .iter()
+        .map(|stem| {
+            let name = format!("{stem}.png");
+            Frame {
+                left: folder.left(stem),
+                right: folder.right(stem),
+                left_disparity: left_dir.and_then(|d| find_map(d, stem)),
+                right_disparity: right_dir.and_then(|d| find_map(d, stem)),
+                image_1: out.join("image_1").join(&name),
+                image_4: out.join("image_4").join(&name),
+                mask_1: out.join("mask_1").join(&name),
+                mask_4: out.join("mask_4").join(&name),
+                disparity_2: out.join("disparity_2").join(format!("{stem}.pfm")),
+                disparity_3: out.join("disparity_3").join(format!("{stem}.pfm")),
+                preview: out.join("preview").join(&name),
+                ground_truth: folder.disparity_occ(stem),
+                name,
+            }
+        })
+        .collect()
+}
+
+impl Frame {
+    /// The six files every processed frame has.
+    pub fn outputs(&self) -> [&PathBuf; 6] {
+        [
+            &self.image_1,
+            &self.image_4,
+            &self.mask_1,
+            &self.mask_4,
+            &self.disparity_2,
+            &self.disparity_3,
+        ]
+    }
+
+    /// Whether every output exists (with the preview, when asked for).
+    pub fn is_done(&self, preview: bool) -> bool {
+        self.outputs().iter().all(|p| p.exists()) && (!preview || self.preview.exists())
+    }
+
+    /// The frame's files as a manifest entry (its outputs need not exist).
+    pub fn files(&self) -> FourViewFiles<'_> {
+        FourViewFiles {
+            id: self.name.trim_end_matches(".png"),
+            views: [&self.image_1, &self.left, &self.right, &self.image_4],
+            masks: [&self.mask_1, &self.mask_4],
+            ground_truth: self.ground_truth.as_deref(),
+        }
+    }
+
+    /// Reads the pair, takes its disparities from the frame's files (else
+    /// from `source`), extrapolates it and writes every output, and the
+    /// contact sheet with `preview`. A frame without a disparity file and
+    /// without a source is an error naming its left view.
+    pub fn process(
+        &self,
+        extrapolator: &Extrapolator,
+        source: Option<&DisparitySource>,
+        preview: bool,
+    ) -> Result<(), ExtrapolateError> {
+        let left = read_rgb(&self.left)?;
+        let right = read_rgb(&self.right)?;
+        if left.dimensions() != right.dimensions() {
+            return Err(ExtrapolateError::input(
+                &self.left,
+                format!(
+                    "the left view is {:?} but the right view {} is {:?} (width, height): not a rectified pair",
+                    left.dimensions(),
+                    self.right.display(),
+                    right.dimensions()
+                ),
+            ));
+        }
+        let from_files = Disparities::from_files(
+            self.left_disparity.as_deref(),
+            self.right_disparity.as_deref(),
+            &left,
+            &right,
+        )?;
+        let disparities = match (from_files, source) {
+            (Some(d), _) => d,
+            (None, Some(source)) => source.disparities(&left, &right)?,
+            (None, None) => {
+                return Err(ExtrapolateError::input(
+                    &self.left,
+                    "no disparity: no disparity file for either view and no disparity source",
+                ));
+            }
+        };
+        let views = extrapolator.extrapolate(&left, &right, &disparities)?;
+        write_mask_png(&self.mask_1, &views.mask_1)?;
+        write_rgb_png(&self.image_1, &views.image_1)?;
+        write_mask_png(&self.mask_4, &views.mask_4)?;
+        write_rgb_png(&self.image_4, &views.image_4)?;
+        if preview {
+            let sheet = extrapolation_sheet(
+                [&views.image_1, &left, &right, &views.image_4],
+                [&views.mask_1, &views.mask_4],
+                [&disparities.left, &disparities.right],
+            )?;
+            write_rgb_png(&self.preview, &sheet)?;
+        }
+        write_pfm_grey(&self.disparity_2, &disparities.left, Endian::Little)?;
+        write_pfm_grey(&self.disparity_3, &disparities.right, Endian::Little)?;
+        Ok(())
+    }
+}

@@ -1,0 +1,78 @@
+//! The extrapolation of one pair in memory: each view warped outwards by
+//! its own disparity, its holes masked (and dilated), then inpainted.
+
+use mbs_core::{MaskImage, RgbImage, Side};
+use mbs_infer::inpaint::Inpainter;
+use mbs_warp::{Dilation, extrapolate_view};
+
+use crate::{Disparities, ExtrapolateError};
+
+/// The two new views of a pair and what was synthesised in them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FourViews {
+    /// The new view one baseline left of the left view (camera 1 of 4).
+    pub image_1: RgbImage,
+    /// The new view one baseline right of the right view (camera 4 of 4).
+    pub image_4: RgbImage,
+    /// Pixels of `image_1` that were inpainted (255): holes and dilation.
+    pub mask_1: MaskImage,
+    /// Pixels of `image_4` that were inpainted (255).
+    pub mask_4: MaskImage,
+    /// Pixels of `image_1` no source pixel landed on (before dilation).
+    pub holes_1: MaskImage,
+    /// Pixels of `image_4` no source pixel landed on.
+    pub holes_4: MaskImage,
+}
+
+/// Extrapolates pairs with one mask dilation and one inpainter.
+pub struct Extrapolator {
+    /// How hole masks grow before inpainting.
+    pub dilation: Dilation,
+    /// What fills the masked pixels.
+    pub inpainter: Box<dyn Inpainter>,
+}
+
+impl Extrapolator {
+    /// An extrapolator with this dilation and inpainter.
+    pub fn new(dilation: Dilation, inpainter: Box<dyn Inpainter>) -> Self {
+        Self {
+            dilation,
+            inpainter,
+        }
+    }
+
+    /// The new views of the rectified pair (`left`, `right`) whose
+    /// disparities are `disparities`. Views of different sizes are an error.
+    pub fn extrapolate(
+        &self,
+        left: &RgbImage,
+        right: &RgbImage,
+        disparities: &Disparities,
+    ) -> Result<FourViews, ExtrapolateError> {
+        let one = |view: &RgbImage, disparity, side, name| {
+            let warped = extrapolate_view(view, disparity, side, self.dilation)?;
+            let filled = self
+                .inpainter
+                .inpaint(&warped.image, &warped.mask, Some(&warped.disparity))
+                .map_err(|source| ExtrapolateError::Inpaint { view: name, source })?;
+            Ok::<_, ExtrapolateError>((filled, warped.mask, warped.holes))
+        };
+        if left.dimensions() != right.dimensions() {
+            return Err(ExtrapolateError::Warp(mbs_warp::WarpError::SizeMismatch {
+                what: "the right view",
+                expected: left.dimensions(),
+                found: right.dimensions(),
+            }));
+        }
+        let (image_1, mask_1, holes_1) = one(left, &disparities.left, Side::Left, "image_1")?;
+        let (image_4, mask_4, holes_4) = one(right, &disparities.right, Side::Right, "image_4")?;
+        Ok(FourViews {
+            image_1,
+            image_4,
+            mask_1,
+            mask_4,
+            holes_1,
+            holes_4,
+        })
+    }
+}
