@@ -8,6 +8,7 @@
 
 pub mod atomic;
 pub mod error;
+pub mod fill;
 pub mod formats;
 pub mod geometry;
 pub mod metrics;

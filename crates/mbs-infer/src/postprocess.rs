@@ -1,5 +1,5 @@
-//! Post-processing shared by matchers: left-right consistency, speckle
-//! removal and the background-side fill of holes. Maps are row-major `f32`
+//! Post-processing shared by matchers: left-right consistency and speckle
+//! removal (holes are filled by `mbs_core::fill`). Maps are row-major `f32`
 //! slices with `+inf` for "no value".
 
 /// Invalidates left disparities that the right-view disparity does not
@@ -85,50 +85,11 @@ pub fn remove_speckles(map: &mut [f32], width: usize, min_size: usize, max_step:
     }
 }
 
-/// Fills holes along each row from the background side: a run of invalid
-/// pixels takes the smaller of the nearest valid values left and right of
-/// it (the only one where the run touches the border). Suited to
-/// extrapolation, where holes are mostly occlusions next to a nearer
-/// object. Rows without any valid pixel stay invalid.
-pub fn fill_background(map: &mut [f32], width: usize) {
-    for row in map.chunks_exact_mut(width) {
-        let mut x = 0;
-        while x < width {
-            if row[x].is_finite() {
-                x += 1;
-                continue;
-            }
-            let start = x;
-            while x < width && !row[x].is_finite() {
-                x += 1;
-            }
-            let left = start.checked_sub(1).map(|i| row[i]);
-            let right = (x < width).then(|| row[x]);
-            let value = match (left, right) {
-                (Some(l), Some(r)) => l.min(r),
-                (Some(v), None) | (None, Some(v)) => v,
-                (None, None) => continue,
-            };
-            row[start..x].fill(value);
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     const INF: f32 = f32::INFINITY;
-
-    #[test]
-    fn fill_takes_the_background_side() {
-        let mut row = vec![INF, 5.0, INF, INF, 2.0, INF, 9.0, INF];
-        fill_background(&mut row, 8);
-        assert_eq!(row, vec![5.0, 5.0, 2.0, 2.0, 2.0, 2.0, 9.0, 9.0]);
-        let mut empty = vec![INF; 3];
-        fill_background(&mut empty, 3);
-        assert!(empty.iter().all(|v| v.is_infinite()));
-    }
 
     #[test]
     fn speckles_below_the_size_vanish() {

@@ -8,7 +8,7 @@ use burn::optim::GradientsParams;
 use burn::tensor::Tensor;
 
 use crate::error::TrainError;
-use crate::readback::read_scalar;
+use crate::host::read_scalar;
 
 /// Sums the squared gradients of a module's float parameters (on the device).
 struct SquaredNorm<'a> {

@@ -30,10 +30,12 @@ use serde_json::{Value, json};
 use crate::backbone::CostVolumeNet;
 use crate::checkpoint::{self, Checkpoint};
 use crate::config::RunConfig;
+use crate::data::StepBatch;
 use crate::data::validation::{ValidationMetrics, ValidationPair};
-use crate::data::{BatchLoader, TrainingSamples, ValidationSet, image_tensor};
+use crate::data::{BatchLoader, TrainingSamples, ValidationSet};
 use crate::error::TrainError;
-use crate::step::{S3Trainer, StepBatch, StepReport};
+use crate::host::image_tensor;
+use crate::step::{S3Trainer, StepReport};
 
 /// File of the loss log.
 pub const TRAIN_LOG: &str = "train.jsonl";
@@ -333,8 +335,8 @@ impl TrainingRun {
             teacher_target: tensor(&loaded.target),
             augmented_reference: reference,
             augmented_target: wide_target,
-            student_sides: vec![pair.side],
-            teacher_sides: vec![pair.side],
+            student_sides: vec![pair.side()],
+            teacher_sides: vec![pair.side()],
             ratios: vec![*ratio],
         })?;
         let map = |values: Vec<f32>| {

@@ -5,14 +5,14 @@
 use burn::config::Config;
 use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::Tensor;
-use mbs_core::geometry::Side;
 
 use crate::backbone::{Backbone, predict};
 use crate::clip::clip_global_norm;
+use crate::data::StepBatch;
 use crate::ema::ema_update;
 use crate::error::TrainError;
+use crate::host::{read_all, read_scalar};
 use crate::losses::{LossConfig, LossInputs, LossOutput, S3Loss};
-use crate::readback::{read_all, read_scalar};
 use crate::schedule::{CosineMomentum, OneCycle, OneCycleConfig};
 
 /// Everything a training run sets besides the network.
@@ -32,28 +32,6 @@ pub struct TrainerConfig {
     /// Limit of the global gradient L2 norm (as PyTorch's `clip_grad_norm_`).
     #[config(default = 1.0)]
     pub grad_clip_norm: f64,
-}
-
-/// One batch for [`S3Trainer::step`]. Images are `[B, 3, H, W]` in `[0, 1]`
-/// on a plain (non-autodiff) device.
-#[derive(Debug, Clone)]
-pub struct StepBatch {
-    /// Clean reference images.
-    pub reference: Tensor<4>,
-    /// Clean student targets.
-    pub student_target: Tensor<4>,
-    /// Clean teacher targets.
-    pub teacher_target: Tensor<4>,
-    /// Augmented reference images (the student's input).
-    pub augmented_reference: Tensor<4>,
-    /// Augmented student targets (the student's input).
-    pub augmented_target: Tensor<4>,
-    /// Side of each student target.
-    pub student_sides: Vec<Side>,
-    /// Side of each teacher target.
-    pub teacher_sides: Vec<Side>,
-    /// Baseline ratio `r = B_s / B_t` of each item.
-    pub ratios: Vec<f64>,
 }
 
 /// What one step reports.

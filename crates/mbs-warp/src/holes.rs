@@ -3,11 +3,12 @@
 //! (smaller-disparity) surface next to it.
 
 use mbs_core::FloatImage;
+use mbs_core::fill::fill_row_from_background;
 use rayon::prelude::*;
 
 /// Fills each horizontal run of invalid (non-finite) pixels with the smaller
 /// of the valid disparities on its two sides (the only one at an image
-/// border). Rows without any valid pixel then copy the nearest row that has
+/// border; see [`fill_row_from_background`]). Rows without any valid pixel then copy the nearest row that has
 /// one (the one above on a tie); a map without any valid pixel is returned
 /// as it is.
 ///
@@ -20,27 +21,7 @@ pub fn fill_disparity_background(disparity: &FloatImage) -> FloatImage {
     if w == 0 {
         return out;
     }
-    out.par_chunks_mut(w).for_each(|row| {
-        let mut x = 0;
-        while x < w {
-            if row[x].is_finite() {
-                x += 1;
-                continue;
-            }
-            let start = x;
-            while x < w && !row[x].is_finite() {
-                x += 1;
-            }
-            let left = start.checked_sub(1).map(|l| row[l]);
-            let right = (x < w).then(|| row[x]);
-            let fill = match (left, right) {
-                (Some(l), Some(r)) => l.min(r),
-                (Some(v), None) | (None, Some(v)) => v,
-                (None, None) => continue,
-            };
-            row[start..x].fill(fill);
-        }
-    });
+    out.par_chunks_mut(w).for_each(fill_row_from_background);
     let valid_rows: Vec<usize> = out
         .chunks(w)
         .enumerate()

@@ -21,8 +21,9 @@ use rayon::prelude::*;
 
 use crate::error::{InferError, Result};
 use crate::matcher::{Disparity, StereoMatcher, check_same_size, luma};
-use crate::postprocess::{fill_background, left_right_check, remove_speckles};
+use crate::postprocess::{left_right_check, remove_speckles};
 use aggregate::{BandInput, aggregate_band};
+use mbs_core::fill::fill_row_from_background;
 
 /// Which aggregation paths run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -64,7 +65,7 @@ pub struct SgmConfig {
     /// Largest disparity step inside one speckle region, in pixels.
     pub speckle_range: f32,
     /// Fill holes from the background side (see
-    /// [`crate::postprocess::fill_background`]).
+    /// [`mbs_core::fill::fill_row_from_background`]).
     pub fill: bool,
     /// Rows per band (the unit of parallel work).
     pub band_rows: u32,
@@ -234,7 +235,7 @@ impl StereoMatcher for Sgm {
             .collect();
         if self.config.fill {
             disp.par_chunks_mut(w as usize)
-                .for_each(|row| fill_background(row, w as usize));
+                .for_each(fill_row_from_background);
         }
         Ok(Disparity {
             // Both buffers hold one value per pixel of the w x h input.

@@ -2,7 +2,6 @@
 //! progress bar and a summary, thread-pool setup, ONNX Runtime flags.
 
 pub mod batch;
-pub mod checkpoint;
 pub mod onnx;
 pub mod pair;
 pub mod report_error;

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::Parser;
 use mbs_core::formats::{pfm, png16, rgb};
+use mbs_core::metrics::{RegionSums, evaluate};
 use mbs_core::quality::psnr;
 use mbs_dataset::Manifest;
 use mbs_dataset::mbs20k::Counts;
@@ -256,22 +257,21 @@ fn decoded_vs_ground_truth(
     data: &Path,
     decoded: &Path,
 ) -> anyhow::Result<(f64, usize)> {
-    let mut sum = 0.0;
-    let mut count = 0usize;
+    let mut pooled = RegionSums::default();
     for sample in &manifest.samples {
-        let gt = pfm::read_pfm_grey(
+        let mut gt = pfm::read_pfm_grey(
             &data
                 .join(&sample.id)
                 .join(mbs_synth::dataset::disparity_file(0)),
         )?;
+        // The file holds one baseline's disparity; pair 0:4 spans four.
+        gt.iter_mut().for_each(|d| *d *= 4.0);
         let ours = png16::read_kitti_disparity(&decoded.join(&sample.id).join("disp_0_4.png"))
             .with_context(|| format!("sample {}", sample.id))?;
-        for (g, d) in gt.as_raw().iter().zip(ours.as_raw()) {
-            if d.is_finite() {
-                sum += f64::from((d - 4.0 * g).abs());
-                count += 1;
-            }
-        }
+        pooled.merge(&evaluate(&ours, &gt, None, &[])?);
     }
-    Ok((sum / count.max(1) as f64, count))
+    // EPE is over the pixels the decoder kept (nearer than --max-depth).
+    let all = pooled.all.metrics();
+    let kept = all.density.unwrap_or(0.0) / 100.0 * all.pixels as f64;
+    Ok((all.epe.unwrap_or(f64::NAN), kept.round() as usize))
 }

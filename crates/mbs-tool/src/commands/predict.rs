@@ -7,17 +7,17 @@ use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};
 use mbs_core::formats::{pfm, png16, rgb};
 use mbs_dataset::Manifest;
+use mbs_dataset::ground_truth::{check_cameras, sample_view};
 use mbs_dataset::kitti::KittiFolder;
-use mbs_dataset::manifest::resolve;
 use mbs_infer::onnx::{ModelCard, OnnxStereo};
 use mbs_infer::{Disparity, Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max_disparity};
 use mbs_viz::colorize_disparity;
 
 use crate::cli::batch::{self, Outcome};
-use crate::cli::checkpoint::CheckpointMatcher;
 use crate::cli::onnx::OnnxArgs;
 use crate::cli::pair::parse_pair;
 use crate::cli::shard::Shard;
+use mbs_train::inference::TeacherMatcher;
 
 /// Arguments of `predict`.
 #[derive(Parser)]
@@ -168,7 +168,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Some(Box::new(stereo))
         }
         _ => match &args.checkpoint {
-            Some(path) => Some(Box::new(CheckpointMatcher::open(path)?)),
+            Some(path) => Some(Box::new(TeacherMatcher::open(path)?)),
             None => None,
         },
     };
@@ -214,23 +214,14 @@ pub fn kitti_jobs(dir: &Path) -> anyhow::Result<Vec<Job>> {
 /// The `(reference, target)` pair of every sample of a manifest.
 pub fn manifest_jobs(path: &Path, (reference, target): (usize, usize)) -> anyhow::Result<Vec<Job>> {
     let manifest = Manifest::load(path)?;
-    let views = manifest.rig.num_views;
-    if reference >= views || target >= views {
-        bail!("pair {reference}:{target}: the manifest's rig has {views} cameras");
-    }
+    check_cameras(path, &manifest, &[(reference, target)])?;
     manifest
         .samples
         .iter()
         .map(|s| {
-            let view = |k: usize| {
-                s.views
-                    .get(k)
-                    .map(|v| resolve(path, v))
-                    .with_context(|| format!("{}: sample {} has no view {k}", path.display(), s.id))
-            };
             Ok(Job {
-                reference: view(reference)?,
-                target: view(target)?,
+                reference: sample_view(path, s, reference)?,
+                target: sample_view(path, s, target)?,
                 target_on_left: target < reference,
                 name: s.id.clone(),
             })

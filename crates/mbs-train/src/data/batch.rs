@@ -5,17 +5,17 @@
 
 use std::path::Path;
 
-use burn::tensor::{Device, Tensor, TensorData};
-use mbs_core::RgbImage;
+use burn::tensor::{Device, Tensor};
 use mbs_core::formats::rgb::read_rgb;
+use mbs_core::{RgbImage, Side};
 use rand::Rng;
 
 use super::samples::TrainingSamples;
 use super::{Stream, step_rng};
 use crate::augment::AugmentConfig;
 use crate::error::TrainError;
+use crate::host::{Window, append_chw, chw_tensor};
 use crate::sampling::{Triplet, draw_triplet};
-use crate::step::StepBatch;
 
 /// A decoded batch: clean crops of the reference and both targets.
 #[derive(Debug, Clone, PartialEq)]
@@ -80,14 +80,18 @@ pub fn load_batch(
             check_size(path, &image, sample.size)?;
             Ok::<_, TrainError>(image)
         };
-        window.append_chw(&decode(triplet.reference)?, &mut batch.reference);
+        append_chw(&window, &decode(triplet.reference)?, &mut batch.reference);
         let student = decode(triplet.student)?;
-        window.append_chw(&student, &mut batch.student_target);
+        append_chw(&window, &student, &mut batch.student_target);
         // Targets are drawn with replacement: the same view is decoded once.
         if triplet.teacher == triplet.student {
-            window.append_chw(&student, &mut batch.teacher_target);
+            append_chw(&window, &student, &mut batch.teacher_target);
         } else {
-            window.append_chw(&decode(triplet.teacher)?, &mut batch.teacher_target);
+            append_chw(
+                &window,
+                &decode(triplet.teacher)?,
+                &mut batch.teacher_target,
+            );
         }
         batch.ratios.push(triplet.ratio(&samples.rig));
         batch.triplets.push(triplet);
@@ -116,46 +120,6 @@ fn check_size(
     }
 }
 
-/// A crop window, in pixels.
-#[derive(Debug, Clone, Copy)]
-struct Window {
-    top: usize,
-    left: usize,
-    height: usize,
-    width: usize,
-}
-
-impl Window {
-    /// Appends the window of `image` to `out` as planar RGB in `[0, 1]`.
-    fn append_chw(&self, image: &RgbImage, out: &mut Vec<f32>) {
-        let stride = image.width() as usize * 3;
-        let raw = image.as_raw();
-        for channel in 0..3 {
-            for y in self.top..self.top + self.height {
-                let row = &raw[y * stride..(y + 1) * stride];
-                out.extend(
-                    (self.left..self.left + self.width)
-                        .map(|x| row[x * 3 + channel] as f32 / 255.0),
-                );
-            }
-        }
-    }
-}
-
-/// A whole image as a `[1, 3, H, W]` tensor in `[0, 1]` on `device`.
-pub fn image_tensor(image: &RgbImage, device: &Device) -> Tensor<4> {
-    let (height, width) = (image.height() as usize, image.width() as usize);
-    let mut out = Vec::with_capacity(3 * width * height);
-    Window {
-        top: 0,
-        left: 0,
-        height,
-        width,
-    }
-    .append_chw(image, &mut out);
-    Tensor::from_data(TensorData::new(out, [1, 3, height, width]), device)
-}
-
 impl HostBatch {
     /// Number of items.
     pub fn len(&self) -> usize {
@@ -171,7 +135,7 @@ impl HostBatch {
     /// augmented by `augment` from [`step_rng`]`(seed, step, Augment)`.
     pub fn into_step_batch(self, device: &Device, augment: &AugmentConfig, seed: u64) -> StepBatch {
         let shape = [self.len(), 3, self.height, self.width];
-        let tensor = |data: Vec<f32>| Tensor::<4>::from_data(TensorData::new(data, shape), device);
+        let tensor = |data: Vec<f32>| chw_tensor(data, shape, device);
         let reference = tensor(self.reference);
         let student_target = tensor(self.student_target);
         let mut rng = step_rng(seed, self.step, Stream::Augment);
@@ -188,4 +152,26 @@ impl HostBatch {
             ratios: self.ratios,
         }
     }
+}
+
+/// One batch for [`crate::S3Trainer::step`]. Images are `[B, 3, H, W]` in `[0, 1]`
+/// on a plain (non-autodiff) device.
+#[derive(Debug, Clone)]
+pub struct StepBatch {
+    /// Clean reference images.
+    pub reference: Tensor<4>,
+    /// Clean student targets.
+    pub student_target: Tensor<4>,
+    /// Clean teacher targets.
+    pub teacher_target: Tensor<4>,
+    /// Augmented reference images (the student's input).
+    pub augmented_reference: Tensor<4>,
+    /// Augmented student targets (the student's input).
+    pub augmented_target: Tensor<4>,
+    /// Side of each student target.
+    pub student_sides: Vec<Side>,
+    /// Side of each teacher target.
+    pub teacher_sides: Vec<Side>,
+    /// Baseline ratio `r = B_s / B_t` of each item.
+    pub ratios: Vec<f64>,
 }

@@ -19,7 +19,7 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::error::TrainError;
 
-pub use batch::{HostBatch, image_tensor};
+pub use batch::{HostBatch, StepBatch};
 pub use loader::BatchLoader;
 pub use samples::{TrainingSamples, ViewPaths};
 pub use validation::{ValidationPair, ValidationSet};

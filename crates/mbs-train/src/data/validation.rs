@@ -4,12 +4,12 @@
 use std::path::{Path, PathBuf};
 
 use burn::tensor::Device;
-use mbs_core::formats::read_disparity;
-use mbs_core::formats::rgb::{read_mask, read_rgb};
+use mbs_core::formats::rgb::read_rgb;
 use mbs_core::metrics::{Metrics, Region, RegionSums, evaluate};
 use mbs_core::{FloatImage, MaskImage, RgbImage, Side};
 use mbs_dataset::Manifest;
-use mbs_dataset::manifest::{Split, resolve};
+use mbs_dataset::ground_truth::{GroundTruthPair, check_cameras, sample_pairs, sample_view};
+use mbs_dataset::manifest::Split;
 
 use crate::backbone::Backbone;
 use crate::error::TrainError;
@@ -23,18 +23,8 @@ pub const THRESHOLDS: [f32; 3] = [1.0, 2.0, 3.0];
 pub struct ValidationPair {
     /// `<sample id> <reference>:<target>`.
     pub name: String,
-    /// The reference image.
-    pub reference: PathBuf,
-    /// The target image.
-    pub target: PathBuf,
-    /// Side of the target.
-    pub side: Side,
-    /// Ground-truth disparity file.
-    pub gt: PathBuf,
-    /// The pair's disparity is this times the file's values.
-    pub gt_scale: f32,
-    /// Mask of occluded reference pixels (255 = occluded), if any.
-    pub occlusion: Option<PathBuf>,
+    /// The views and their ground truth.
+    pub pair: GroundTruthPair,
     /// The farthest view on the target's side and its baseline ratio to
     /// the pair's: the student's target in the visual outputs, so the
     /// weight map shows what only the teacher sees.
@@ -57,26 +47,18 @@ pub struct LoadedPair {
 impl ValidationPair {
     /// Reads the pair's files.
     pub fn load(&self) -> Result<LoadedPair, TrainError> {
-        let image = |p: &Path| read_rgb(p);
-        let mut gt = read_disparity(&self.gt, None)?;
-        if self.gt_scale != 1.0 {
-            gt.iter_mut().for_each(|d| *d *= self.gt_scale);
-        }
-        let noc = match &self.occlusion {
-            Some(path) => {
-                let mut mask = read_mask(path)?;
-                mask.iter_mut()
-                    .for_each(|v| *v = if *v == 0 { 255 } else { 0 });
-                Some(mask)
-            }
-            None => None,
-        };
+        let gt = self.pair.load(None)?;
         Ok(LoadedPair {
-            reference: image(&self.reference)?,
-            target: image(&self.target)?,
-            gt,
-            noc,
+            reference: read_rgb(&self.pair.reference)?,
+            target: read_rgb(&self.pair.target)?,
+            gt: gt.disparity,
+            noc: gt.noc,
         })
+    }
+
+    /// Side of the target.
+    pub fn side(&self) -> Side {
+        self.pair.side
     }
 }
 
@@ -100,16 +82,8 @@ impl ValidationSet {
         limit: usize,
     ) -> Result<Self, TrainError> {
         let views = manifest.rig.num_views;
-        for &[reference, target] in pairs {
-            if reference >= views || target >= views || reference == target {
-                return Err(TrainError::data(
-                    path,
-                    format!(
-                        "validation pair {reference}:{target} does not fit a {views}-camera rig"
-                    ),
-                ));
-            }
-        }
+        let cameras: Vec<(usize, usize)> = pairs.iter().map(|&[r, t]| (r, t)).collect();
+        check_cameras(path, manifest, &cameras)?;
         let held_out = |split| manifest.samples.iter().filter(move |s| s.split == split);
         let split = split.unwrap_or(if held_out(Split::Val).next().is_some() {
             Split::Val
@@ -119,40 +93,16 @@ impl ValidationSet {
         let limit = if limit == 0 { usize::MAX } else { limit };
         let mut set = ValidationSet::default();
         for sample in held_out(split).take(limit) {
-            for &[reference, target] in pairs {
-                let Some(gt) = sample
-                    .ground_truth
-                    .iter()
-                    .find(|g| g.reference == reference && g.target == target)
-                else {
-                    continue;
-                };
-                let view = |k: usize| {
-                    sample
-                        .views
-                        .get(k)
-                        .map(|v| resolve(path, v))
-                        .ok_or_else(|| {
-                            TrainError::data(path, format!("sample {} has no view {k}", sample.id))
-                        })
-                };
+            for pair in sample_pairs(path, sample, &cameras)? {
+                let (reference, target) = pair.cameras;
                 let wide = if target > reference { views - 1 } else { 0 };
                 set.pairs.push(ValidationPair {
                     name: format!("{} {reference}:{target}", sample.id),
-                    reference: view(reference)?,
-                    target: view(target)?,
-                    side: if target > reference {
-                        Side::Right
-                    } else {
-                        Side::Left
-                    },
-                    gt: resolve(path, &gt.disparity),
-                    gt_scale: gt.scale as f32,
-                    occlusion: gt.occlusion.as_ref().map(|o| resolve(path, o)),
                     wide_target: (
-                        view(wide)?,
+                        sample_view(path, sample, wide)?,
                         manifest.rig.baseline_ratio(reference, wide, target),
                     ),
+                    pair,
                 });
             }
         }
@@ -174,9 +124,9 @@ impl ValidationSet {
         for pair in &self.pairs {
             let loaded = pair.load()?;
             let prediction =
-                predict_image(net, &loaded.reference, &loaded.target, pair.side, device)?;
+                predict_image(net, &loaded.reference, &loaded.target, pair.side(), device)?;
             let sums = evaluate(&prediction, &loaded.gt, loaded.noc.as_ref(), &THRESHOLDS)
-                .map_err(|e| TrainError::data(&pair.gt, e))?;
+                .map_err(|e| TrainError::data(&pair.pair.disparity, e))?;
             pooled.merge(&sums);
         }
         Ok(ValidationMetrics {

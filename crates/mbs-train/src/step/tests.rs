@@ -8,7 +8,7 @@ use crate::backbone::CostVolumeNetConfig;
 use crate::sampling::{Triplet, TripletSampler};
 use burn::module::Module;
 use burn::tensor::{Device, TensorData};
-use mbs_core::geometry::Rig;
+use mbs_core::geometry::{Rig, Side};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -19,6 +19,10 @@
 //!   evaluation (the built-in SGM does, from the background side).
 //! - An empty set of pixels gives `None`, never `NaN`.
 
+mod report;
+
+pub use report::{MetricsReport, metrics_json};
+
 use crate::{FloatImage, MaskImage};
 
 /// The Out-x thresholds tracked by [`ErrorSums::new`] (pixels).
