@@ -63,6 +63,12 @@ impl From<mbs_dataset::DatasetError> for TrainError {
     }
 }
 
+impl From<mbs_viz::VizError> for TrainError {
+    fn from(e: mbs_viz::VizError) -> Self {
+        TrainError::Input(format!("drawing: {e}"))
+    }
+}
+
 impl TrainError {
     /// A [`TrainError::Data`] for `path`.
     pub fn data(path: impl Into<PathBuf>, reason: impl ToString) -> Self {

@@ -34,6 +34,7 @@ pub mod run;
 pub mod sampling;
 pub mod schedule;
 pub mod step;
+pub mod tensorboard;
 
 #[cfg(test)]
 mod test_util;

@@ -6,6 +6,9 @@
 //! <out>/config.json         the run's complete configuration
 //! <out>/train.jsonl         loss terms, LR, momentum, samples/s every `log_every` steps
 //! <out>/val.jsonl           EPE and Out-x over ALL/NOC/OCC every `val_every` steps
+//! <out>/loss.png, val.png   the curves of both logs
+//! <out>/visuals/step-N/     contact sheets of the first validation pairs
+//! <out>/tensorboard/        TensorBoard events: every logged number, the sheets
 //! <out>/checkpoints/step-N/ student, teacher, optimiser, state.json
 //! ```
 //!
@@ -14,18 +17,14 @@
 //! uninterrupted run (see [`crate::data::step_rng`]).
 
 use std::fs;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Instant;
 
 use burn::tensor::Device;
 use mbs_core::atomic::write_bytes_atomic;
-use mbs_core::metrics::{Metrics, Region};
 use mbs_core::{FloatImage, RgbImage};
 use mbs_dataset::Manifest;
-use serde_json::{Value, json};
 
 use crate::backbone::CostVolumeNet;
 use crate::checkpoint::{self, Checkpoint};
@@ -37,31 +36,29 @@ use crate::error::TrainError;
 use crate::host::image_tensor;
 use crate::step::{S3Trainer, StepReport};
 
-/// File of the loss log.
-pub const TRAIN_LOG: &str = "train.jsonl";
-/// File of the validation log.
-pub const VAL_LOG: &str = "val.jsonl";
+mod logs;
+mod report;
+mod resume;
+
+use logs::{Interval, open_log, truncate_log, write_line};
+pub use logs::{TRAIN_LOG, VAL_LOG, read_log, validation_json};
+use report::RunReport;
+pub use report::{LOSS_PLOT, TENSORBOARD_DIR, VAL_PLOT, VISUALS_DIR};
+use resume::check_resumable;
+
 /// File of the run's configuration.
 pub const CONFIG_FILE: &str = "config.json";
-
-/// Keys that may change between a run and its resumption: they do not
-/// change what is computed.
-const OPERATIONAL_KEYS: [&str; 6] = [
-    "log_every",
-    "val_every",
-    "checkpoint_every",
-    "keep_checkpoints",
-    "visual_samples",
-    "data",
-];
 
 /// What a run reports while it goes; every method has a default that
 /// ignores the event.
 pub trait Observer {
     /// After each step, with the throughput of the last logging interval.
     fn on_step(&mut self, _report: &StepReport, _samples_per_second: f64) {}
-    /// After each validation, with the visual samples.
-    fn on_validation(&mut self, _steps: usize, _metrics: &ValidationMetrics, _visuals: &[Visual]) {}
+    /// After each validation (its sheets and curves are drawn by then).
+    fn on_validation(&mut self, _steps: usize, _metrics: &ValidationMetrics) {}
+    /// When a picture or TensorBoard event could not be written: training
+    /// goes on.
+    fn on_warning(&mut self, _warning: &TrainError) {}
     /// After each checkpoint.
     fn on_checkpoint(&mut self, _steps: usize, _dir: &Path) {}
 }
@@ -70,6 +67,14 @@ pub trait Observer {
 pub struct Quiet;
 
 impl Observer for Quiet {}
+
+/// Hands a failed drawing or event write to the observer: pictures must
+/// not stop training.
+fn warn(observer: &mut dyn Observer, result: Result<(), TrainError>) {
+    if let Err(e) = result {
+        observer.on_warning(&e);
+    }
+}
 
 /// Maps of one validation pair for the visual outputs.
 #[derive(Debug, Clone)]
@@ -120,6 +125,7 @@ pub struct TrainingRun {
     validation: ValidationSet,
     trainer: S3Trainer<CostVolumeNet>,
     device: Device,
+    report: RunReport,
 }
 
 impl TrainingRun {
@@ -189,8 +195,10 @@ impl TrainingRun {
             .map_err(|e| TrainError::Config(e.to_string()))?;
         let config_path = out.join(CONFIG_FILE);
         write_bytes_atomic(&config_path, &config_json)?;
+        let report = RunReport::open(out, config.network.max_disparity as f32)?;
         Ok((
             Self {
+                report,
                 out: out.to_path_buf(),
                 config,
                 samples: Arc::new(samples),
@@ -231,7 +239,7 @@ impl TrainingRun {
     ) -> Result<End, TrainError> {
         let total = self.config.steps();
         let first = self.trainer.steps_taken();
-        let data = &self.config.data;
+        let data = self.config.data.clone();
         let mut loader = BatchLoader::start(
             Arc::clone(&self.samples),
             data.batch_size,
@@ -254,11 +262,10 @@ impl TrainingRun {
             interval.add(&report);
             observer.on_step(&report, interval.samples_per_second(data.batch_size));
             if taken % self.config.log_every == 0 || taken == total {
-                write_line(
-                    &mut log,
-                    &self.out.join(TRAIN_LOG),
-                    &interval.json(taken, data.batch_size),
-                )?;
+                let line = interval.json(taken, data.batch_size);
+                write_line(&mut log, &self.out.join(TRAIN_LOG), &line)?;
+                let logged = self.report.log_line("train", &line);
+                warn(observer, logged);
                 interval = Interval::new();
             }
             if taken % self.config.val_every == 0 || taken == total {
@@ -272,6 +279,7 @@ impl TrainingRun {
                 return Ok(End::Stopped(taken));
             }
         }
+        warn(observer, self.report.curves());
         Ok(End::Finished {
             metrics: metrics.map(Box::new),
         })
@@ -295,7 +303,7 @@ impl TrainingRun {
     /// Scores the teacher, logs to `val.jsonl` and draws the visuals;
     /// `None` when there is nothing to score.
     fn validate(
-        &self,
+        &mut self,
         observer: &mut dyn Observer,
     ) -> Result<Option<ValidationMetrics>, TrainError> {
         if self.validation.is_empty() {
@@ -307,7 +315,9 @@ impl TrainingRun {
             .evaluate(self.trainer.teacher(), &self.device)?;
         let path = self.out.join(VAL_LOG);
         let mut log = open_log(&path)?;
-        write_line(&mut log, &path, &validation_json(steps, &metrics))?;
+        let line = validation_json(steps, &metrics);
+        write_line(&mut log, &path, &line)?;
+        warn(observer, self.report.log_line("val", &line));
         let visuals = self
             .validation
             .pairs
@@ -315,7 +325,9 @@ impl TrainingRun {
             .take(self.config.visual_samples)
             .map(|pair| self.visual(pair))
             .collect::<Result<Vec<_>, _>>()?;
-        observer.on_validation(steps, &metrics, &visuals);
+        warn(observer, self.report.visuals(steps, &visuals));
+        warn(observer, self.report.curves());
+        observer.on_validation(steps, &metrics);
         Ok(Some(metrics))
     }
 
@@ -359,188 +371,4 @@ impl TrainingRun {
             gt: loaded.gt,
         })
     }
-}
-
-/// Refuses to resume `checkpoint` under a configuration that computes
-/// something else (only the keys in [`OPERATIONAL_KEYS`] may differ, and
-/// `data` only in its loading and validation settings).
-fn check_resumable(checkpoint: &Checkpoint, config: &RunConfig) -> Result<(), TrainError> {
-    let strip = |mut value: Value| {
-        if let Value::Object(map) = &mut value {
-            for key in OPERATIONAL_KEYS {
-                if key == "data" {
-                    if let Some(Value::Object(data)) = map.get_mut("data") {
-                        for operational in ["workers", "val_pairs", "val_samples", "val_split"] {
-                            data.remove(operational);
-                        }
-                    }
-                } else {
-                    map.remove(key);
-                }
-            }
-        }
-        value
-    };
-    let saved = strip(checkpoint.state.config.clone());
-    let wanted = strip(config.to_json()?);
-    if saved != wanted {
-        let mut differing = Vec::new();
-        diff(&saved, &wanted, "", &mut differing);
-        return Err(TrainError::checkpoint(
-            &checkpoint.dir,
-            format!(
-                "was trained with other settings ({}); use a new --out, or --restart to discard it",
-                differing.join(", ")
-            ),
-        ));
-    }
-    Ok(())
-}
-
-/// Dotted paths where `a` and `b` differ.
-fn diff(a: &Value, b: &Value, prefix: &str, out: &mut Vec<String>) {
-    match (a, b) {
-        (Value::Object(a), Value::Object(b)) => {
-            for key in a.keys().chain(b.keys().filter(|k| !a.contains_key(*k))) {
-                let path = if prefix.is_empty() {
-                    key.clone()
-                } else {
-                    format!("{prefix}.{key}")
-                };
-                match (a.get(key), b.get(key)) {
-                    (Some(x), Some(y)) => diff(x, y, &path, out),
-                    (Some(x), None) => out.push(format!("{path}: {x} -> missing")),
-                    (None, Some(y)) => out.push(format!("{path}: missing -> {y}")),
-                    (None, None) => {}
-                }
-            }
-        }
-        (a, b) if a != b => out.push(format!("{prefix}: {a} -> {b}")),
-        _ => {}
-    }
-}
-
-/// Keeps the lines of a JSONL log whose `step` is at most `steps` (and
-/// drops a torn last line), rewriting the file atomically.
-fn truncate_log(path: &Path, steps: usize) -> Result<(), TrainError> {
-    let text = match fs::read_to_string(path) {
-        Ok(text) => text,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) => return Err(TrainError::data(path, e)),
-    };
-    let kept: String = text
-        .lines()
-        .filter(|line| {
-            serde_json::from_str::<Value>(line)
-                .ok()
-                .and_then(|v| v.get("step").and_then(Value::as_u64))
-                .is_some_and(|step| step as usize <= steps)
-        })
-        .map(|line| format!("{line}\n"))
-        .collect();
-    Ok(write_bytes_atomic(path, kept.as_bytes())?)
-}
-
-fn open_log(path: &Path) -> Result<fs::File, TrainError> {
-    if let Some(parent) = path.parent() {
-        fs::create_dir_all(parent).map_err(|e| TrainError::data(parent, e))?;
-    }
-    fs::OpenOptions::new()
-        .create(true)
-        .append(true)
-        .open(path)
-        .map_err(|e| TrainError::data(path, e))
-}
-
-fn write_line(file: &mut fs::File, path: &Path, value: &Value) -> Result<(), TrainError> {
-    writeln!(file, "{value}").map_err(|e| TrainError::data(path, e))
-}
-
-/// Means of the step reports of one logging interval.
-struct Interval {
-    start: Instant,
-    steps: usize,
-    loss: f64,
-    geometry: f64,
-    photometric: f64,
-    smoothness: f64,
-    last: Option<StepReport>,
-}
-
-impl Interval {
-    fn new() -> Self {
-        Self {
-            start: Instant::now(),
-            steps: 0,
-            loss: 0.0,
-            geometry: 0.0,
-            photometric: 0.0,
-            smoothness: 0.0,
-            last: None,
-        }
-    }
-
-    fn add(&mut self, report: &StepReport) {
-        self.steps += 1;
-        self.loss += f64::from(report.loss);
-        self.geometry += f64::from(report.terms.geometry.unwrap_or(0.0));
-        self.photometric += f64::from(report.terms.photometric.unwrap_or(0.0));
-        self.smoothness += f64::from(report.terms.smoothness.unwrap_or(0.0));
-        self.last = Some(*report);
-    }
-
-    fn samples_per_second(&self, batch_size: usize) -> f64 {
-        let seconds = self.start.elapsed().as_secs_f64();
-        if seconds > 0.0 {
-            (self.steps * batch_size) as f64 / seconds
-        } else {
-            0.0
-        }
-    }
-
-    fn json(&self, steps: usize, batch_size: usize) -> Value {
-        let n = self.steps.max(1) as f64;
-        let last = self.last.unwrap_or(StepReport {
-            step: steps,
-            loss: 0.0,
-            terms: Default::default(),
-            grad_norm: 0.0,
-            lr: 0.0,
-            momentum: 0.0,
-        });
-        let term = |on: Option<f32>, sum: f64| on.map(|_| sum / n);
-        json!({
-            "step": steps,
-            "loss": self.loss / n,
-            "geometry": term(last.terms.geometry, self.geometry),
-            "photometric": term(last.terms.photometric, self.photometric),
-            "smoothness": term(last.terms.smoothness, self.smoothness),
-            "lr": last.lr,
-            "momentum": last.momentum,
-            "grad_norm": last.grad_norm,
-            "samples_per_s": self.samples_per_second(batch_size),
-        })
-    }
-}
-
-/// A `val.jsonl` line.
-pub fn validation_json(steps: usize, metrics: &ValidationMetrics) -> Value {
-    let region = |m: Option<&Metrics>| {
-        m.map(|m| {
-            json!({
-                "pixels": m.pixels,
-                "epe": m.epe,
-                "out1": m.out(1.0),
-                "out2": m.out(2.0),
-                "out3": m.out(3.0),
-            })
-        })
-    };
-    json!({
-        "step": steps,
-        "pairs": metrics.pairs,
-        "ALL": region(metrics.region(Region::All)),
-        "NOC": region(metrics.region(Region::Noc)),
-        "OCC": region(metrics.region(Region::Occ)),
-    })
 }

@@ -1,0 +1,163 @@
+//! The run's JSONL logs: loss terms per interval (`train.jsonl`) and
+//! validation metrics (`val.jsonl`), appended line by line and cut back to
+//! a checkpoint's step on resumption.
+
+use std::fs;
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+
+use mbs_core::atomic::write_bytes_atomic;
+use mbs_core::metrics::{Metrics, Region};
+use serde_json::{Value, json};
+
+use crate::data::validation::ValidationMetrics;
+use crate::error::TrainError;
+use crate::step::StepReport;
+
+/// File of the loss log.
+pub const TRAIN_LOG: &str = "train.jsonl";
+/// File of the validation log.
+pub const VAL_LOG: &str = "val.jsonl";
+
+/// Keeps the lines of a JSONL log whose `step` is at most `steps` (and
+/// drops a torn last line), rewriting the file atomically.
+pub(crate) fn truncate_log(path: &Path, steps: usize) -> Result<(), TrainError> {
+    let text = match fs::read_to_string(path) {
+        Ok(text) => text,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(TrainError::data(path, e)),
+    };
+    let kept: String = text
+        .lines()
+        .filter(|line| {
+            serde_json::from_str::<Value>(line)
+                .ok()
+                .and_then(|v| v.get("step").and_then(Value::as_u64))
+                .is_some_and(|step| step as usize <= steps)
+        })
+        .map(|line| format!("{line}\n"))
+        .collect();
+    Ok(write_bytes_atomic(path, kept.as_bytes())?)
+}
+
+/// The lines of a JSONL log (a missing file has none; torn lines are
+/// skipped).
+pub fn read_log(path: &Path) -> Result<Vec<Value>, TrainError> {
+    match fs::read_to_string(path) {
+        Ok(text) => Ok(text
+            .lines()
+            .filter_map(|l| serde_json::from_str(l).ok())
+            .collect()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(Vec::new()),
+        Err(e) => Err(TrainError::data(path, e)),
+    }
+}
+
+pub(crate) fn open_log(path: &Path) -> Result<fs::File, TrainError> {
+    if let Some(parent) = path.parent() {
+        fs::create_dir_all(parent).map_err(|e| TrainError::data(parent, e))?;
+    }
+    fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(path)
+        .map_err(|e| TrainError::data(path, e))
+}
+
+pub(crate) fn write_line(
+    file: &mut fs::File,
+    path: &Path,
+    value: &Value,
+) -> Result<(), TrainError> {
+    writeln!(file, "{value}").map_err(|e| TrainError::data(path, e))
+}
+
+/// Means of the step reports of one logging interval.
+pub(crate) struct Interval {
+    start: Instant,
+    steps: usize,
+    loss: f64,
+    geometry: f64,
+    photometric: f64,
+    smoothness: f64,
+    last: Option<StepReport>,
+}
+
+impl Interval {
+    pub(crate) fn new() -> Self {
+        Self {
+            start: Instant::now(),
+            steps: 0,
+            loss: 0.0,
+            geometry: 0.0,
+            photometric: 0.0,
+            smoothness: 0.0,
+            last: None,
+        }
+    }
+
+    pub(crate) fn add(&mut self, report: &StepReport) {
+        self.steps += 1;
+        self.loss += f64::from(report.loss);
+        self.geometry += f64::from(report.terms.geometry.unwrap_or(0.0));
+        self.photometric += f64::from(report.terms.photometric.unwrap_or(0.0));
+        self.smoothness += f64::from(report.terms.smoothness.unwrap_or(0.0));
+        self.last = Some(*report);
+    }
+
+    pub(crate) fn samples_per_second(&self, batch_size: usize) -> f64 {
+        let seconds = self.start.elapsed().as_secs_f64();
+        if seconds > 0.0 {
+            (self.steps * batch_size) as f64 / seconds
+        } else {
+            0.0
+        }
+    }
+
+    pub(crate) fn json(&self, steps: usize, batch_size: usize) -> Value {
+        let n = self.steps.max(1) as f64;
+        let last = self.last.unwrap_or(StepReport {
+            step: steps,
+            loss: 0.0,
+            terms: Default::default(),
+            grad_norm: 0.0,
+            lr: 0.0,
+            momentum: 0.0,
+        });
+        let term = |on: Option<f32>, sum: f64| on.map(|_| sum / n);
+        json!({
+            "step": steps,
+            "loss": self.loss / n,
+            "geometry": term(last.terms.geometry, self.geometry),
+            "photometric": term(last.terms.photometric, self.photometric),
+            "smoothness": term(last.terms.smoothness, self.smoothness),
+            "lr": last.lr,
+            "momentum": last.momentum,
+            "grad_norm": last.grad_norm,
+            "samples_per_s": self.samples_per_second(batch_size),
+        })
+    }
+}
+
+/// A `val.jsonl` line.
+pub fn validation_json(steps: usize, metrics: &ValidationMetrics) -> Value {
+    let region = |m: Option<&Metrics>| {
+        m.map(|m| {
+            json!({
+                "pixels": m.pixels,
+                "epe": m.epe,
+                "out1": m.out(1.0),
+                "out2": m.out(2.0),
+                "out3": m.out(3.0),
+            })
+        })
+    };
+    json!({
+        "step": steps,
+        "pairs": metrics.pairs,
+        "ALL": region(metrics.region(Region::All)),
+        "NOC": region(metrics.region(Region::Noc)),
+        "OCC": region(metrics.region(Region::Occ)),
+    })
+}

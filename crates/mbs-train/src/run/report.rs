@@ -1,0 +1,193 @@
+//! What a run shows besides its logs: contact sheets of the validation
+//! pairs (`visuals/step-N/`), the loss and validation curves (`loss.png`,
+//! `val.png`), and TensorBoard event files (`tensorboard/`) with every
+//! logged number and the contact sheets.
+
+use std::path::{Path, PathBuf};
+
+use mbs_core::FloatImage;
+use mbs_core::formats::rgb::write_rgb_png;
+use mbs_viz::{LineChart, Series, colorize_disparity, side_by_side, weight_map_image};
+use serde_json::Value;
+
+use super::Visual;
+use super::logs::{TRAIN_LOG, VAL_LOG, read_log};
+use crate::error::TrainError;
+use crate::tensorboard::EventWriter;
+
+/// The curves of a run.
+pub const LOSS_PLOT: &str = "loss.png";
+/// The validation curves of a run.
+pub const VAL_PLOT: &str = "val.png";
+/// Folder of the contact sheets.
+pub const VISUALS_DIR: &str = "visuals";
+/// Folder of the TensorBoard event files.
+pub const TENSORBOARD_DIR: &str = "tensorboard";
+
+/// The sheets, curves and events of one run.
+pub(crate) struct RunReport {
+    out: PathBuf,
+    max_disparity: f32,
+    events: EventWriter,
+}
+
+/// The numbers of a log line as `(prefix/key, value)`, nested objects
+/// joined with `/` (`val/ALL/out3`); `step` itself is left out.
+fn scalars(prefix: &str, value: &Value, out: &mut Vec<(String, f32)>) {
+    match value {
+        Value::Object(map) => {
+            for (key, v) in map {
+                if prefix.is_empty() && key == "step" {
+                    continue;
+                }
+                let tag = if prefix.is_empty() {
+                    key.clone()
+                } else {
+                    format!("{prefix}/{key}")
+                };
+                scalars(&tag, v, out);
+            }
+        }
+        Value::Number(n) => {
+            if let Some(v) = n.as_f64() {
+                out.push((prefix.to_string(), v as f32));
+            }
+        }
+        _ => {}
+    }
+}
+
+impl RunReport {
+    /// Starts the report of the run in `out`: a new event file in
+    /// `out/tensorboard/`.
+    pub fn open(out: &Path, max_disparity: f32) -> Result<Self, TrainError> {
+        Ok(Self {
+            out: out.to_path_buf(),
+            max_disparity,
+            events: EventWriter::create(&out.join(TENSORBOARD_DIR))?,
+        })
+    }
+
+    /// Logs the numbers of a log line under `group/` (e.g. `train/loss`).
+    pub fn log_line(&mut self, group: &str, line: &Value) -> Result<(), TrainError> {
+        let step = line["step"].as_u64().unwrap_or(0);
+        let mut values = Vec::new();
+        scalars("", line, &mut values);
+        for (tag, value) in values {
+            self.events.scalar(&format!("{group}/{tag}"), step, value)?;
+        }
+        self.events.flush()
+    }
+
+    /// Draws the contact sheet of each visual into `visuals/step-N/` and
+    /// logs it as a TensorBoard image: reference | teacher | student | GT
+    /// | weight map.
+    pub fn visuals(&mut self, steps: usize, visuals: &[Visual]) -> Result<(), TrainError> {
+        let dir = self.out.join(VISUALS_DIR).join(format!("step-{steps:07}"));
+        for (i, visual) in visuals.iter().enumerate() {
+            let colour = |map: &FloatImage| colorize_disparity(map, self.max_disparity);
+            let weights = weight_map_image(
+                &visual.reference,
+                &visual.teacher_mask,
+                &visual.student_mask,
+            )?;
+            let (teacher, student, gt) = (
+                colour(&visual.teacher),
+                colour(&visual.student),
+                colour(&visual.gt),
+            );
+            let sheet = side_by_side(&[&visual.reference, &teacher, &student, &gt, &weights])?;
+            let name: String = visual
+                .name
+                .chars()
+                .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+                .collect();
+            let path = dir.join(format!("{i:02}_{name}.png"));
+            write_rgb_png(&path, &sheet)?;
+            let png = std::fs::read(&path).map_err(|e| TrainError::data(&path, e))?;
+            let tag = format!("val/{i:02}_{name}");
+            self.events
+                .image(&tag, steps as u64, sheet.dimensions(), &png)?;
+        }
+        self.events.flush()
+    }
+
+    /// Redraws `loss.png` and `val.png` from the logs.
+    pub fn curves(&self) -> Result<(), TrainError> {
+        let train = read_log(&self.out.join(TRAIN_LOG))?;
+        let losses: Vec<Series> = ["loss", "geometry", "photometric", "smoothness"]
+            .iter()
+            .map(|key| series(&train, key, &[key]))
+            .filter(|s| !s.points.is_empty())
+            .collect();
+        if !losses.is_empty() {
+            LineChart {
+                title: "S3 loss terms (unweighted)".into(),
+                x_label: "training step".into(),
+                y_label: "loss (log scale)".into(),
+                log_y: true,
+                series: losses,
+            }
+            .write_png(&self.out.join(LOSS_PLOT))?;
+        }
+        let val = read_log(&self.out.join(VAL_LOG))?;
+        let out3: Vec<Series> = ["ALL", "NOC", "OCC"]
+            .iter()
+            .map(|region| series(&val, &format!("Out-3 {region}"), &[region, "out3"]))
+            .filter(|s| !s.points.is_empty())
+            .collect();
+        if !out3.is_empty() {
+            LineChart {
+                title: "Validation: teacher Out-3 on held-out pairs".into(),
+                x_label: "training step".into(),
+                y_label: "Out-3 (% of pixels)".into(),
+                log_y: false,
+                series: out3,
+            }
+            .write_png(&self.out.join(VAL_PLOT))?;
+        }
+        Ok(())
+    }
+}
+
+/// `(step, value at path)` of every log line that has a number there.
+fn series(lines: &[Value], name: &str, path: &[&str]) -> Series {
+    let points = lines
+        .iter()
+        .filter_map(|line| {
+            let step = line["step"].as_f64()?;
+            let value = path.iter().try_fold(line, |v, key| v.get(key))?.as_f64()?;
+            Some((step, value))
+        })
+        .collect();
+    Series {
+        name: name.to_string(),
+        points,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn log_lines_become_tagged_scalars() {
+        let line = serde_json::json!({
+            "step": 40,
+            "loss": 0.5,
+            "geometry": null,
+            "ALL": {"epe": 1.25, "out3": 4.0},
+        });
+        let mut values = Vec::new();
+        scalars("", &line, &mut values);
+        values.sort_by(|a, b| a.0.cmp(&b.0));
+        assert_eq!(
+            values,
+            [
+                ("ALL/epe".to_string(), 1.25),
+                ("ALL/out3".to_string(), 4.0),
+                ("loss".to_string(), 0.5)
+            ]
+        );
+    }
+}
