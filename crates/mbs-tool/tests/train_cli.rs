@@ -10,6 +10,7 @@ use std::process::Stdio;
 use std::time::{Duration, Instant};
 
 use common::{mbs_tool, run, text};
+use mbs_train::tensorboard::EventValue;
 use serde_json::Value;
 
 /// A small synthetic set: Town01 for training, Town10 held out.
@@ -104,10 +105,50 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     for region in ["ALL", "NOC", "OCC"] {
         assert!(val[2][region]["out3"].as_f64().is_some(), "{region}");
     }
+    let sheet_width = 5 * 128 + 4 * 4;
     for plot in ["loss.png", "val.png"] {
         let image = image::open(out.join(plot)).unwrap();
-        assert_eq!((image.width(), image.height()), (800, 480), "{plot}");
+        let size = (mbs_viz::chart::WIDTH, mbs_viz::chart::HEIGHT);
+        assert_eq!((image.width(), image.height()), size, "{plot}");
     }
+    // TensorBoard: the same numbers as the JSONL logs, and the sheets.
+    let event_files: Vec<_> = std::fs::read_dir(out.join("tensorboard"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(event_files.len(), 1, "{event_files:?}");
+    let events = mbs_train::tensorboard::read_events(&event_files[0]).unwrap();
+    let scalar = |tag: &str| -> Vec<(u64, f32)> {
+        events
+            .iter()
+            .filter_map(|e| match &e.value {
+                EventValue::Scalar(t, v) if t == tag => Some((e.step, *v)),
+                _ => None,
+            })
+            .collect()
+    };
+    let losses = scalar("train/loss");
+    assert_eq!(losses.len(), train.len());
+    for ((step, value), line) in losses.iter().zip(&train) {
+        assert_eq!(*step, line["step"].as_u64().unwrap());
+        let logged = line["loss"].as_f64().unwrap() as f32;
+        assert!((value - logged).abs() <= 1e-6 * logged.abs().max(1.0));
+    }
+    for tag in [
+        "train/lr",
+        "train/momentum",
+        "train/samples_per_s",
+        "train/geometry",
+    ] {
+        assert_eq!(scalar(tag).len(), train.len(), "{tag}");
+    }
+    let out3: Vec<u64> = scalar("val/OCC/out3").iter().map(|(s, _)| *s).collect();
+    assert_eq!(out3, vec![0, 3, 6]);
+    let images = events
+        .iter()
+        .filter(|e| matches!(&e.value, EventValue::Image(_, size, _) if *size == (sheet_width, 64)))
+        .count();
+    assert!(images >= 3, "{images} sheet images");
     let sheets: Vec<_> = std::fs::read_dir(out.join("visuals/step-0000006"))
         .unwrap()
         .map(|e| e.unwrap().path())
@@ -115,7 +156,7 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     assert!(!sheets.is_empty());
     // Reference | teacher | student | GT | weight map, 128 px each with 4 px gutters.
     let sheet = image::open(&sheets[0]).unwrap();
-    assert_eq!((sheet.width(), sheet.height()), (5 * 128 + 4 * 4, 64));
+    assert_eq!((sheet.width(), sheet.height()), (sheet_width, 64));
     assert!(out.join("checkpoints/step-0000006/teacher.bpk").is_file());
 
     // A finished run is not trained again.

@@ -7,6 +7,7 @@ use burn::tensor::{Tensor, TensorData};
 use rand::Rng;
 
 use crate::error::TrainError;
+use crate::ranges;
 
 /// Strength of each augmentation; factors are drawn uniformly from
 /// `[1 - s, 1 + s]`, as torchvision's `ColorJitter`.
@@ -43,29 +44,15 @@ impl AugmentConfig {
             ("contrast", self.contrast),
             ("saturation", self.saturation),
         ] {
-            if !(0.0..=1.0).contains(&value) {
-                return Err(TrainError::InvalidSetting {
-                    name,
-                    value: value.to_string(),
-                    reason: "a number in [0, 1]",
-                });
-            }
+            ranges::unit(name, value)?;
         }
-        if !(0.0..=1.0).contains(&self.occlusion_probability) {
-            return Err(TrainError::InvalidSetting {
-                name: "occlusion_probability",
-                value: self.occlusion_probability.to_string(),
-                reason: "a probability in [0, 1]",
-            });
-        }
-        if self.occlusion_min_side == 0 || self.occlusion_min_side > self.occlusion_max_side {
-            return Err(TrainError::InvalidSetting {
-                name: "occlusion_min_side",
-                value: format!("{}..={}", self.occlusion_min_side, self.occlusion_max_side),
-                reason: "1 <= min side <= max side",
-            });
-        }
-        Ok(())
+        ranges::unit("occlusion_probability", self.occlusion_probability)?;
+        ranges::require(
+            self.occlusion_min_side >= 1 && self.occlusion_min_side <= self.occlusion_max_side,
+            "occlusion_min_side",
+            format!("{}..={}", self.occlusion_min_side, self.occlusion_max_side),
+            "1 <= min side <= max side",
+        )
     }
 
     /// Augments a batch of pairs (`[B, 3, H, W]` in `[0, 1]`): the same

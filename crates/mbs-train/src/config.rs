@@ -15,6 +15,7 @@ use crate::backbone::CostVolumeNetConfig;
 use crate::data::DataConfig;
 use crate::error::TrainError;
 use crate::losses::LossConfig;
+use crate::ranges;
 use crate::schedule::OneCycleConfig;
 use crate::step::TrainerConfig;
 
@@ -114,25 +115,18 @@ impl RunConfig {
 
     /// Checks every part's ranges.
     pub fn validate(&self) -> Result<(), TrainError> {
-        self.trainer.loss.validate()?;
-        self.trainer.lr.init()?;
         self.augment.validate()?;
         self.data.validate()?;
+        self.trainer.validate()?;
         for (name, value) in [
             ("log_every", self.log_every),
             ("val_every", self.val_every),
             ("checkpoint_every", self.checkpoint_every),
             ("keep_checkpoints", self.keep_checkpoints),
         ] {
-            if value == 0 {
-                return Err(TrainError::InvalidSetting {
-                    name,
-                    value: "0".into(),
-                    reason: "at least 1",
-                });
-            }
+            ranges::at_least_one(name, value)?;
         }
-        Ok(())
+        self.network.validate()
     }
 }
 

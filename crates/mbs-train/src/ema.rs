@@ -6,6 +6,7 @@ use burn::module::{Module, ModuleMapper, ModuleVisitor, Param};
 use burn::tensor::Tensor;
 
 use crate::error::TrainError;
+use crate::ranges;
 
 /// Collects the student's float parameters, flattened, in visiting order.
 struct StudentReader {
@@ -68,13 +69,7 @@ impl ModuleMapper for TeacherUpdater {
 /// `momentum * teacher + (1 - momentum) * student`. The teacher is usually
 /// `student.valid()` (no autodiff); the student may be on an autodiff device.
 pub fn ema_update<M: Module>(teacher: M, student: &M, momentum: f64) -> Result<M, TrainError> {
-    if !(0.0..=1.0).contains(&momentum) {
-        return Err(TrainError::InvalidSetting {
-            name: "momentum",
-            value: momentum.to_string(),
-            reason: "a number in [0, 1]",
-        });
-    }
+    ranges::unit("momentum", momentum)?;
     let mut reader = StudentReader { values: Vec::new() };
     student.visit(&mut reader);
     let mut updater = TeacherUpdater {

@@ -30,6 +30,7 @@ pub mod inference;
 pub mod losses;
 pub mod mask;
 pub mod mirror;
+mod ranges;
 pub mod run;
 pub mod sampling;
 pub mod schedule;

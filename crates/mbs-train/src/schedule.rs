@@ -5,6 +5,7 @@ use std::f64::consts::PI;
 use burn::config::Config;
 
 use crate::error::TrainError;
+use crate::ranges;
 
 /// How the one-cycle schedule moves between its end points.
 #[derive(Config, Debug, Copy, PartialEq)]
@@ -52,33 +53,21 @@ pub struct OneCycleConfig {
 impl OneCycleConfig {
     /// Checks the ranges and gives the schedule.
     pub fn init(&self) -> Result<OneCycle, TrainError> {
-        let invalid = |name, value: String, reason| {
-            Err(TrainError::InvalidSetting {
-                name,
-                value,
-                reason,
-            })
-        };
-        if !(self.max_lr.is_finite() && self.max_lr > 0.0) {
-            return invalid("max_lr", self.max_lr.to_string(), "a positive number");
-        }
-        if self.total_steps < 2 {
-            return invalid("total_steps", self.total_steps.to_string(), "at least 2");
-        }
-        if !(self.pct_start > 0.0 && self.pct_start < 1.0) {
-            return invalid(
-                "pct_start",
-                self.pct_start.to_string(),
-                "a number in (0, 1)",
-            );
-        }
-        if !(self.div_factor > 0.0 && self.final_div_factor > 0.0) {
-            return invalid(
-                "div_factor",
-                format!("{} / {}", self.div_factor, self.final_div_factor),
-                "positive",
-            );
-        }
+        ranges::positive("max_lr", self.max_lr)?;
+        ranges::require(
+            self.total_steps >= 2,
+            "total_steps",
+            self.total_steps,
+            "at least 2",
+        )?;
+        ranges::require(
+            self.pct_start > 0.0 && self.pct_start < 1.0,
+            "pct_start",
+            self.pct_start,
+            "a number in (0, 1)",
+        )?;
+        ranges::positive("div_factor", self.div_factor)?;
+        ranges::positive("final_div_factor", self.final_div_factor)?;
         let initial = self.max_lr / self.div_factor;
         Ok(OneCycle {
             initial,

@@ -13,6 +13,7 @@ use crate::ema::ema_update;
 use crate::error::TrainError;
 use crate::host::{read_all, read_scalar};
 use crate::losses::{LossConfig, LossInputs, LossOutput, S3Loss};
+use crate::ranges;
 use crate::schedule::{CosineMomentum, OneCycle, OneCycleConfig};
 
 /// Everything a training run sets besides the network.
@@ -89,26 +90,23 @@ pub struct S3Trainer<B: Backbone> {
     step: usize,
 }
 
+impl TrainerConfig {
+    /// Checks the loss, schedule, EMA and clipping settings.
+    pub fn validate(&self) -> Result<(), TrainError> {
+        self.loss.validate()?;
+        self.lr.init()?;
+        ranges::unit("ema_base", self.ema_base)?;
+        ranges::positive("grad_clip_norm", self.grad_clip_norm)
+    }
+}
+
 impl<B: Backbone> S3Trainer<B> {
     /// A trainer for `student` (on an autodiff device); the teacher starts
     /// as a copy of it without autodiff (`student.valid()`).
     pub fn new(student: B, config: &TrainerConfig) -> Result<Self, TrainError> {
+        config.validate()?;
         let loss = S3Loss::new(config.loss.clone())?;
         let lr = config.lr.init()?;
-        if !(0.0..=1.0).contains(&config.ema_base) {
-            return Err(TrainError::InvalidSetting {
-                name: "ema_base",
-                value: config.ema_base.to_string(),
-                reason: "a number in [0, 1]",
-            });
-        }
-        if !(config.grad_clip_norm.is_finite() && config.grad_clip_norm > 0.0) {
-            return Err(TrainError::InvalidSetting {
-                name: "grad_clip_norm",
-                value: config.grad_clip_norm.to_string(),
-                reason: "a positive number",
-            });
-        }
         let optimizer = AdamConfig::new().init();
         Ok(Self {
             teacher: student.valid(),

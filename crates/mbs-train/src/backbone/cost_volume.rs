@@ -15,6 +15,7 @@ use burn::tensor::{Device, Int, Tensor};
 use super::Backbone;
 use super::upsample::upsample_bilinear;
 use crate::error::TrainError;
+use crate::ranges;
 
 /// Hyper-parameters of [`CostVolumeNet`].
 #[derive(Config, Debug, PartialEq)]
@@ -35,24 +36,23 @@ pub struct CostVolumeNetConfig {
 }
 
 impl CostVolumeNetConfig {
+    /// Checks the disparity range and the layer widths.
+    pub fn validate(&self) -> Result<(), TrainError> {
+        ranges::require(
+            self.max_disparity >= 4 && self.max_disparity % 4 == 0,
+            "max_disparity",
+            self.max_disparity,
+            "a positive multiple of 4",
+        )?;
+        for (name, value) in [("features", self.features), ("hidden", self.hidden)] {
+            ranges::require(value >= 2, name, value, "at least 2")?;
+        }
+        Ok(())
+    }
+
     /// Builds the network with fresh weights on `device`.
     pub fn init(&self, device: &Device) -> Result<CostVolumeNet, TrainError> {
-        if self.max_disparity < 4 || self.max_disparity % 4 != 0 {
-            return Err(TrainError::InvalidSetting {
-                name: "max_disparity",
-                value: self.max_disparity.to_string(),
-                reason: "a positive multiple of 4",
-            });
-        }
-        for (name, value) in [("features", self.features), ("hidden", self.hidden)] {
-            if value < 2 {
-                return Err(TrainError::InvalidSetting {
-                    name,
-                    value: value.to_string(),
-                    reason: "at least 2",
-                });
-            }
-        }
+        self.validate()?;
         let conv = |from: usize, to: usize, stride: usize| {
             Conv2dConfig::new([from, to], [3, 3])
                 .with_stride([stride, stride])

@@ -18,6 +18,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use crate::error::TrainError;
+use crate::ranges;
 
 pub use batch::{HostBatch, StepBatch};
 pub use loader::BatchLoader;
@@ -56,27 +57,13 @@ pub struct DataConfig {
 impl DataConfig {
     /// Checks the ranges.
     pub fn validate(&self) -> Result<(), TrainError> {
-        let positive = [("batch_size", self.batch_size), ("workers", self.workers)];
-        for (name, value) in positive {
-            if value == 0 {
-                return Err(TrainError::InvalidSetting {
-                    name,
-                    value: value.to_string(),
-                    reason: "at least 1",
-                });
-            }
-        }
+        ranges::at_least_one("batch_size", self.batch_size)?;
+        ranges::at_least_one("workers", self.workers)?;
         for (name, value) in [
             ("crop_height", self.crop_height),
             ("crop_width", self.crop_width),
         ] {
-            if value < 16 {
-                return Err(TrainError::InvalidSetting {
-                    name,
-                    value: value.to_string(),
-                    reason: "at least 16 pixels",
-                });
-            }
+            ranges::require(value >= 16, name, value, "at least 16 pixels")?;
         }
         Ok(())
     }

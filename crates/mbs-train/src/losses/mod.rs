@@ -13,6 +13,7 @@ use mbs_core::geometry::Side;
 
 use crate::error::TrainError;
 use crate::mask::{MaskParts, validity_mask, weight_map};
+use crate::ranges;
 use geometry::geometry_consistency;
 use photometric::photometric_map;
 use smoothness::edge_aware_smoothness;
@@ -86,55 +87,23 @@ impl LossConfig {
 
     /// Checks every value against its valid range.
     pub fn validate(&self) -> Result<(), TrainError> {
-        let invalid = |name, value: String, reason| {
-            Err(TrainError::InvalidSetting {
-                name,
-                value,
-                reason,
-            })
-        };
-        if !(self.tau.is_finite() && self.tau > 0.0) {
-            return invalid("tau", self.tau.to_string(), "a positive number");
-        }
-        if !(self.omega.is_finite() && self.omega >= 0.0) {
-            return invalid(
-                "omega",
-                self.omega.to_string(),
-                "a non-negative number (the paper uses > 1)",
-            );
-        }
-        if !(self.lambda_p.is_finite() && self.lambda_p >= 0.0) {
-            return invalid(
-                "lambda_p",
-                self.lambda_p.to_string(),
-                "a non-negative number",
-            );
-        }
-        if !(self.lambda_s_ratio.is_finite() && self.lambda_s_ratio >= 0.0) {
-            return invalid(
-                "lambda_s_ratio",
-                self.lambda_s_ratio.to_string(),
-                "a non-negative number",
-            );
-        }
-        if !(0.0..=1.0).contains(&self.alpha) {
-            return invalid("alpha", self.alpha.to_string(), "a number in [0, 1]");
-        }
-        if self.ssim_window % 2 == 0 {
-            return invalid(
-                "ssim_window",
-                self.ssim_window.to_string(),
-                "an odd window side such as 3 or 7",
-            );
-        }
-        if !(self.geometry || self.photometric || self.smoothness) {
-            return invalid(
-                "geometry/photometric/smoothness",
-                "all false".into(),
-                "at least one loss term on",
-            );
-        }
-        Ok(())
+        ranges::positive("tau", self.tau)?;
+        ranges::non_negative("omega", self.omega)?;
+        ranges::non_negative("lambda_p", self.lambda_p)?;
+        ranges::non_negative("lambda_s_ratio", self.lambda_s_ratio)?;
+        ranges::unit("alpha", self.alpha)?;
+        ranges::require(
+            self.ssim_window % 2 == 1,
+            "ssim_window",
+            self.ssim_window,
+            "an odd window side such as 3 or 7",
+        )?;
+        ranges::require(
+            self.geometry || self.photometric || self.smoothness,
+            "geometry/photometric/smoothness",
+            "all false",
+            "at least one loss term on",
+        )
     }
 }
 

@@ -1,0 +1,76 @@
+//! Range checks of the training settings: every setting's check goes
+//! through these, so each refusal names the setting, the value and what is
+//! allowed in the same words. `RunConfig::validate` runs them all.
+
+use crate::error::TrainError;
+
+/// Refuses `value` of setting `name` unless `ok`, saying what is allowed.
+pub(crate) fn require(
+    ok: bool,
+    name: &'static str,
+    value: impl ToString,
+    allowed: &'static str,
+) -> Result<(), TrainError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(TrainError::InvalidSetting {
+            name,
+            value: value.to_string(),
+            reason: allowed,
+        })
+    }
+}
+
+/// A number in `[0, 1]`.
+pub(crate) fn unit(name: &'static str, value: f64) -> Result<(), TrainError> {
+    require(
+        (0.0..=1.0).contains(&value),
+        name,
+        value,
+        "a number in [0, 1]",
+    )
+}
+
+/// A finite number above 0.
+pub(crate) fn positive(name: &'static str, value: f64) -> Result<(), TrainError> {
+    require(
+        value.is_finite() && value > 0.0,
+        name,
+        value,
+        "a positive number",
+    )
+}
+
+/// A finite number of at least 0.
+pub(crate) fn non_negative(name: &'static str, value: f64) -> Result<(), TrainError> {
+    require(
+        value.is_finite() && value >= 0.0,
+        name,
+        value,
+        "a non-negative number",
+    )
+}
+
+/// A count of at least 1.
+pub(crate) fn at_least_one(name: &'static str, value: usize) -> Result<(), TrainError> {
+    require(value >= 1, name, value, "at least 1")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refusals_name_the_setting_value_and_range() {
+        assert!(unit("alpha", 1.0).is_ok());
+        let err = unit("alpha", 1.5).unwrap_err().to_string();
+        assert_eq!(err, "invalid setting `alpha` = 1.5: a number in [0, 1]");
+        assert!(positive("tau", f64::NAN).is_err());
+        assert!(positive("tau", 0.0).is_err());
+        assert!(non_negative("omega", 0.0).is_ok());
+        assert!(non_negative("omega", f64::INFINITY).is_err());
+        let err = at_least_one("workers", 0).unwrap_err().to_string();
+        assert_eq!(err, "invalid setting `workers` = 0: at least 1");
+    }
+}
