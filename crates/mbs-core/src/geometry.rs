@@ -130,6 +130,16 @@ pub fn disparity_to_depth_value(disparity_px: f32, scale: f64) -> f32 {
     }
 }
 
+/// `depth` with every value beyond `max_depth_m` marked invalid (`+inf`).
+pub fn limit_depth(depth: &FloatImage, max_depth_m: f32) -> FloatImage {
+    let mut limited = depth.clone();
+    limited
+        .iter_mut()
+        .filter(|z| **z > max_depth_m)
+        .for_each(|z| *z = f32::INFINITY);
+    limited
+}
+
 /// Converts a depth map of camera `reference` into the disparity map of the
 /// pair (`reference`, `target`); depth beyond `max_depth_m` becomes invalid.
 pub fn depth_to_disparity(

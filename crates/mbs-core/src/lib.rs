@@ -1,5 +1,6 @@
 //! Rig geometry, image / disparity / depth types, file formats, disparity
-//! metrics and image-quality measures shared by every mbs crate.
+//! metrics and their reports, image-quality measures and the background-side
+//! fill, shared by every mbs crate.
 //!
 //! Conventions (see `SPEC.md` §2): cameras sit on one horizontal line, camera
 //! `k` at `x = k * B`; disparity is a non-negative magnitude on the reference

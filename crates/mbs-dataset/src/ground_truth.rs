@@ -11,7 +11,7 @@ use mbs_core::metrics::valid_mask;
 use mbs_core::{FloatImage, MaskImage, Side};
 
 use crate::DatasetError;
-use crate::kitti::KittiVersion;
+use crate::kitti::{KittiVersion, png_stems};
 use crate::manifest::{Manifest, Sample, Split, resolve};
 
 /// The extensions a disparity map is looked up by, in order.
@@ -207,22 +207,7 @@ pub fn kitti_pairs(dir: &Path) -> Result<Vec<GroundTruthPair>, DatasetError> {
             path: dir.to_path_buf(),
             message: "no KITTI ground truth (expected disp_occ_0 or disp_occ)".into(),
         })?;
-    let io = |source| DatasetError::Io {
-        path: occ.clone(),
-        source,
-    };
-    let mut names = Vec::new();
-    for entry in std::fs::read_dir(&occ).map_err(io)? {
-        let name = entry
-            .map_err(io)?
-            .file_name()
-            .to_string_lossy()
-            .into_owned();
-        if let Some(stem) = name.strip_suffix(".png") {
-            names.push(stem.to_string());
-        }
-    }
-    names.sort();
+    let names = png_stems(&occ)?;
     if names.is_empty() {
         return Err(DatasetError::Layout {
             path: occ,

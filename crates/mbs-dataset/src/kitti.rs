@@ -43,22 +43,7 @@ impl KittiFolder {
                         .into(),
             })?;
         let left_dir = root.join(version.view_dirs().0);
-        let io = |source| DatasetError::Io {
-            path: left_dir.clone(),
-            source,
-        };
-        let mut frames = Vec::new();
-        for entry in std::fs::read_dir(&left_dir).map_err(io)? {
-            let name = entry
-                .map_err(io)?
-                .file_name()
-                .to_string_lossy()
-                .into_owned();
-            if let Some(stem) = name.strip_suffix(".png") {
-                frames.push(stem.to_string());
-            }
-        }
-        frames.sort();
+        let frames = png_stems(&left_dir)?;
         if frames.is_empty() {
             return Err(DatasetError::Layout {
                 path: left_dir,
@@ -106,6 +91,27 @@ impl KittiFolder {
         )
         .filter(|p| p.is_file())
     }
+}
+
+/// The stems of the `.png` files in `dir`, sorted.
+pub fn png_stems(dir: &Path) -> Result<Vec<String>, DatasetError> {
+    let io = |source| DatasetError::Io {
+        path: dir.to_path_buf(),
+        source,
+    };
+    let mut stems = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(io)? {
+        let name = entry
+            .map_err(io)?
+            .file_name()
+            .to_string_lossy()
+            .into_owned();
+        if let Some(stem) = name.strip_suffix(".png") {
+            stems.push(stem.to_string());
+        }
+    }
+    stems.sort();
+    Ok(stems)
 }
 
 impl KittiVersion {

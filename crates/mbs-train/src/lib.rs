@@ -1,4 +1,4 @@
-//! S3 self-supervised multi-baseline stereo training on burn: losses, masks and weight map, EMA teacher, schedules, triplet sampling and backbones.
+//! S3 self-supervised multi-baseline stereo training on burn: losses, masks and weight map, EMA teacher, schedules, triplet sampling, data pipeline, backbones, checkpoints, and training runs with their logs, pictures and TensorBoard events.
 //!
 //! Everything runs on burn's run-time selected device (`Device::flex()` on
 //! CPU, `.autodiff()` for training); see `DESIGN.md` for the choice of burn.

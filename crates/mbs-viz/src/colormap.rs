@@ -38,6 +38,15 @@ pub fn turbo(t: f32) -> [u8; 3] {
     ]
 }
 
+/// The top of the colour scale for `maps`: their largest finite value, at
+/// least 1 (so an empty or all-zero map still gets a scale).
+pub fn disparity_scale<'a>(maps: impl IntoIterator<Item = &'a FloatImage>) -> f32 {
+    maps.into_iter()
+        .flat_map(|d| d.iter())
+        .filter(|d| d.is_finite())
+        .fold(1.0f32, |m, &d| m.max(d))
+}
+
 /// A colour picture of a disparity map: Turbo from 0 (blue, far) to `max`
 /// (red, near); invalid (non-finite) pixels are black.
 pub fn colorize_disparity(disparity: &FloatImage, max: f32) -> RgbImage {

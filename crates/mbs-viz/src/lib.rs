@@ -9,7 +9,7 @@ pub mod sheet;
 pub mod weight_map;
 
 pub use chart::{LineChart, Series};
-pub use colormap::{colorize_disparity, turbo};
+pub use colormap::{colorize_disparity, disparity_scale, turbo};
 pub use error::VizError;
 pub use sheet::{extrapolation_sheet, side_by_side};
 pub use weight_map::weight_map_image;

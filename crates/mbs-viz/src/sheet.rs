@@ -5,7 +5,7 @@ use image::{GenericImage, Rgb};
 use mbs_core::{FloatImage, MaskImage, RgbImage};
 
 use crate::VizError;
-use crate::colormap::colorize_disparity;
+use crate::colormap::{colorize_disparity, disparity_scale};
 
 /// Width of the white gap between tiles of [`side_by_side`].
 const GUTTER: u32 = 4;
@@ -74,11 +74,7 @@ pub fn extrapolation_sheet(
         )));
     }
     let (w, h) = size;
-    let max = disparities
-        .iter()
-        .flat_map(|d| d.iter())
-        .filter(|d| d.is_finite())
-        .fold(1.0f32, |m, &d| m.max(d));
+    let max = disparity_scale(disparities);
     let bottom = [
         tint(views[0], masks[0]),
         colorize_disparity(disparities[0], max),

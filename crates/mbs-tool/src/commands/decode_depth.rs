@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};
 use mbs_core::formats::{carla, exr, pfm, png16, rgb};
-use mbs_core::geometry::depth_to_disparity;
+use mbs_core::geometry::{depth_to_disparity, limit_depth};
 use mbs_core::{FloatImage, Rig};
 use mbs_dataset::Manifest;
 use mbs_dataset::manifest::resolve;
@@ -135,13 +135,7 @@ impl Plan {
         let encoded = rgb::read_rgb8_strict(&job.depth_png)?;
         let depth = carla::decode_depth(&encoded);
         if depth_missing {
-            let mut valid_depth = depth.clone();
-            let max = self.max_depth_m;
-            valid_depth
-                .iter_mut()
-                .filter(|z| **z > max)
-                .for_each(|z| *z = f32::INFINITY);
-            self.write_depth(&depth_path, &valid_depth)?;
+            self.write_depth(&depth_path, &limit_depth(&depth, self.max_depth_m))?;
         }
         for (target, path) in missing {
             let disparity =

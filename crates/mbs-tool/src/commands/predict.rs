@@ -11,7 +11,7 @@ use mbs_dataset::ground_truth::{check_cameras, sample_view};
 use mbs_dataset::kitti::KittiFolder;
 use mbs_infer::onnx::{ModelCard, OnnxStereo};
 use mbs_infer::{Disparity, Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max_disparity};
-use mbs_viz::colorize_disparity;
+use mbs_viz::colormap::{colorize_disparity, disparity_scale};
 
 use crate::cli::batch::{self, Outcome};
 use crate::cli::onnx::OnnxArgs;
@@ -253,7 +253,7 @@ fn predict_one(
         Some(network) => {
             let prediction = run_matcher(network, left, right, job.target_on_left)?;
             let top = match args.max_disparity {
-                0 => max_finite(&prediction),
+                0 => disparity_scale([&prediction.disparity]),
                 n => n as f32,
             };
             (prediction, top)
@@ -299,17 +299,6 @@ fn run_matcher(
     } else {
         matcher.predict(left, right)?
     })
-}
-
-/// The largest finite disparity (1 if there is none), the top of the colour
-/// scale.
-fn max_finite(prediction: &Disparity) -> f32 {
-    prediction
-        .disparity
-        .iter()
-        .copied()
-        .filter(|d| d.is_finite())
-        .fold(1.0, f32::max)
 }
 
 #[cfg(test)]
