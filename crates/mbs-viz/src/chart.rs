@@ -142,10 +142,11 @@ impl LineChart {
             let root = BitMapBackend::with_buffer(&mut buffer, (WIDTH, HEIGHT)).into_drawing_area();
             let x_range = padded(x_min, x_max, 0.02, false);
             let y_range = padded(y_min, y_max, 0.05, self.log_y);
+            let (corner, y_range) = self.legend_place(&curves, &x_range, y_range);
             let drawn = if self.log_y {
-                self.draw(&root, &curves, x_range, y_range.log_scale())
+                self.draw(&root, &curves, x_range, y_range.log_scale(), corner)
             } else {
-                self.draw(&root, &curves, x_range, y_range)
+                self.draw(&root, &curves, x_range, y_range, corner)
             };
             drawn.map_err(VizError::Draw)?;
             root.present().map_err(|e| VizError::Draw(e.to_string()))?;
@@ -161,6 +162,7 @@ impl LineChart {
         curves: &[Vec<(f64, f64)>],
         x: Range<f64>,
         y: Y,
+        legend: SeriesLabelPosition,
     ) -> Result<(), String>
     where
         Y: AsRangedCoord<Value = f64>,
@@ -212,12 +214,80 @@ impl LineChart {
         }
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(legend)
             .label_font((FONT, 15))
             .background_style(WHITE.mix(0.9))
             .border_style(RGBColor(170, 170, 170))
             .draw()
             .map_err(err)
+    }
+
+    /// Share of the plot's height the legend box takes.
+    fn legend_height(&self) -> f64 {
+        (0.065 * (self.series.len() as f64 + 1.0)).min(0.6)
+    }
+
+    /// Where the legend goes: the emptiest corner, or, when the curves pass
+    /// every corner, the upper right above headroom added to the value axis.
+    fn legend_place(
+        &self,
+        curves: &[Vec<(f64, f64)>],
+        x: &Range<f64>,
+        y: Range<f64>,
+    ) -> (SeriesLabelPosition, Range<f64>) {
+        let (corner, hidden) = self.emptiest_corner(curves, x, &y);
+        if hidden == 0 {
+            return (corner, y);
+        }
+        let grow = 1.0 / (1.0 - self.legend_height());
+        let top = if self.log_y {
+            y.start * (y.end / y.start).powf(grow)
+        } else {
+            y.start + (y.end - y.start) * grow
+        };
+        (SeriesLabelPosition::UpperRight, y.start..top)
+    }
+
+    /// The corner of the plot where the legend hides the fewest points,
+    /// upper right first, with the number of points it hides.
+    fn emptiest_corner(
+        &self,
+        curves: &[Vec<(f64, f64)>],
+        x: &Range<f64>,
+        y: &Range<f64>,
+    ) -> (SeriesLabelPosition, usize) {
+        let scale = |v: f64| if self.log_y { v.log10() } else { v };
+        let (y0, y1) = (scale(y.start), scale(y.end));
+        let fraction = |(px, py): (f64, f64)| {
+            (
+                (px - x.start) / (x.end - x.start),
+                (scale(py) - y0) / (y1 - y0),
+            )
+        };
+        // The legend box covers about this share of the plot from a corner.
+        let (width, height) = (0.3, self.legend_height());
+        let hidden = |right: bool, top: bool| {
+            curves
+                .iter()
+                .flatten()
+                .map(|&p| fraction(p))
+                .filter(|&(fx, fy)| {
+                    let in_x = if right { fx > 1.0 - width } else { fx < width };
+                    let in_y = if top { fy > 1.0 - height } else { fy < height };
+                    in_x && in_y
+                })
+                .count()
+        };
+        [
+            (SeriesLabelPosition::UpperRight, true, true),
+            (SeriesLabelPosition::UpperLeft, false, true),
+            (SeriesLabelPosition::LowerRight, true, false),
+            (SeriesLabelPosition::LowerLeft, false, false),
+        ]
+        .into_iter()
+        .map(|(corner, right, top)| (corner, hidden(right, top)))
+        .min_by_key(|&(_, n)| n)
+        .unwrap_or((SeriesLabelPosition::UpperRight, 0))
     }
 
     /// Draws the chart into a PNG at `path`, written atomically.
@@ -385,6 +455,27 @@ mod tests {
         .unwrap();
         assert!(count(&img, series_color(0)) > 20);
         assert!(count(&img, series_color(1)) > 300);
+    }
+
+    #[test]
+    fn the_legend_moves_off_the_curves() {
+        // Points only in the upper right: any other corner is chosen.
+        let corner_chart = chart(vec![series("a", vec![(90.0, 9.5), (95.0, 9.8)])], false);
+        let (c, y) = corner_chart.legend_place(&corner_chart.drawable(), &(0.0..100.0), 0.0..10.0);
+        assert!(!matches!(c, SeriesLabelPosition::UpperRight));
+        assert_eq!(y, 0.0..10.0);
+        // Nothing near the upper right: it stays there.
+        let low = chart(vec![series("a", vec![(0.0, 0.0), (10.0, 1.0)])], false);
+        let (c, _) = low.emptiest_corner(&low.drawable(), &(0.0..100.0), &(0.0..10.0));
+        assert!(matches!(c, SeriesLabelPosition::UpperRight));
+        // Curves through every corner: headroom above them for the legend.
+        let zigzag: Vec<(f64, f64)> = (0..=100)
+            .map(|i| (i as f64, (i % 2) as f64 * 10.0))
+            .collect();
+        let busy = chart(vec![series("z", zigzag)], false);
+        let (c, y) = busy.legend_place(&busy.drawable(), &(0.0..100.0), 0.0..10.0);
+        assert!(matches!(c, SeriesLabelPosition::UpperRight));
+        assert!(y.end > 11.0 && y.start == 0.0, "{y:?}");
     }
 
     #[test]
