@@ -123,6 +123,15 @@ impl KittiVersion {
         }
     }
 
+    /// Whether `dir` is named like a KITTI ground-truth folder of either
+    /// version (`disp_occ_0`, `disp_noc_0`, `disp_occ`, `disp_noc`).
+    pub fn is_ground_truth_dir(dir: &Path) -> bool {
+        let name = dir.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        [KittiVersion::Kitti2015, KittiVersion::Kitti2012]
+            .iter()
+            .any(|v| name == v.gt_dirs().0 || name == v.gt_dirs().1)
+    }
+
     /// The all-pixels and non-occluded ground-truth folder names.
     pub fn gt_dirs(self) -> (&'static str, &'static str) {
         match self {

@@ -179,11 +179,16 @@ fn kitti_folder_gets_sibling_views_from_sparse_ground_truth() {
         s(&gt_dir),
     ];
     let output = run(&args);
-    // Frame 1 has no disparity: it fails, named, and frame 0 is written.
-    assert!(!output.status.success(), "{}", text(&output));
+    // Frame 0 uses the file; frame 1 has none and gets the built-in matcher.
+    // Warping with KITTI's ground truth is allowed but warned about.
+    assert!(output.status.success(), "{}", text(&output));
     let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(stderr.contains("1 done, 0 skipped, 1 failed"), "{stderr}");
-    assert!(stderr.contains("000001_10.png: no disparity"), "{stderr}");
+    assert!(stderr.contains("2 done, 0 skipped, 0 failed"), "{stderr}");
+    assert!(
+        stderr.contains("disp_occ_0 is KITTI ground truth"),
+        "{stderr}"
+    );
+    assert!(root.join("image_1/000001_10.png").is_file());
     for folder in ["image_1", "image_4", "mask_1", "mask_4"] {
         assert!(
             root.join(folder).join("000000_10.png").is_file(),
@@ -196,10 +201,37 @@ fn kitti_folder_gets_sibling_views_from_sparse_ground_truth() {
             "{folder}"
         );
     }
-    assert!(!root.join("image_1/000001_10.png").exists());
     let image_1 = read_rgb(&root.join("image_1/000000_10.png")).unwrap();
     let p1 = psnr(&image_1, &read_rgb(&view(2)).unwrap(), None).unwrap();
     assert!(p1 > 30.2, "{p1}"); // measured 30.34, as from the PFM
+}
+
+#[test]
+fn a_plain_pair_uses_the_built_in_matcher() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let output = run(&[
+        "extrapolate",
+        "--left",
+        s(&view(3)),
+        "--right",
+        s(&view(4)),
+        "--out",
+        s(&out),
+    ]);
+    assert!(output.status.success(), "{}", text(&output));
+    for file in [
+        "image_1.png",
+        "image_4.png",
+        "disparity_2.pfm",
+        "manifest.json",
+    ] {
+        assert!(out.join(file).is_file(), "{file}");
+    }
+    let image_1 = read_rgb(&out.join("image_1.png")).unwrap();
+    let p = psnr(&image_1, &read_rgb(&view(2)).unwrap(), None).unwrap();
+    println!("plain pair, estimated range: col2 {p:.2} dB");
+    assert!(p > 28.7, "{p}"); // measured 28.88 dB
 }
 
 #[test]
@@ -216,13 +248,38 @@ fn errors_name_the_problem() {
         "--out",
         s(&out),
     ];
-    let output = run(&pair);
+    // A missing view is a usage error before any work: nothing is written.
+    let missing = dir.path().join("missing.png");
+    let output = run(&[
+        "extrapolate",
+        "--left",
+        s(&missing),
+        "--right",
+        s(&v4),
+        "--out",
+        s(&out),
+    ]);
     assert!(!output.status.success());
-    assert!(
-        text(&output).contains("give --left-disparity and/or --right-disparity"),
-        "{}",
-        text(&output)
-    );
+    let message = text(&output);
+    assert!(message.contains("missing.png: no such file"), "{message}");
+    assert_eq!(message.matches("missing.png").count(), 1, "{message}");
+    assert!(!out.exists());
+
+    // A view that cannot be read fails its frame; no empty manifest is left.
+    let broken = dir.path().join("broken.png");
+    std::fs::write(&broken, b"not a png").unwrap();
+    let output = run(&[
+        "extrapolate",
+        "--left",
+        s(&broken),
+        "--right",
+        s(&v4),
+        "--out",
+        s(&out),
+    ]);
+    assert!(!output.status.success());
+    assert!(text(&output).contains("1 failed"), "{}", text(&output));
+    assert!(!out.join("manifest.json").exists());
 
     let small = dir.path().join("small.pfm");
     write_pfm_grey(&small, &FloatImage::new(10, 5), Endian::Little).unwrap();

@@ -2,11 +2,11 @@
 //! further left and one further right (SPEC §4), for one pair or a whole
 //! KITTI folder.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};
-use mbs_dataset::kitti::KittiFolder;
+use mbs_dataset::kitti::{KittiFolder, KittiVersion};
 use mbs_extrapolate::{
     DisparitySource, Extrapolator, Frame, four_view_manifest, kitti_frames, pair_frame,
 };
@@ -21,8 +21,9 @@ use crate::cli::shard::Shard;
 /// Arguments of `extrapolate`.
 #[derive(Parser)]
 #[command(after_help = "Examples:
+  mbs-tool extrapolate --left L.png --right R.png --out out/
   mbs-tool extrapolate --left L.png --right R.png --left-disparity DL.pfm --out out/
-  mbs-tool extrapolate --kitti kitti2015/training --left-disparity-dir kitti2015/training/disp_occ_0
+  mbs-tool extrapolate --kitti kitti2015/training --left-disparity-dir monster/left
   mbs-tool extrapolate --kitti kitti2015/testing --disparity onnx:igev.onnx --card igev \\
       --inpaint onnx:lama_fp32.onnx --inpaint-card lama --device cuda
 
@@ -35,8 +36,12 @@ mask_4/, disparity_2/, disparity_3/ beside image_2/ and image_3/, one file per
 frame. Disparity files may be PFM, EXR or KITTI 16-bit PNG (value / 256,
 0 = invalid); invalid pixels are filled from the background side. With only
 one view's disparity, the other is derived by warping it (z-buffer) and
-filling the disocclusions from the background side. Finished frames are
-skipped, so an interrupted run resumes where it stopped.")]
+filling the disocclusions from the background side. Without files, the
+disparities come from --disparity (the built-in semi-global matcher by
+default). Do not pass KITTI's ground truth (disp_occ_0, disp_noc_0) for data
+meant for training without ground truth: the extrapolated views would carry
+it into training (a warning says so). Finished frames are skipped, so an
+interrupted run resumes where it stopped.")]
 pub struct Args {
     /// Left view of one pair (image_2 in KITTI).
     #[arg(long, requires = "right", required_unless_present = "kitti")]
@@ -69,8 +74,8 @@ pub struct Args {
     /// Where disparities come from when no file is given for a frame: `sgm`
     /// (the built-in semi-global matcher) or `onnx:MODEL.onnx` (a stereo
     /// network fed as --card says); left view, and right view by mirroring.
-    #[arg(long, value_name = "sgm|onnx:MODEL", value_parser = parse_disparity_source)]
-    pub disparity: Option<DisparityKind>,
+    #[arg(long, value_name = "sgm|onnx:MODEL", default_value = "sgm", value_parser = parse_disparity_source)]
+    pub disparity: DisparityKind,
     /// How to feed `--disparity onnx:MODEL`: a built-in card name or a card FILE.json.
     #[arg(long, value_name = "NAME|FILE.json")]
     pub card: Option<String>,
@@ -183,6 +188,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     args.right_disparity_dir.clone(),
                 ),
             };
+            for dir in [&dirs.0, &dirs.1].into_iter().flatten() {
+                warn_if_ground_truth(dir);
+            }
             let folder = KittiFolder::open(root)?;
             let frames = kitti_frames(&folder, &out, (dirs.0.as_deref(), dirs.1.as_deref()));
             (frames, out)
@@ -191,18 +199,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let (Some(left), Some(right), Some(out)) = (&args.left, &args.right, &args.out) else {
                 bail!("give --left, --right and --out, or --kitti");
             };
+            for view in [left, right] {
+                if !view.is_file() {
+                    bail!(
+                        "{}: no such file (give a left and a right view)",
+                        view.display()
+                    );
+                }
+            }
             let files = (args.left_disparity.clone(), args.right_disparity.clone());
             let frame = pair_frame(left, right, out, files, args.disparity_dir.as_deref())?;
-            if frame.left_disparity.is_none()
-                && frame.right_disparity.is_none()
-                && args.disparity.is_none()
-            {
-                bail!(
-                    "no disparity for {}: give --left-disparity and/or --right-disparity, \
-                     --disparity-dir, or --disparity sgm|onnx:MODEL",
-                    left.display()
-                );
-            }
             (vec![frame], out.clone())
         }
     };
@@ -220,7 +226,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if f.is_done(args.preview) {
                 return Ok(Outcome::Skipped);
             }
-            f.process(&extrapolator, source.as_ref(), args.preview)?;
+            f.process(&extrapolator, Some(&source), args.preview)?;
             Ok(Outcome::Done)
         },
     );
@@ -231,6 +237,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .filter(|f| f.is_done(false))
             .map(Frame::files)
             .collect();
+        if done.is_empty() {
+            eprintln!("extrapolate: no frame is complete, so no manifest was written");
+            return result;
+        }
         let manifest = four_view_manifest(&done, &out, args.focal, args.baseline)?;
         let path = out.join("manifest.json");
         manifest.save(&path)?;
@@ -241,6 +251,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     result
+}
+
+/// Warns when a disparity folder is KITTI's ground truth: views warped with
+/// it carry the ground truth into data meant for training without it.
+fn warn_if_ground_truth(dir: &Path) {
+    if KittiVersion::is_ground_truth_dir(dir) {
+        eprintln!(
+            "warning: {} is KITTI ground truth; views extrapolated with it leak the ground \
+             truth into training data (use a matcher's disparities for unsupervised training)",
+            dir.display()
+        );
+    }
 }
 
 /// The mask dilation the flags ask for.
@@ -273,14 +295,13 @@ fn inpainter(args: &Args) -> anyhow::Result<Box<dyn Inpainter>> {
     })
 }
 
-/// The disparity source for frames without files, if the flags give one.
-fn disparity_source(args: &Args) -> anyhow::Result<Option<DisparitySource>> {
+/// The disparity source for frames without files.
+fn disparity_source(args: &Args) -> anyhow::Result<DisparitySource> {
     Ok(match &args.disparity {
-        None => None,
-        Some(DisparityKind::Sgm) => Some(DisparitySource::Sgm {
+        DisparityKind::Sgm => DisparitySource::Sgm {
             max_disparity: args.max_disparity,
-        }),
-        Some(DisparityKind::Onnx(model)) => {
+        },
+        DisparityKind::Onnx(model) => {
             let card = args
                 .card
                 .as_deref()
@@ -288,7 +309,7 @@ fn disparity_source(args: &Args) -> anyhow::Result<Option<DisparitySource>> {
             let net = OnnxStereo::open(model, ModelCard::load(card)?, &args.onnx.options())?;
             args.onnx
                 .report_fallback(&model.display().to_string(), net.device());
-            Some(DisparitySource::Matcher(Box::new(net)))
+            DisparitySource::Matcher(Box::new(net))
         }
     })
 }
