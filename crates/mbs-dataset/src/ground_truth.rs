@@ -36,6 +36,18 @@ pub enum NocSource {
     Occlusion(PathBuf),
 }
 
+/// A ground-truth disparity file with what it takes to read it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GroundTruthFile {
+    /// The ground-truth disparity file.
+    pub disparity: PathBuf,
+    /// The pair's disparity is this times the file's values (manifests
+    /// share one-baseline files between pairs).
+    pub scale: f32,
+    /// Where the non-occluded pixels are, if known.
+    pub noc: Option<NocSource>,
+}
+
 /// One pair with ground truth.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GroundTruthPair {
@@ -49,13 +61,8 @@ pub struct GroundTruthPair {
     pub target: PathBuf,
     /// Which side of the reference the target lies on.
     pub side: Side,
-    /// The ground-truth disparity file.
-    pub disparity: PathBuf,
-    /// The pair's disparity is this times the file's values (manifests
-    /// share one-baseline files between pairs).
-    pub scale: f32,
-    /// Where the non-occluded pixels are, if known.
-    pub noc: Option<NocSource>,
+    /// The reference view's ground truth.
+    pub truth: GroundTruthFile,
 }
 
 /// A pair's ground truth in memory.
@@ -67,40 +74,29 @@ pub struct GroundTruth {
     pub noc: Option<MaskImage>,
 }
 
-/// Reads a ground-truth disparity file times `scale` (`png_scale`: codes
-/// per pixel of integer files, see [`read_disparity`]) with its
-/// non-occluded mask.
-pub fn load_ground_truth(
-    disparity: &Path,
-    scale: f32,
-    noc: Option<&NocSource>,
-    png_scale: Option<f32>,
-) -> Result<GroundTruth, DatasetError> {
-    let mut map = read_disparity(disparity, png_scale)?;
-    if scale != 1.0 {
-        map.iter_mut().for_each(|d| *d *= scale);
-    }
-    let noc = match noc {
-        None => None,
-        Some(NocSource::Map(p)) => Some(valid_mask(&read_disparity(p, png_scale)?)),
-        Some(NocSource::Mask(p)) => Some(read_mask(p)?),
-        Some(NocSource::Occlusion(p)) => {
-            let mut mask = read_mask(p)?;
-            mask.iter_mut()
-                .for_each(|v| *v = if *v == 0 { 255 } else { 0 });
-            Some(mask)
-        }
-    };
-    Ok(GroundTruth {
-        disparity: map,
-        noc,
-    })
-}
-
-impl GroundTruthPair {
-    /// Reads the pair's ground truth (see [`load_ground_truth`]).
+impl GroundTruthFile {
+    /// Reads the disparity times `scale` (`png_scale`: codes per pixel of
+    /// integer files, see [`read_disparity`]) with its non-occluded mask.
     pub fn load(&self, png_scale: Option<f32>) -> Result<GroundTruth, DatasetError> {
-        load_ground_truth(&self.disparity, self.scale, self.noc.as_ref(), png_scale)
+        let mut map = read_disparity(&self.disparity, png_scale)?;
+        if self.scale != 1.0 {
+            map.iter_mut().for_each(|d| *d *= self.scale);
+        }
+        let noc = match &self.noc {
+            None => None,
+            Some(NocSource::Map(p)) => Some(valid_mask(&read_disparity(p, png_scale)?)),
+            Some(NocSource::Mask(p)) => Some(read_mask(p)?),
+            Some(NocSource::Occlusion(p)) => {
+                let mut mask = read_mask(p)?;
+                mask.iter_mut()
+                    .for_each(|v| *v = if *v == 0 { 255 } else { 0 });
+                Some(mask)
+            }
+        };
+        Ok(GroundTruth {
+            disparity: map,
+            noc,
+        })
     }
 }
 
@@ -143,12 +139,14 @@ pub fn sample_pairs(
             } else {
                 Side::Left
             },
-            disparity: resolve(path, &gt.disparity),
-            scale: gt.scale as f32,
-            noc: gt
-                .occlusion
-                .as_deref()
-                .map(|o| NocSource::Occlusion(resolve(path, o))),
+            truth: GroundTruthFile {
+                disparity: resolve(path, &gt.disparity),
+                scale: gt.scale as f32,
+                noc: gt
+                    .occlusion
+                    .as_deref()
+                    .map(|o| NocSource::Occlusion(resolve(path, o))),
+            },
         });
     }
     Ok(pairs)
@@ -225,9 +223,11 @@ pub fn kitti_pairs(dir: &Path) -> Result<Vec<GroundTruthPair>, DatasetError> {
                 reference: dir.join(left).join(&file),
                 target: dir.join(right).join(&file),
                 side: Side::Right,
-                disparity: occ.join(&file),
-                scale: 1.0,
-                noc: noc_map.is_file().then_some(NocSource::Map(noc_map)),
+                truth: GroundTruthFile {
+                    disparity: occ.join(&file),
+                    scale: 1.0,
+                    noc: noc_map.is_file().then_some(NocSource::Map(noc_map)),
+                },
                 id: stem,
             }
         })
@@ -266,9 +266,9 @@ mod tests {
         let pairs = kitti_pairs(dir.path()).unwrap();
         let ids: Vec<&str> = pairs.iter().map(|p| p.id.as_str()).collect();
         assert_eq!(ids, ["000000_10", "000001_10"]);
-        assert_eq!(pairs[0].noc, None);
+        assert_eq!(pairs[0].truth.noc, None);
         assert_eq!(
-            pairs[1].noc,
+            pairs[1].truth.noc,
             Some(NocSource::Map(dir.path().join("disp_noc_0/000001_10.png")))
         );
         assert_eq!(pairs[1].reference, dir.path().join("image_2/000001_10.png"));
@@ -288,11 +288,17 @@ mod tests {
         .unwrap();
         let occ = dir.path().join("occ.png");
         write_mask_png(&occ, &MaskImage::from_raw(2, 1, vec![255, 0]).unwrap()).unwrap();
-        let loaded =
-            load_ground_truth(&gt, 2.0, Some(&NocSource::Occlusion(occ.clone())), None).unwrap();
+        let file = |scale, noc| GroundTruthFile {
+            disparity: gt.clone(),
+            scale,
+            noc: Some(noc),
+        };
+        let loaded = file(2.0, NocSource::Occlusion(occ.clone()))
+            .load(None)
+            .unwrap();
         assert_eq!(loaded.disparity.as_raw(), &vec![3.0, f32::INFINITY]);
         assert_eq!(loaded.noc.unwrap().as_raw(), &vec![0, 255]);
-        let mask = load_ground_truth(&gt, 1.0, Some(&NocSource::Mask(occ)), None).unwrap();
+        let mask = file(1.0, NocSource::Mask(occ)).load(None).unwrap();
         assert_eq!(mask.noc.unwrap().as_raw(), &vec![255, 0]);
     }
 }

@@ -12,7 +12,7 @@ use mbs_core::formats::{read_disparity, rgb};
 use mbs_core::metrics::{MetricsReport, RegionSums, evaluate};
 use mbs_core::{FloatImage, Side};
 use mbs_dataset::ground_truth::{
-    GroundTruthPair, NocSource, find_map, kitti_pairs, manifest_pairs,
+    GroundTruthFile, GroundTruthPair, NocSource, find_map, kitti_pairs, manifest_pairs,
 };
 use mbs_dataset::{Manifest, Split};
 use mbs_infer::StereoMatcher;
@@ -85,11 +85,26 @@ pub struct Args {
 pub struct Item {
     /// Name in the table.
     pub name: String,
-    /// A prediction file, or `None` when the `--checkpoint` network
-    /// predicts the pair.
-    pub prediction: Option<PathBuf>,
-    /// The pair and its ground truth.
-    pub pair: GroundTruthPair,
+    /// Where the prediction comes from.
+    pub prediction: Prediction,
+    /// The ground truth it is scored against.
+    pub truth: GroundTruthFile,
+}
+
+/// Where a prediction comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Prediction {
+    /// A disparity file.
+    File(PathBuf),
+    /// A pair the `--checkpoint` network predicts.
+    Pair {
+        /// The reference view.
+        reference: PathBuf,
+        /// The target view.
+        target: PathBuf,
+        /// Which side of the reference the target lies on.
+        side: Side,
+    },
 }
 
 /// Runs `eval`.
@@ -102,13 +117,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             |n| n.to_string_lossy().into_owned(),
         );
         vec![Item {
-            prediction: Some(predictions.to_path_buf()),
-            pair: GroundTruthPair {
-                id: name.clone(),
-                cameras: (0, 1),
-                reference: PathBuf::new(),
-                target: PathBuf::new(),
-                side: Side::Right,
+            prediction: Prediction::File(predictions.to_path_buf()),
+            truth: GroundTruthFile {
                 disparity: gt.clone(),
                 scale: 1.0,
                 noc: args.noc.clone().map(NocSource::Mask),
@@ -191,12 +201,18 @@ fn items(pairs: Vec<GroundTruthPair>, predictions: Option<&Path>) -> anyhow::Res
     pairs
         .into_iter()
         .map(|pair| {
+            let prediction = match predictions {
+                Some(folder) => Prediction::File(find_prediction(folder, &pair.id)?),
+                None => Prediction::Pair {
+                    reference: pair.reference,
+                    target: pair.target,
+                    side: pair.side,
+                },
+            };
             Ok(Item {
-                name: pair.id.clone(),
-                prediction: predictions
-                    .map(|folder| find_prediction(folder, &pair.id))
-                    .transpose()?,
-                pair,
+                name: pair.id,
+                prediction,
+                truth: pair.truth,
             })
         })
         .collect()
@@ -224,23 +240,26 @@ pub fn manifest_items(
 /// Reads an item's prediction, or computes it with the checkpoint's
 /// network; with the file it came from (for messages).
 fn predict(item: &Item, network: Option<&TeacherMatcher>) -> anyhow::Result<(FloatImage, PathBuf)> {
-    let pair = &item.pair;
     match (&item.prediction, network) {
-        (Some(path), _) => Ok((read_disparity(path, None)?, path.clone())),
-        (None, Some(network)) => {
-            let reference_image = rgb::read_rgb(&pair.reference)?;
-            let target_image = rgb::read_rgb(&pair.target)?;
-            let disparity = match pair.side {
+        (Prediction::File(path), _) => Ok((read_disparity(path, None)?, path.clone())),
+        (
+            Prediction::Pair {
+                reference,
+                target,
+                side,
+            },
+            Some(network),
+        ) => {
+            let reference_image = rgb::read_rgb(reference)?;
+            let target_image = rgb::read_rgb(target)?;
+            let disparity = match side {
                 Side::Left => network.predict_right(&target_image, &reference_image)?,
                 Side::Right => network.predict(&reference_image, &target_image)?,
             };
-            Ok((disparity.disparity, pair.reference.clone()))
+            Ok((disparity.disparity, reference.clone()))
         }
-        (None, None) => {
-            bail!(
-                "{}: no prediction and no --checkpoint",
-                pair.reference.display()
-            )
+        (Prediction::Pair { reference, .. }, None) => {
+            bail!("{}: no prediction and no --checkpoint", reference.display())
         }
     }
 }
@@ -251,8 +270,7 @@ fn score(
     gt_scale: Option<f32>,
     thresholds: &[f32],
 ) -> anyhow::Result<RegionSums> {
-    let pair = &item.pair;
-    let gt = pair.load(gt_scale)?;
+    let gt = item.truth.load(gt_scale)?;
     check_size(prediction, &gt.disparity, source)?;
     Ok(evaluate(
         prediction,

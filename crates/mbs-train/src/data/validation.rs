@@ -47,7 +47,7 @@ pub struct LoadedPair {
 impl ValidationPair {
     /// Reads the pair's files.
     pub fn load(&self) -> Result<LoadedPair, TrainError> {
-        let gt = self.pair.load(None)?;
+        let gt = self.pair.truth.load(None)?;
         Ok(LoadedPair {
             reference: read_rgb(&self.pair.reference)?,
             target: read_rgb(&self.pair.target)?,
@@ -126,7 +126,7 @@ impl ValidationSet {
             let prediction =
                 predict_image(net, &loaded.reference, &loaded.target, pair.side(), device)?;
             let sums = evaluate(&prediction, &loaded.gt, loaded.noc.as_ref(), &THRESHOLDS)
-                .map_err(|e| TrainError::data(&pair.pair.disparity, e))?;
+                .map_err(|e| TrainError::data(&pair.pair.truth.disparity, e))?;
             pooled.merge(&sums);
         }
         Ok(ValidationMetrics {
