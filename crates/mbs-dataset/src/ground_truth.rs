@@ -237,13 +237,9 @@ pub fn kitti_pairs(dir: &Path) -> Result<Vec<GroundTruthPair>, DatasetError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_util::touch;
     use mbs_core::formats::pfm::{Endian, write_pfm_grey};
     use mbs_core::formats::rgb::write_mask_png;
-
-    fn touch(path: &Path) {
-        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-        std::fs::write(path, b"").unwrap();
-    }
 
     #[test]
     fn maps_are_found_pfm_then_png_then_exr() {

@@ -144,11 +144,7 @@ impl KittiVersion {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn touch(path: &Path) {
-        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-        std::fs::write(path, b"").unwrap();
-    }
+    use crate::test_util::touch;
 
     #[test]
     fn detects_both_versions_and_lists_frames() {

@@ -11,5 +11,8 @@ pub mod probe;
 pub mod schema;
 pub mod validate;
 
+#[cfg(test)]
+mod test_util;
+
 pub use error::DatasetError;
 pub use manifest::{Manifest, PairGroundTruth, Provenance, Sample, Split};

@@ -220,11 +220,7 @@ impl Counts {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn touch(path: &Path) {
-        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-        std::fs::write(path, b"").unwrap();
-    }
+    use crate::test_util::touch;
 
     #[test]
     fn scans_layout_assigns_test_split_and_counts() {

@@ -32,7 +32,8 @@ ground truth for the validation pairs. Outputs in --out: config.json,
 train.jsonl (loss terms, LR, samples/s), val.jsonl (EPE, Out-1/2/3 over
 ALL/NOC/OCC), loss.png and val.png (curves), visuals/step-N/*.png (reference
 | teacher | student | GT | weight map: red = occluded for the teacher, green
-= seen by the teacher only), checkpoints/step-N/.
+= seen by the teacher only), tensorboard/ (every logged number and the
+sheets: tensorboard --logdir RUN), checkpoints/step-N/.
 
 Ctrl-C saves a checkpoint and stops; running the same command again
 resumes from the newest checkpoint (--restart discards them). The settings
