@@ -31,4 +31,4 @@ pub use disparity::{Disparities, DisparitySource, load_disparity};
 pub use error::ExtrapolateError;
 pub use frame::{Frame, kitti_frames, pair_frame};
 pub use manifest::{FourViewFiles, four_view_manifest};
-pub use pipeline::{Extrapolator, FourViews};
+pub use pipeline::{Extrapolator, NewViews};

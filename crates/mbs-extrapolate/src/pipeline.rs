@@ -9,7 +9,7 @@ use crate::{Disparities, ExtrapolateError};
 
 /// The two new views of a pair and what was synthesised in them.
 #[derive(Debug, Clone, PartialEq)]
-pub struct FourViews {
+pub struct NewViews {
     /// The new view one baseline left of the left view (camera 1 of 4).
     pub image_1: RgbImage,
     /// The new view one baseline right of the right view (camera 4 of 4).
@@ -48,7 +48,7 @@ impl Extrapolator {
         left: &RgbImage,
         right: &RgbImage,
         disparities: &Disparities,
-    ) -> Result<FourViews, ExtrapolateError> {
+    ) -> Result<NewViews, ExtrapolateError> {
         let one = |view: &RgbImage, disparity, side, name| {
             let warped = extrapolate_view(view, disparity, side, self.dilation)?;
             let filled = self
@@ -66,7 +66,7 @@ impl Extrapolator {
         }
         let (image_1, mask_1, holes_1) = one(left, &disparities.left, Side::Left, "image_1")?;
         let (image_4, mask_4, holes_4) = one(right, &disparities.right, Side::Right, "image_4")?;
-        Ok(FourViews {
+        Ok(NewViews {
             image_1,
             image_4,
             mask_1,

@@ -163,6 +163,9 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     let again = run(&args);
     assert!(again.status.success(), "{}", text(&again));
     assert!(String::from_utf8_lossy(&again.stderr).contains("is complete"));
+    // It logs nothing, so it adds no event file.
+    let event_files_after = std::fs::read_dir(out.join("tensorboard")).unwrap().count();
+    assert_eq!(event_files_after, 1);
 
     // eval --checkpoint scores the teacher on the held-out split, and gives
     // the same EPE as the last validation of pair 0:1.

@@ -28,18 +28,29 @@ pub fn read_rgb8_strict(path: &Path) -> Result<RgbImage> {
     }
 }
 
+/// Encodes `image` as an 8-bit RGB PNG into `writer`.
+fn encode_rgb<W: std::io::Write>(writer: W, image: &RgbImage) -> std::io::Result<()> {
+    super::png_encoder(writer)
+        .write_image(
+            image.as_raw(),
+            image.width(),
+            image.height(),
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(std::io::Error::other)
+}
+
 /// Writes an 8-bit RGB PNG atomically.
 pub fn write_rgb_png(path: &Path, image: &RgbImage) -> Result<()> {
-    write_atomic(path, |w| {
-        super::png_encoder(w)
-            .write_image(
-                image.as_raw(),
-                image.width(),
-                image.height(),
-                image::ExtendedColorType::Rgb8,
-            )
-            .map_err(std::io::Error::other)
-    })
+    write_atomic(path, |w| encode_rgb(w, image))
+}
+
+/// `image` as the bytes of an 8-bit RGB PNG, the same bytes
+/// [`write_rgb_png`] writes.
+pub fn rgb_png_bytes(image: &RgbImage) -> std::io::Result<Vec<u8>> {
+    let mut bytes = Vec::new();
+    encode_rgb(&mut bytes, image)?;
+    Ok(bytes)
 }
 
 /// Writes an 8-bit single-channel PNG (a mask) atomically.

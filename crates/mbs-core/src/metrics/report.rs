@@ -33,11 +33,6 @@ impl MetricsReport {
         (mean.images() > 0).then(|| mean.mean())
     }
 
-    /// The images scored, with their sums, in order.
-    pub fn images(&self) -> &[(String, RegionSums)] {
-        &self.images
-    }
-
     /// The sums pooled over every image.
     pub fn pooled(&self) -> &RegionSums {
         &self.pooled

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::Parser;
 use mbs_core::formats::{pfm, png16, rgb};
-use mbs_core::metrics::{RegionSums, evaluate};
+use mbs_core::metrics::{MetricsReport, evaluate};
 use mbs_core::quality::psnr;
 use mbs_dataset::Manifest;
 use mbs_dataset::mbs20k::Counts;
@@ -257,7 +257,7 @@ fn decoded_vs_ground_truth(
     data: &Path,
     decoded: &Path,
 ) -> anyhow::Result<(f64, usize)> {
-    let mut pooled = RegionSums::default();
+    let mut images = Vec::with_capacity(manifest.samples.len());
     for sample in &manifest.samples {
         let mut gt = pfm::read_pfm_grey(
             &data
@@ -268,10 +268,10 @@ fn decoded_vs_ground_truth(
         gt.iter_mut().for_each(|d| *d *= 4.0);
         let ours = png16::read_kitti_disparity(&decoded.join(&sample.id).join("disp_0_4.png"))
             .with_context(|| format!("sample {}", sample.id))?;
-        pooled.merge(&evaluate(&ours, &gt, None, &[])?);
+        images.push((sample.id.clone(), evaluate(&ours, &gt, None, &[])?));
     }
     // EPE is over the pixels the decoder kept (nearer than --max-depth).
-    let all = pooled.all.metrics();
+    let all = MetricsReport::new(images).pooled().all.metrics();
     let kept = all.density.unwrap_or(0.0) / 100.0 * all.pixels as f64;
     Ok((all.epe.unwrap_or(f64::NAN), kept.round() as usize))
 }

@@ -195,7 +195,7 @@ impl TrainingRun {
             .map_err(|e| TrainError::Config(e.to_string()))?;
         let config_path = out.join(CONFIG_FILE);
         write_bytes_atomic(&config_path, &config_json)?;
-        let report = RunReport::open(out, config.network.max_disparity as f32)?;
+        let report = RunReport::new(out, config.network.max_disparity as f32);
         Ok((
             Self {
                 report,

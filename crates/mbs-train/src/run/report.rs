@@ -6,7 +6,8 @@
 use std::path::{Path, PathBuf};
 
 use mbs_core::FloatImage;
-use mbs_core::formats::rgb::write_rgb_png;
+use mbs_core::atomic::write_bytes_atomic;
+use mbs_core::formats::rgb::rgb_png_bytes;
 use mbs_viz::{LineChart, Series, colorize_disparity, side_by_side, weight_map_image};
 use serde_json::Value;
 
@@ -28,7 +29,9 @@ pub const TENSORBOARD_DIR: &str = "tensorboard";
 pub(crate) struct RunReport {
     out: PathBuf,
     max_disparity: f32,
-    events: EventWriter,
+    /// Created with the first event, so a run that logs nothing (already
+    /// complete) leaves no empty event file.
+    events: Option<EventWriter>,
 }
 
 /// The numbers of a log line as `(prefix/key, value)`, nested objects
@@ -58,14 +61,22 @@ fn scalars(prefix: &str, value: &Value, out: &mut Vec<(String, f32)>) {
 }
 
 impl RunReport {
-    /// Starts the report of the run in `out`: a new event file in
+    /// The report of the run in `out`; its events go to a new file in
     /// `out/tensorboard/`.
-    pub fn open(out: &Path, max_disparity: f32) -> Result<Self, TrainError> {
-        Ok(Self {
+    pub fn new(out: &Path, max_disparity: f32) -> Self {
+        Self {
             out: out.to_path_buf(),
             max_disparity,
-            events: EventWriter::create(&out.join(TENSORBOARD_DIR))?,
-        })
+            events: None,
+        }
+    }
+
+    /// The run's event file, created on first use.
+    fn events(&mut self) -> Result<&mut EventWriter, TrainError> {
+        match &mut self.events {
+            Some(events) => Ok(events),
+            slot => Ok(slot.insert(EventWriter::create(&self.out.join(TENSORBOARD_DIR))?)),
+        }
     }
 
     /// Logs the numbers of a log line under `group/` (e.g. `train/loss`).
@@ -73,10 +84,11 @@ impl RunReport {
         let step = line["step"].as_u64().unwrap_or(0);
         let mut values = Vec::new();
         scalars("", line, &mut values);
+        let events = self.events()?;
         for (tag, value) in values {
-            self.events.scalar(&format!("{group}/{tag}"), step, value)?;
+            events.scalar(&format!("{group}/{tag}"), step, value)?;
         }
-        self.events.flush()
+        events.flush()
     }
 
     /// Draws the contact sheet of each visual into `visuals/step-N/` and
@@ -103,13 +115,13 @@ impl RunReport {
                 .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
                 .collect();
             let path = dir.join(format!("{i:02}_{name}.png"));
-            write_rgb_png(&path, &sheet)?;
-            let png = std::fs::read(&path).map_err(|e| TrainError::data(&path, e))?;
+            let png = rgb_png_bytes(&sheet).map_err(|e| TrainError::data(&path, e))?;
+            write_bytes_atomic(&path, &png)?;
             let tag = format!("val/{i:02}_{name}");
-            self.events
+            self.events()?
                 .image(&tag, steps as u64, sheet.dimensions(), &png)?;
         }
-        self.events.flush()
+        self.events()?.flush()
     }
 
     /// Redraws `loss.png` and `val.png` from the logs.
