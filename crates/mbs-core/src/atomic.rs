@@ -1,23 +1,76 @@
 //! Crash-safe file writing: write to a temporary name beside the target, then
 //! rename. A killed process (crash, Ctrl-C, `kill -9`) leaves at most a
 //! `*.partial` file, never a truncated file under the final name that a
-//! re-run would trust. Files are not fsync'ed: that would guard against a
-//! power cut too, at several milliseconds per file.
+//! re-run would trust. Temporary names are unique per process and write, so
+//! two processes writing the same output never trip over each other: the
+//! last rename wins, and both wrote the same content. Files are not
+//! fsync'ed: that would guard against a power cut too, at several
+//! milliseconds per file.
 
 use std::fs;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::{FormatError, Result};
 
-/// Suffix of in-progress files. A re-run overwrites stale ones.
+/// Suffix of in-progress files and folders.
 pub const PARTIAL_SUFFIX: &str = ".partial";
 
-/// The temporary name used while `path` is being written.
+/// A temporary name for `path`, unique to this process and call:
+/// `NAME.PID-N.partial`.
 pub fn partial_path(path: &Path) -> PathBuf {
+    static NEXT: AtomicU64 = AtomicU64::new(0);
+    let n = NEXT.fetch_add(1, Ordering::Relaxed);
     let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(PARTIAL_SUFFIX);
+    name.push(format!(".{}-{n}{PARTIAL_SUFFIX}", std::process::id()));
     path.with_file_name(name)
+}
+
+/// The process id a temporary name was made by, if `name` is one.
+fn partial_owner(name: &str) -> Option<u32> {
+    let stem = name.strip_suffix(PARTIAL_SUFFIX)?;
+    let (_, tag) = stem.rsplit_once('.')?;
+    tag.split_once('-')?.0.parse().ok()
+}
+
+/// Whether process `pid` still runs. Without `/proc` (not Linux) every
+/// process is assumed alive, so nothing is removed.
+fn is_running(pid: u32) -> bool {
+    let proc_root = Path::new("/proc");
+    !proc_root.is_dir() || proc_root.join(pid.to_string()).exists()
+}
+
+/// Removes the temporary files and folders that killed processes left
+/// anywhere under `dir` (those of running processes are kept); returns how
+/// many were removed. A missing `dir` has none.
+pub fn remove_stale_partials(dir: &Path) -> Result<usize> {
+    let Ok(entries) = fs::read_dir(dir) else {
+        return Ok(0);
+    };
+    let mut removed = 0;
+    for entry in entries {
+        let entry = entry.map_err(|e| FormatError::io(dir, e))?;
+        let path = entry.path();
+        let file_type = entry.file_type().map_err(|e| FormatError::io(&path, e))?;
+        let stale = entry
+            .file_name()
+            .to_str()
+            .and_then(partial_owner)
+            .is_some_and(|pid| !is_running(pid));
+        if stale {
+            let result = if file_type.is_dir() {
+                fs::remove_dir_all(&path)
+            } else {
+                fs::remove_file(&path)
+            };
+            result.map_err(|e| FormatError::io(&path, e))?;
+            removed += 1;
+        } else if file_type.is_dir() {
+            removed += remove_stale_partials(&path)?;
+        }
+    }
+    Ok(removed)
 }
 
 /// Writes `path` atomically: `write` fills a buffered writer on a temporary
@@ -41,6 +94,31 @@ where
     })();
     result.map_err(|e| {
         // Best effort: the partial file is garbage either way.
+        let _ = fs::remove_file(&partial);
+        FormatError::io(path, e)
+    })
+}
+
+/// Places a copy of `source` at `path` atomically: a hard link where the
+/// file system allows it (no space used), else a copy. Nothing is done when
+/// `path` already is `source`.
+pub fn link_or_copy(source: &Path, path: &Path) -> Result<()> {
+    if let (Ok(a), Ok(b)) = (fs::canonicalize(source), fs::canonicalize(path)) {
+        if a == b {
+            return Ok(());
+        }
+    }
+    if !source.is_file() {
+        return Err(FormatError::invalid(source, "missing, or not a file"));
+    }
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        fs::create_dir_all(parent).map_err(|e| FormatError::io(parent, e))?;
+    }
+    let partial = partial_path(path);
+    let result = fs::hard_link(source, &partial)
+        .or_else(|_| fs::copy(source, &partial).map(|_| ()))
+        .and_then(|()| fs::rename(&partial, path));
+    result.map_err(|e| {
         let _ = fs::remove_file(&partial);
         FormatError::io(path, e)
     })
@@ -78,5 +156,52 @@ mod tests {
         assert!(err.to_string().contains("disk on fire"), "{err}");
         assert_eq!(fs::read(&path).unwrap(), b"old");
         assert!(!partial_path(&path).exists());
+    }
+
+    #[test]
+    fn link_or_copy_places_the_same_bytes_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let source = dir.path().join("a.png");
+        fs::write(&source, b"pixels").unwrap();
+        let copy = dir.path().join("out/b.png");
+        link_or_copy(&source, &copy).unwrap();
+        link_or_copy(&source, &copy).unwrap();
+        link_or_copy(&source, &source).unwrap();
+        assert_eq!(fs::read(&copy).unwrap(), b"pixels");
+        assert_eq!(fs::read(&source).unwrap(), b"pixels");
+        let err = link_or_copy(&dir.path().join("none"), &copy).unwrap_err();
+        assert!(err.to_string().contains("none"), "{err}");
+    }
+
+    #[test]
+    fn temporary_names_are_unique_and_name_their_process() {
+        let path = Path::new("/x/out.png");
+        let (a, b) = (partial_path(path), partial_path(path));
+        assert_ne!(a, b);
+        let name = a.file_name().unwrap().to_str().unwrap();
+        assert!(name.starts_with("out.png.") && name.ends_with(".partial"));
+        assert_eq!(partial_owner(name), Some(std::process::id()));
+        assert_eq!(partial_owner("out.png"), None);
+    }
+
+    #[test]
+    fn stale_partials_of_dead_processes_are_removed_live_ones_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let sub = dir.path().join("a/b");
+        fs::create_dir_all(&sub).unwrap();
+        // Pid 4194304 is above Linux's pid_max, so it never runs.
+        let dead = sub.join("x.png.4194304-0.partial");
+        let dead_folder = dir.path().join("step-0000001.4194304-3.partial");
+        let live = sub.join(format!("y.png.{}-0.partial", std::process::id()));
+        fs::write(&dead, b"half").unwrap();
+        fs::create_dir_all(dead_folder.join("inner")).unwrap();
+        fs::write(&live, b"writing").unwrap();
+        fs::write(sub.join("done.png"), b"done").unwrap();
+        let expected = if Path::new("/proc").is_dir() { 2 } else { 0 };
+        assert_eq!(remove_stale_partials(dir.path()).unwrap(), expected);
+        assert_eq!(dead.exists(), expected == 0);
+        assert_eq!(dead_folder.exists(), expected == 0);
+        assert!(live.exists() && sub.join("done.png").exists());
+        assert_eq!(remove_stale_partials(&dir.path().join("none")).unwrap(), 0);
     }
 }

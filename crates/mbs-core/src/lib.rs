@@ -8,10 +8,12 @@
 //! and `0` in integer files.
 
 pub mod atomic;
+pub mod confine;
 pub mod error;
 pub mod fill;
 pub mod formats;
 pub mod geometry;
+pub mod limits;
 pub mod metrics;
 pub mod quality;
 pub mod resample;

@@ -101,11 +101,8 @@ pub fn png_stems(dir: &Path) -> Result<Vec<String>, DatasetError> {
     };
     let mut stems = Vec::new();
     for entry in std::fs::read_dir(dir).map_err(io)? {
-        let name = entry
-            .map_err(io)?
-            .file_name()
-            .to_string_lossy()
-            .into_owned();
+        let path = entry.map_err(io)?.path();
+        let name = crate::utf8_file_name(&path)?;
         if let Some(stem) = name.strip_suffix(".png") {
             stems.push(stem.to_string());
         }

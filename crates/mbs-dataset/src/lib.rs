@@ -16,3 +16,16 @@ mod test_util;
 
 pub use error::DatasetError;
 pub use manifest::{Manifest, PairGroundTruth, Provenance, Sample, Split};
+
+/// The file name of `path` as text; a name that is not UTF-8 is an error
+/// naming it, since samples and outputs are named after files.
+pub(crate) fn utf8_file_name(path: &std::path::Path) -> Result<&str, DatasetError> {
+    path.file_name()
+        .and_then(|n| n.to_str())
+        .ok_or_else(|| DatasetError::Layout {
+            path: path.to_path_buf(),
+            message:
+                "the name is not valid UTF-8 (samples and outputs are named after files): rename it"
+                    .into(),
+        })
+}

@@ -188,16 +188,61 @@ pub enum FileRole {
 }
 
 impl Manifest {
-    /// Reads and parses a manifest (without schema or on-disk checks).
+    /// Reads a manifest and checks it against the schema (which includes
+    /// the confined-name rule for paths and ids, see
+    /// [`mbs_core::confine`]) and against the rules the schema cannot
+    /// state (unique ids), so that every command reads the same model.
+    /// On-disk checks are `validate`'s.
     pub fn load(path: &Path) -> Result<Manifest, DatasetError> {
         let text = std::fs::read_to_string(path).map_err(|source| DatasetError::Io {
             path: path.to_path_buf(),
             source,
         })?;
-        serde_json::from_str(&text).map_err(|e| DatasetError::Manifest {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })
+        let document: serde_json::Value = serde_json::from_str(&text)
+            .map_err(|e| manifest_error(path, format!("not valid JSON: {e}")))?;
+        Manifest::from_document(path, document)
+    }
+
+    /// [`Manifest::load`] for an already parsed document read from `path`.
+    pub fn from_document(
+        path: &Path,
+        mut document: serde_json::Value,
+    ) -> Result<Manifest, DatasetError> {
+        let issues = crate::schema::manifest_schema_issues(&document);
+        if let Some(first) = issues.first() {
+            return Err(manifest_error(
+                path,
+                format!(
+                    "{} schema problem(s), the first at {}: {} (`mbs-tool validate` lists them all)",
+                    issues.len(),
+                    if first.pointer.is_empty() {
+                        "/"
+                    } else {
+                        &first.pointer
+                    },
+                    first.message
+                ),
+            ));
+        }
+        integral_numbers_as_integers(&mut document);
+        let manifest: Manifest =
+            serde_json::from_value(document).map_err(|e| manifest_error(path, e.to_string()))?;
+        if let Some(id) = manifest.duplicate_id() {
+            return Err(manifest_error(
+                path,
+                format!("sample id {id:?} appears more than once (ids must be unique)"),
+            ));
+        }
+        Ok(manifest)
+    }
+
+    /// The first sample id that appears twice, if any.
+    pub fn duplicate_id(&self) -> Option<&str> {
+        let mut seen = std::collections::HashSet::new();
+        self.samples
+            .iter()
+            .map(|s| s.id.as_str())
+            .find(|id| !seen.insert(*id))
     }
 
     /// Writes the manifest as pretty JSON, atomically.
@@ -209,22 +254,32 @@ impl Manifest {
     }
 }
 
-/// The relative path that leads from folder `from` to folder `to` (both
-/// made absolute first), e.g. `../data` from `/a/out` to `/a/data`.
-pub fn relative_path(from: &Path, to: &Path) -> std::io::Result<PathBuf> {
-    let from = std::path::absolute(from)?;
-    let to = std::path::absolute(to)?;
-    let from: Vec<_> = from.components().collect();
-    let to: Vec<_> = to.components().collect();
-    let common = from.iter().zip(&to).take_while(|(a, b)| a == b).count();
-    let mut rel = PathBuf::new();
-    for _ in common..from.len() {
-        rel.push("..");
+fn manifest_error(path: &Path, message: String) -> DatasetError {
+    DatasetError::Manifest {
+        path: path.to_path_buf(),
+        message,
     }
-    for c in &to[common..] {
-        rel.push(c);
+}
+
+/// Rewrites numbers with no fractional part (`1.0`) as integers, as JSON
+/// Schema's `integer` counts them, so that the model reads every document
+/// the schema accepts. Float fields read integers unchanged.
+pub fn integral_numbers_as_integers(value: &mut serde_json::Value) {
+    use serde_json::Value;
+    match value {
+        Value::Number(n) => {
+            if let Some(f) = n.as_f64().filter(|f| n.is_f64() && f.fract() == 0.0) {
+                if f >= 0.0 && f < u64::MAX as f64 {
+                    *n = (f as u64).into();
+                } else if f < 0.0 && f >= i64::MIN as f64 {
+                    *n = (f as i64).into();
+                }
+            }
+        }
+        Value::Array(items) => items.iter_mut().for_each(integral_numbers_as_integers),
+        Value::Object(fields) => fields.values_mut().for_each(integral_numbers_as_integers),
+        _ => {}
     }
-    Ok(rel)
 }
 
 impl Manifest {
@@ -267,18 +322,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn relative_paths_between_folders() {
-        assert_eq!(
-            relative_path(Path::new("/a/out"), Path::new("/a/data/x")).unwrap(),
-            Path::new("../data/x")
-        );
-        assert_eq!(
-            relative_path(Path::new("/a"), Path::new("/a")).unwrap(),
-            Path::new("")
-        );
-    }
-
-    #[test]
     fn round_trips_through_json_and_omits_defaults() {
         let sample = Sample {
             id: "Town01/ClearNoon/000001".into(),
@@ -312,5 +355,61 @@ mod tests {
         assert!(json["samples"][0]["ground_truth"][0].get("scale").is_none());
         let back: Manifest = serde_json::from_value(json).unwrap();
         assert_eq!(back, manifest);
+    }
+
+    fn write_manifest(dir: &Path, samples: serde_json::Value) -> PathBuf {
+        let doc = serde_json::json!({
+            "format": FORMAT,
+            "name": "t",
+            "rig": {"num_views": 2, "baseline_m": 0.5, "focal_px": 480.0, "cx": 1.5, "cy": 1.0, "width": 4, "height": 3},
+            "samples": samples
+        });
+        let path = dir.join("manifest.json");
+        std::fs::write(&path, doc.to_string()).unwrap();
+        path
+    }
+
+    #[test]
+    fn load_reads_what_the_schema_accepts_and_nothing_else() {
+        let dir = tempfile::tempdir().unwrap();
+        let views = serde_json::json!(["a0.png", "a1.png"]);
+        // `1.0` is an integer to JSON Schema, so the model reads it too.
+        let path = write_manifest(
+            dir.path(),
+            serde_json::json!([{"id": "a", "split": "train", "views": views,
+                "ground_truth": [{"reference": 0.0, "target": 1.0, "disparity": "d.pfm"}]}]),
+        );
+        let manifest = Manifest::load(&path).unwrap();
+        assert_eq!(manifest.samples[0].ground_truth[0].target, 1);
+        // Escaping paths and ids, duplicate ids and a bad rig are refused, naming the place.
+        for (samples, expected) in [
+            (
+                serde_json::json!([{"id": "../x", "split": "train", "views": views}]),
+                "/samples/0/id",
+            ),
+            (
+                serde_json::json!([{"id": "a", "split": "train", "views": ["../a0.png", "a1.png"]}]),
+                "/samples/0/views/0",
+            ),
+            (
+                serde_json::json!([{"id": "a", "split": "train", "views": views},
+                                   {"id": "a", "split": "val", "views": views}]),
+                "sample id \"a\" appears more than once",
+            ),
+        ] {
+            let path = write_manifest(dir.path(), samples);
+            let err = Manifest::load(&path).unwrap_err().to_string();
+            assert!(
+                err.contains("manifest.json") && err.contains(expected),
+                "{err}"
+            );
+        }
+        let path = dir.path().join("manifest.json");
+        let text = std::fs::read_to_string(&path)
+            .unwrap()
+            .replace("480.0", "-5");
+        std::fs::write(&path, text).unwrap();
+        let err = Manifest::load(&path).unwrap_err().to_string();
+        assert!(err.contains("/rig/focal_px"), "{err}");
     }
 }

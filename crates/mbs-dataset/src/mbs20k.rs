@@ -52,9 +52,11 @@ fn sorted_subdirs(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
     };
     let mut dirs = Vec::new();
     for entry in std::fs::read_dir(dir).map_err(io)? {
-        let entry = entry.map_err(io)?;
-        if entry.file_type().map_err(io)?.is_dir() {
-            dirs.push(entry.path());
+        let path = entry.map_err(io)?.path();
+        // `is_dir` follows symbolic links: a linked town is a town.
+        if path.is_dir() {
+            crate::utf8_file_name(&path)?;
+            dirs.push(path);
         }
     }
     dirs.sort();

@@ -54,7 +54,16 @@ impl EmbeddedSchema {
             .iter_errors(document)
             .map(|e| SchemaIssue {
                 pointer: e.instance_path().to_string(),
-                message: e.to_string(),
+                message: match e.kind() {
+                    // The pattern itself is unreadable; its place in the
+                    // schema (e.g. `/$defs/name/pattern`) names the rule.
+                    jsonschema::error::ValidationErrorKind::Pattern { .. } => format!(
+                        "{} breaks the rule at {} in the schema",
+                        e.instance(),
+                        e.schema_path()
+                    ),
+                    _ => e.to_string(),
+                },
             })
             .collect()
     }
@@ -110,5 +119,49 @@ mod tests {
             "{pointers:?}"
         );
         assert!(pointers.contains(&"/rig".to_string()), "{pointers:?}");
+    }
+
+    #[test]
+    fn the_name_pattern_states_the_confinement_rule() {
+        let names = [
+            "a.png",
+            "Town01/ClearNoon/000123",
+            "..hidden",
+            "a/...",
+            ".config",
+            "with space.png",
+            "é/ü.png",
+            "",
+            ".",
+            "..",
+            "/abs/a.png",
+            "../a.png",
+            "a/../../b",
+            "a/..",
+            "./a",
+            "a//b",
+            "a/",
+            "a\\b",
+            "C:x",
+            "a\nb",
+            "a\u{7f}b",
+        ];
+        for name in names {
+            let mut doc = minimal();
+            doc["samples"][0]["id"] = json!(name);
+            doc["samples"][0]["views"][1] = json!(name);
+            let issues = manifest_schema_issues(&doc);
+            let mut pointers: Vec<&str> = issues.iter().map(|i| i.pointer.as_str()).collect();
+            pointers.dedup();
+            let rule = mbs_core::confine::check_name(name);
+            // An accepted name passes the schema in both places; a refused
+            // one is reported at the id and at the view.
+            let expected = if rule.is_ok() {
+                vec![]
+            } else {
+                vec!["/samples/0/id", "/samples/0/views/1"]
+            };
+            assert_eq!(pointers, expected, "{name:?}: {issues:?}");
+        }
     }
 }

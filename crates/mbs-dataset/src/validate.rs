@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::checksum::sha256_file;
-use crate::manifest::{FileRole, Sample, resolve};
+use crate::manifest::{FileRole, Sample, integral_numbers_as_integers, resolve};
 use crate::probe::{PixelType, ProbeError, probe};
 use crate::schema::manifest_schema_issues;
 
@@ -48,6 +48,8 @@ pub enum ProblemKind {
     WrongPixelType,
     /// A file's SHA-256 differs from the manifest's.
     ChecksumMismatch,
+    /// A sample whose files could not be checked (the reason says why).
+    Unchecked,
 }
 
 /// One problem found.
@@ -176,17 +178,46 @@ pub fn validate_manifest(
             format!("schema: {}", issue.message),
         ));
     }
-    let Ok(rig) = serde_json::from_value::<Rig>(document["rig"].clone()) else {
+    let mut rig_value = document["rig"].clone();
+    integral_numbers_as_integers(&mut rig_value);
+    let Ok(rig) = serde_json::from_value::<Rig>(rig_value) else {
         // Without a rig nothing on disk can be judged; the schema problem says why.
+        report.problems.push(problem(
+            None,
+            Some("/rig"),
+            ProblemKind::Unchecked,
+            format!(
+                "no file of the {} sample(s) checked: the rig cannot be read",
+                report.samples
+            ),
+        ));
         return report;
     };
 
-    let samples: Vec<Sample> = raw_samples
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| !bad_indices.contains(i))
-        .filter_map(|(_, v)| serde_json::from_value(v.clone()).ok())
-        .collect();
+    // Every sample is either checked on disk or reported as not checked.
+    let mut samples: Vec<Sample> = Vec::with_capacity(raw_samples.len());
+    for (i, raw) in raw_samples.iter().enumerate() {
+        let label = id_at(i).unwrap_or_else(|| format!("#{i}"));
+        let reason = if bad_indices.contains(&i) {
+            "it breaks the schema (see above)".to_string()
+        } else {
+            let mut raw = raw.clone();
+            integral_numbers_as_integers(&mut raw);
+            match serde_json::from_value(raw) {
+                Ok(sample) => {
+                    samples.push(sample);
+                    continue;
+                }
+                Err(e) => format!("it cannot be read: {e}"),
+            }
+        };
+        report.problems.push(problem(
+            Some(&label),
+            Some(&format!("/samples/{i}")),
+            ProblemKind::Unchecked,
+            format!("files not checked: {reason}"),
+        ));
+    }
 
     let mut seen: HashMap<&str, usize> = HashMap::new();
     for s in &samples {

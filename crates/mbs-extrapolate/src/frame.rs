@@ -5,6 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
+use mbs_core::atomic::link_or_copy;
 use mbs_core::formats::pfm::{Endian, write_pfm_grey};
 use mbs_core::formats::rgb::{read_rgb, write_mask_png, write_rgb_png};
 use mbs_dataset::ground_truth::find_map;
@@ -13,11 +14,15 @@ use mbs_viz::extrapolation_sheet;
 
 use crate::{Disparities, DisparitySource, ExtrapolateError, Extrapolator, FourViewFiles};
 
-/// The input and output files of one frame.
+/// The input and output files of one frame. The output folder holds a
+/// complete four-view set: the input views (and ground truth) are linked
+/// into it when they lie elsewhere, so its manifest names only files inside.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Frame {
     /// Shown in progress and errors: the left view's path or KITTI file name.
     pub name: String,
+    /// The sample id in the manifest: the left view's file stem.
+    pub id: String,
     /// The left input view (camera 2 of 4).
     pub left: PathBuf,
     /// The right input view (camera 3 of 4).
@@ -28,6 +33,10 @@ pub struct Frame {
     pub right_disparity: Option<PathBuf>,
     /// Output: the new view left of the left view.
     pub image_1: PathBuf,
+    /// Output: the left input view's place in the output folder.
+    pub image_2: PathBuf,
+    /// Output: the right input view's place in the output folder.
+    pub image_3: PathBuf,
     /// Output: the new view right of the right view.
     pub image_4: PathBuf,
     /// Output: synthesised pixels of `image_1`.
@@ -40,8 +49,9 @@ pub struct Frame {
     pub disparity_3: PathBuf,
     /// Output: the contact sheet, when asked for.
     pub preview: PathBuf,
-    /// KITTI ground truth of the left view, recorded in the manifest.
-    pub ground_truth: Option<PathBuf>,
+    /// KITTI ground truth of the left view and its place in the output
+    /// folder, recorded in the manifest.
+    pub ground_truth: Option<(PathBuf, PathBuf)>,
 }
 
 /// The one frame of a pair written into `out`; disparity files from
@@ -67,13 +77,22 @@ pub fn pair_frame(
         }
         None => (left_disparity, right_disparity),
     };
+    let id = left
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .filter(|s| mbs_core::confine::check_name(s).is_ok())
+        .unwrap_or("pair")
+        .to_string();
     Ok(Frame {
         name: left.display().to_string(),
+        id,
         left: left.to_path_buf(),
         right: right.to_path_buf(),
         left_disparity,
         right_disparity,
         image_1: out.join("image_1.png"),
+        image_2: out.join(linked_name("image_2", left)),
+        image_3: out.join(linked_name("image_3", right)),
         image_4: out.join("image_4.png"),
         mask_1: out.join("mask_1.png"),
         mask_4: out.join("mask_4.png"),
@@ -82,6 +101,15 @@ pub fn pair_frame(
         preview: out.join("preview.png"),
         ground_truth: None,
     })
+}
+
+/// `stem` with the extension of `input`, the name its link in the output
+/// folder gets (the content is the input's, so is its format).
+fn linked_name(stem: &str, input: &Path) -> String {
+    match input.extension().and_then(|e| e.to_str()) {
+        Some(ext) => format!("{stem}.{ext}"),
+        None => stem.to_string(),
+    }
 }
 
 /// The frames of a KITTI split folder (2015 or 2012, training or testing):
@@ -103,14 +131,19 @@ pub fn kitti_frames(
                 right: folder.right(stem),
                 left_disparity: left_dir.and_then(|d| find_map(d, stem)),
                 right_disparity: right_dir.and_then(|d| find_map(d, stem)),
+                id: stem.clone(),
                 image_1: out.join("image_1").join(&name),
+                image_2: out.join("image_2").join(&name),
+                image_3: out.join("image_3").join(&name),
                 image_4: out.join("image_4").join(&name),
                 mask_1: out.join("mask_1").join(&name),
                 mask_4: out.join("mask_4").join(&name),
                 disparity_2: out.join("disparity_2").join(format!("{stem}.pfm")),
                 disparity_3: out.join("disparity_3").join(format!("{stem}.pfm")),
                 preview: out.join("preview").join(&name),
-                ground_truth: folder.disparity_occ(stem),
+                ground_truth: folder
+                    .disparity_occ(stem)
+                    .map(|gt| (gt, out.join("disp_occ_0").join(&name))),
                 name,
             }
         })
@@ -118,10 +151,12 @@ pub fn kitti_frames(
 }
 
 impl Frame {
-    /// The six files every processed frame has.
-    pub fn outputs(&self) -> [&PathBuf; 6] {
+    /// The eight files every processed frame has.
+    pub fn outputs(&self) -> [&PathBuf; 8] {
         [
             &self.image_1,
+            &self.image_2,
+            &self.image_3,
             &self.image_4,
             &self.mask_1,
             &self.mask_4,
@@ -138,10 +173,10 @@ impl Frame {
     /// The frame's files as a manifest entry (its outputs need not exist).
     pub fn files(&self) -> FourViewFiles<'_> {
         FourViewFiles {
-            id: self.name.trim_end_matches(".png"),
-            views: [&self.image_1, &self.left, &self.right, &self.image_4],
+            id: &self.id,
+            views: [&self.image_1, &self.image_2, &self.image_3, &self.image_4],
             masks: [&self.mask_1, &self.mask_4],
-            ground_truth: self.ground_truth.as_deref(),
+            ground_truth: self.ground_truth.as_ref().map(|(_, copy)| copy.as_path()),
         }
     }
 
@@ -199,6 +234,11 @@ impl Frame {
         }
         write_pfm_grey(&self.disparity_2, &disparities.left, Endian::Little)?;
         write_pfm_grey(&self.disparity_3, &disparities.right, Endian::Little)?;
+        link_or_copy(&self.left, &self.image_2)?;
+        link_or_copy(&self.right, &self.image_3)?;
+        if let Some((truth, copy)) = &self.ground_truth {
+            link_or_copy(truth, copy)?;
+        }
         Ok(())
     }
 }

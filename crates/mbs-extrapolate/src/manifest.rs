@@ -6,9 +6,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use mbs_core::Rig;
-use mbs_dataset::manifest::{
-    FORMAT, Manifest, PairGroundTruth, Provenance, Sample, Split, relative_path,
-};
+use mbs_dataset::manifest::{FORMAT, Manifest, PairGroundTruth, Provenance, Sample, Split};
 use mbs_dataset::probe::probe;
 
 use crate::ExtrapolateError;
@@ -25,14 +23,14 @@ pub struct FourViewFiles<'a> {
     pub ground_truth: Option<&'a Path>,
 }
 
-/// `path` relative to the folder `out`, as a manifest string.
+/// `path` as a manifest name relative to the folder `out`, which must
+/// hold it (see [`mbs_core::confine`]).
 fn relative(out: &Path, path: &Path) -> Result<String, ExtrapolateError> {
-    let dir = path.parent().unwrap_or(Path::new(""));
-    let rel = relative_path(out, dir).map_err(|e| {
-        ExtrapolateError::input(path, format!("cannot relate it to {}: {e}", out.display()))
-    })?;
-    let name = path.file_name().unwrap_or_default();
-    Ok(rel.join(name).to_string_lossy().into_owned())
+    let absolute =
+        |p: &Path| std::path::absolute(p).map_err(|e| ExtrapolateError::input(p, e.to_string()));
+    mbs_core::confine::name_inside(&absolute(out)?, &absolute(path)?).ok_or_else(|| {
+        ExtrapolateError::input(path, format!("is not a file name inside {}", out.display()))
+    })
 }
 
 /// The manifest of `frames`, to be saved in `out`. Image sizes come from

@@ -3,8 +3,9 @@
 //! the parameter ids the optimiser state is keyed by) and `state.json`
 //! (format, steps taken, the full configuration and the random state).
 //!
-//! A checkpoint is written into `step-NNNNNNN.partial/` and renamed when
-//! complete, so a crash never leaves a folder that looks finished.
+//! A checkpoint is written into a temporary `step-NNNNNNN.PID-N.partial/`
+//! and renamed when complete, so a crash never leaves a folder that looks
+//! finished; the next save removes what a killed run left.
 //!
 //! The random state is the run's seed and the number of steps taken: every
 //! random choice of step `k` comes from a generator seeded by both
@@ -77,9 +78,6 @@ pub fn save<M: Module>(
     let done = root.join(folder_name(steps));
     let partial = partial_path(&done);
     let io = |path: &Path, e: std::io::Error| TrainError::checkpoint(path, e);
-    if partial.exists() {
-        fs::remove_dir_all(&partial).map_err(|e| io(&partial, e))?;
-    }
     fs::create_dir_all(&partial).map_err(|e| io(&partial, e))?;
     write_module(&partial.join(STUDENT_FILE), student)?;
     write_module(&partial.join(TEACHER_FILE), teacher)?;
@@ -102,6 +100,8 @@ pub fn save<M: Module>(
         fs::remove_dir_all(&done).map_err(|e| io(&done, e))?;
     }
     fs::rename(&partial, &done).map_err(|e| io(&done, e))?;
+    mbs_core::atomic::remove_stale_partials(&root)
+        .map_err(|e| TrainError::checkpoint(e.path(), e.to_string()))?;
     prune(&root, keep)?;
     Ok(done)
 }

@@ -34,6 +34,22 @@ pub fn write_exr(path: &Path, map: &FloatImage) -> Result<()> {
 /// Reads the first layer of an EXR file: the channel `Y`, `Z`, `R` or
 /// `depth`, or the only channel there is, converted to float32.
 pub fn read_exr(path: &Path) -> Result<FloatImage> {
+    let exr_error = |source| FormatError::Exr {
+        path: path.to_path_buf(),
+        source,
+    };
+    // The header's sizes are checked before the pixels are read.
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(exr_error)?;
+    for header in &meta.headers {
+        let size = header.layer_size;
+        crate::limits::checked_samples(
+            size.width() as u64,
+            size.height() as u64,
+            header.channels.list.len() as u64,
+            4,
+        )
+        .map_err(|message| FormatError::invalid(path, message))?;
+    }
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -41,10 +57,7 @@ pub fn read_exr(path: &Path) -> Result<FloatImage> {
         .first_valid_layer()
         .all_attributes()
         .from_file(path)
-        .map_err(|source| FormatError::Exr {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        .map_err(exr_error)?;
     let layer = &image.layer_data;
     let channels = &layer.channel_data.list;
     let chosen = CHANNEL_NAMES

@@ -20,6 +20,31 @@ pub fn png_encoder<W: std::io::Write>(writer: W) -> image::codecs::png::PngEncod
     )
 }
 
+/// Decodes a raster image (PNG, PNM) whatever its extension says, within
+/// [`crate::limits`]; a folder, a missing file or an undecodable one is an
+/// error naming the path.
+pub fn open_image(path: &std::path::Path) -> crate::Result<image::DynamicImage> {
+    if path.is_dir() {
+        return Err(crate::FormatError::invalid(
+            path,
+            "is a folder, expected an image file",
+        ));
+    }
+    let mut reader = image::ImageReader::open(path)
+        .and_then(image::ImageReader::with_guessed_format)
+        .map_err(|e| crate::FormatError::io(path, e))?;
+    if reader.format().is_none() {
+        return Err(crate::FormatError::invalid(
+            path,
+            "not an image this tool reads (expected PNG or PNM)",
+        ));
+    }
+    reader.limits(crate::limits::image_limits());
+    reader
+        .decode()
+        .map_err(|e| crate::FormatError::image(path, e))
+}
+
 /// The float formats a depth or disparity map can be written in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FloatFormat {
@@ -48,13 +73,22 @@ pub fn read_float_map(path: &std::path::Path) -> crate::Result<crate::FloatImage
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
+    if path.is_dir() {
+        return Err(crate::FormatError::invalid(
+            path,
+            "is a folder, expected a float map file",
+        ));
+    }
     match ext.as_str() {
         "pfm" => pfm::read_pfm_grey(path),
         "exr" => exr::read_exr(path),
         "png" => png16::read_kitti_disparity(path),
         _ => Err(crate::FormatError::invalid(
             path,
-            "unknown float map extension (expected .pfm, .exr or a KITTI 16-bit .png)",
+            format!(
+                "unknown float map extension {:?} (expected .pfm, .exr or a KITTI 16-bit .png)",
+                path.extension().unwrap_or_default()
+            ),
         )),
     }
 }
@@ -80,7 +114,7 @@ pub fn read_disparity(
             .for_each(|v| *v = f32::INFINITY);
         return Ok(map);
     }
-    let image = image::open(path).map_err(|e| crate::FormatError::image(path, e))?;
+    let image = open_image(path)?;
     let codes = match image {
         image::DynamicImage::ImageLuma16(codes) => {
             return Ok(png16::decode_scaled(

@@ -131,7 +131,7 @@ fn decode_pfm(bytes: &[u8]) -> std::result::Result<Pfm, String> {
         s.parse::<u32>()
             .ok()
             .filter(|v| *v > 0)
-            .ok_or_else(|| format!("bad PFM dimension {s:?}"))
+            .ok_or_else(|| format!("bad PFM dimension {s:?} (expected a positive integer)"))
     };
     let width = parse_dim(token()?)?;
     let height = parse_dim(token()?)?;
@@ -144,8 +144,8 @@ fn decode_pfm(bytes: &[u8]) -> std::result::Result<Pfm, String> {
     let little = scale < 0.0;
     // Exactly one whitespace byte separates the header from the data.
     let data = bytes.get(cursor + 1..).unwrap_or_default();
-    let count = width as usize * height as usize * channels;
-    if data.len() < count * 4 {
+    let count = crate::limits::checked_samples(width.into(), height.into(), channels as u64, 4)?;
+    if data.len() / 4 < count {
         return Err(format!(
             "truncated PFM data: {} bytes for {width}x{height}x{channels} floats, expected {}",
             data.len(),
@@ -241,5 +241,15 @@ mod tests {
                 .to_string()
                 .contains("not a PFM")
         );
+    }
+
+    #[test]
+    fn absurd_header_sizes_are_refused_before_allocating() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("huge.pfm");
+        std::fs::write(&path, b"Pf\n2147483648 2147483648\n-1.0\n\0\0\0\0").unwrap();
+        let err = read_pfm(&path).unwrap_err().to_string();
+        assert!(err.contains("huge.pfm"), "{err}");
+        assert!(err.contains("2147483648x2147483648"), "{err}");
     }
 }

@@ -19,7 +19,7 @@ pub const DEPTH_MM_SCALE: f32 = 1000.0;
 
 /// Reads a 16-bit greyscale PNG (refusing 8-bit or colour files).
 pub fn read_gray16(path: &Path) -> Result<Gray16Image> {
-    let image = image::open(path).map_err(|e| FormatError::image(path, e))?;
+    let image = super::open_image(path)?;
     match image {
         image::DynamicImage::ImageLuma16(gray) => Ok(gray),
         other => Err(FormatError::invalid(

@@ -11,14 +11,14 @@ use crate::{MaskImage, RgbImage};
 /// Reads an image file as 8-bit RGB. Greyscale or 16-bit files are converted;
 /// use [`read_rgb8_strict`] to refuse them.
 pub fn read_rgb(path: &Path) -> Result<RgbImage> {
-    let image = image::open(path).map_err(|e| FormatError::image(path, e))?;
+    let image = super::open_image(path)?;
     Ok(image.into_rgb8())
 }
 
 /// Reads an image file that must be 8-bit RGB (no alpha, no 16-bit, no grey):
 /// the encoding CARLA uses for depth.
 pub fn read_rgb8_strict(path: &Path) -> Result<RgbImage> {
-    let image = image::open(path).map_err(|e| FormatError::image(path, e))?;
+    let image = super::open_image(path)?;
     match image {
         image::DynamicImage::ImageRgb8(rgb) => Ok(rgb),
         other => Err(FormatError::invalid(
@@ -69,7 +69,7 @@ pub fn write_mask_png(path: &Path, mask: &MaskImage) -> Result<()> {
 
 /// Reads an 8-bit single-channel PNG mask.
 pub fn read_mask(path: &Path) -> Result<MaskImage> {
-    let image = image::open(path).map_err(|e| FormatError::image(path, e))?;
+    let image = super::open_image(path)?;
     match image {
         image::DynamicImage::ImageLuma8(mask) => Ok(mask),
         other => Err(FormatError::invalid(

@@ -7,6 +7,32 @@ pub mod pair;
 pub mod report_error;
 pub mod rig;
 pub mod shard;
+pub mod values;
+
+/// Creates the output folder `dir` (refusing a file in its place) and
+/// removes the temporary files a killed earlier run left in it.
+pub fn prepare_out(dir: &std::path::Path) -> anyhow::Result<()> {
+    mbs_core::confine::create_out_dir(dir)?;
+    let removed = mbs_core::atomic::remove_stale_partials(dir)?;
+    if removed > 0 {
+        eprintln!(
+            "removed {removed} temporary file(s) left in {} by a killed run",
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
+/// Checks that an input `path` given as `what` (e.g. "left view") is a file.
+pub fn require_file(path: &std::path::Path, what: &str) -> anyhow::Result<()> {
+    if path.is_dir() {
+        anyhow::bail!("{}: is a folder, the {what} must be a file", path.display());
+    }
+    if !path.is_file() {
+        anyhow::bail!("{}: no such file (the {what})", path.display());
+    }
+    Ok(())
+}
 
 /// Sets the number of worker threads (0 = one per core).
 pub fn set_threads(jobs: usize) -> anyhow::Result<()> {

@@ -8,37 +8,32 @@ use mbs_core::Rig;
 #[derive(Debug, Clone, Args)]
 pub struct RigArgs {
     /// Number of cameras.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = crate::cli::values::views)]
     pub views: usize,
     /// Image width in pixels.
-    #[arg(long, default_value_t = 960)]
+    #[arg(long, default_value_t = 960, value_parser = crate::cli::values::image_side)]
     pub width: u32,
     /// Image height in pixels.
-    #[arg(long, default_value_t = 540)]
+    #[arg(long, default_value_t = 540, value_parser = crate::cli::values::image_side)]
     pub height: u32,
     /// Focal length in pixels.
-    #[arg(long, default_value_t = 480.0)]
+    #[arg(long, default_value_t = 480.0, value_parser = crate::cli::values::positive)]
     pub focal: f64,
     /// Baseline between neighbouring cameras in metres.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = crate::cli::values::positive)]
     pub baseline: f64,
 }
 
 impl RigArgs {
-    /// The rig, principal point at the image centre; refuses degenerate values.
-    pub fn rig(&self) -> anyhow::Result<Rig> {
-        if self.views < 2 || self.width == 0 || self.height == 0 {
-            anyhow::bail!("need at least 2 views and a non-empty image size");
-        }
-        if !(self.focal > 0.0 && self.baseline > 0.0) {
-            anyhow::bail!("--focal and --baseline must be positive");
-        }
-        Ok(Rig::centred(
+    /// The rig, principal point at the image centre (the flags' parsers
+    /// have checked every value's range).
+    pub fn rig(&self) -> Rig {
+        Rig::centred(
             self.views,
             self.baseline,
             self.focal,
             self.width,
             self.height,
-        ))
+        )
     }
 }

@@ -44,22 +44,22 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = DisparityFormat::Png16)]
     pub disparity_format: DisparityFormat,
     /// Depth beyond this many metres is invalid [default: the manifest's, else 200].
-    #[arg(long)]
+    #[arg(long, value_parser = crate::cli::values::positive)]
     pub max_depth: Option<f64>,
     /// Focal length in pixels for folder input (MBS20K: 480).
-    #[arg(long, default_value_t = 480.0)]
+    #[arg(long, default_value_t = 480.0, value_parser = crate::cli::values::positive)]
     pub focal: f64,
     /// Baseline between neighbouring cameras in metres for folder input (MBS20K: 0.5).
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = crate::cli::values::positive)]
     pub baseline: f64,
     /// Number of cameras for folder input (MBS20K: 5).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = crate::cli::values::views)]
     pub views: usize,
     /// Process only shard K of N (0-based), for cluster job arrays.
     #[arg(long, value_name = "K/N")]
     pub shard: Option<Shard>,
     /// Worker threads (0 = one per core).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
     pub jobs: usize,
 }
 
@@ -203,6 +203,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(shard) => shard.select(jobs),
         None => jobs,
     };
+    if let Some(out) = &args.out {
+        crate::cli::prepare_out(out)?;
+    }
     let summary = batch::run(
         &jobs,
         "images",
@@ -237,7 +240,10 @@ fn requested_targets(
 
 fn jobs_from_folder(root: &Path, out: Option<&Path>) -> anyhow::Result<Vec<Job>> {
     let mut jobs = Vec::new();
-    for entry in walkdir::WalkDir::new(root).sort_by_file_name() {
+    for entry in walkdir::WalkDir::new(root)
+        .follow_links(true)
+        .sort_by_file_name()
+    {
         let entry = entry.with_context(|| format!("cannot list {}", root.display()))?;
         if entry.file_type().is_file() && entry.file_name() == mbs_dataset::mbs20k::DEPTH_FILE {
             let frame_dir = entry.path().parent().unwrap_or(root);
@@ -269,14 +275,17 @@ fn jobs_from_manifest(
         .filter_map(|s| s.depth.as_deref())
         .map(|rel| {
             let depth_png = resolve(manifest_path, rel);
-            let rel_dir = Path::new(rel).parent().unwrap_or(Path::new(""));
+            // Manifest paths are confined names (checked on load), so
+            // their folders stay inside `out`.
+            let rel_dir = rel.rsplit_once('/').map_or("", |(dir, _)| dir);
             let out_dir = match out {
-                Some(o) => o.join(rel_dir),
+                Some(o) if rel_dir.is_empty() => o.to_path_buf(),
+                Some(o) => mbs_core::confine::join_confined(o, rel_dir)?,
                 None => depth_png.parent().unwrap_or(Path::new("")).to_path_buf(),
             };
-            Job { depth_png, out_dir }
+            Ok(Job { depth_png, out_dir })
         })
-        .collect();
+        .collect::<anyhow::Result<_>>()?;
     if jobs.is_empty() {
         bail!("{}: no sample has a depth image", manifest_path.display());
     }

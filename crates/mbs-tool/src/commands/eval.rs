@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use crate::cli::pair::parse_pair;
 use crate::cli::report_error::describe_item;
-use anyhow::{Context, bail};
+use anyhow::bail;
 use clap::Parser;
 use mbs_core::formats::{read_disparity, rgb};
 use mbs_core::metrics::{MetricsReport, RegionSums, evaluate};
@@ -67,16 +67,16 @@ pub struct Args {
     /// GT PNG/PGM codes per pixel of disparity [default: 256 for 16-bit
     /// images (KITTI), 1 for 8-bit ones; Middlebury 2003 quarter size: 4,
     /// Tsukuba: 16].
-    #[arg(long)]
+    #[arg(long, value_parser = crate::cli::values::positive_f32)]
     pub gt_scale: Option<f32>,
     /// Out-x thresholds in pixels, comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "1,2,3")]
+    #[arg(long, value_delimiter = ',', default_value = "1,2,3", value_parser = crate::cli::values::positive_f32)]
     pub thresholds: Vec<f32>,
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
     /// Worker threads (0 = one per core).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
     pub jobs: usize,
 }
 
@@ -96,6 +96,9 @@ pub struct Item {
 pub enum Prediction {
     /// A disparity file.
     File(PathBuf),
+    /// No file named after the item in this predictions folder: the item
+    /// is reported as failed and the others are scored.
+    Missing(PathBuf),
     /// A pair the `--checkpoint` network predicts.
     Pair {
         /// The reference view.
@@ -176,16 +179,6 @@ fn parse_split(text: &str) -> Result<Split, String> {
         .map_err(|_| format!("`{text}` is not a split: train, val or test"))
 }
 
-/// Finds a prediction `<dir>/<name>.{pfm,png,exr}`.
-fn find_prediction(dir: &Path, name: &str) -> anyhow::Result<PathBuf> {
-    find_map(dir, name).with_context(|| {
-        format!(
-            "no prediction {name}.pfm, .png or .exr in {}",
-            dir.display()
-        )
-    })
-}
-
 /// The images of a KITTI training folder with their predictions (none:
 /// the views, which must exist, for the `--checkpoint` network).
 pub fn kitti_items(dir: &Path, predictions: Option<&Path>) -> anyhow::Result<Vec<Item>> {
@@ -202,7 +195,10 @@ fn items(pairs: Vec<GroundTruthPair>, predictions: Option<&Path>) -> anyhow::Res
         .into_iter()
         .map(|pair| {
             let prediction = match predictions {
-                Some(folder) => Prediction::File(find_prediction(folder, &pair.id)?),
+                Some(folder) => find_map(folder, &pair.id).map_or_else(
+                    || Prediction::Missing(folder.to_path_buf()),
+                    Prediction::File,
+                ),
                 None => Prediction::Pair {
                     reference: pair.reference,
                     target: pair.target,
@@ -242,6 +238,11 @@ pub fn manifest_items(
 fn predict(item: &Item, network: Option<&TeacherMatcher>) -> anyhow::Result<(FloatImage, PathBuf)> {
     match (&item.prediction, network) {
         (Prediction::File(path), _) => Ok((read_disparity(path, None)?, path.clone())),
+        (Prediction::Missing(folder), _) => bail!(
+            "no prediction {}.pfm, .png or .exr in {}",
+            item.name,
+            folder.display()
+        ),
         (
             Prediction::Pair {
                 reference,
@@ -271,7 +272,13 @@ fn score(
     thresholds: &[f32],
 ) -> anyhow::Result<RegionSums> {
     let gt = item.truth.load(gt_scale)?;
-    check_size(prediction, &gt.disparity, source)?;
+    check_size(prediction, &gt.disparity, source, &item.truth.disparity)?;
+    if !gt.disparity.iter().any(|d| d.is_finite()) {
+        bail!(
+            "{}: the ground truth has no valid pixel: nothing to score",
+            item.truth.disparity.display()
+        );
+    }
     Ok(evaluate(
         prediction,
         &gt.disparity,
@@ -280,12 +287,18 @@ fn score(
     )?)
 }
 
-fn check_size(prediction: &FloatImage, gt: &FloatImage, path: &Path) -> anyhow::Result<()> {
+fn check_size(
+    prediction: &FloatImage,
+    gt: &FloatImage,
+    path: &Path,
+    gt_path: &Path,
+) -> anyhow::Result<()> {
     if prediction.dimensions() != gt.dimensions() {
         bail!(
-            "{}: prediction is {:?} but the ground truth is {:?} (width, height)",
+            "{}: prediction is {:?} but the ground truth {} is {:?} (width, height)",
             path.display(),
             prediction.dimensions(),
+            gt_path.display(),
             gt.dimensions()
         );
     }

@@ -106,16 +106,16 @@ pub struct Args {
     #[arg(long)]
     pub preview: bool,
     /// Focal length in pixels, recorded in the manifest's rig (KITTI: about 721).
-    #[arg(long, default_value_t = 721.5377)]
+    #[arg(long, default_value_t = 721.5377, value_parser = crate::cli::values::positive)]
     pub focal: f64,
     /// Baseline between the two input cameras in metres, recorded in the manifest (KITTI: 0.54).
-    #[arg(long, default_value_t = 0.54)]
+    #[arg(long, default_value_t = 0.54, value_parser = crate::cli::values::positive)]
     pub baseline: f64,
     /// Process only shard K of N (0-based); run once more without it to write the manifest.
     #[arg(long, value_name = "K/N")]
     pub shard: Option<Shard>,
     /// Worker threads (0 = one per core).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
     pub jobs: usize,
 }
 
@@ -199,19 +199,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let (Some(left), Some(right), Some(out)) = (&args.left, &args.right, &args.out) else {
                 bail!("give --left, --right and --out, or --kitti");
             };
-            for view in [left, right] {
-                if !view.is_file() {
-                    bail!(
-                        "{}: no such file (give a left and a right view)",
-                        view.display()
-                    );
-                }
-            }
+            crate::cli::require_file(left, "left view")?;
+            crate::cli::require_file(right, "right view")?;
             let files = (args.left_disparity.clone(), args.right_disparity.clone());
             let frame = pair_frame(left, right, out, files, args.disparity_dir.as_deref())?;
             (vec![frame], out.clone())
         }
     };
+    crate::cli::prepare_out(&out)?;
     let extrapolator = Extrapolator::new(dilation(&args), inpainter(&args)?);
     let source = disparity_source(&args)?;
     let selected: Vec<&Frame> = match args.shard {

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};
+use mbs_core::confine::join_confined;
 use mbs_core::formats::{pfm, png16, rgb};
 use mbs_dataset::Manifest;
 use mbs_dataset::ground_truth::{check_cameras, sample_view};
@@ -93,7 +94,7 @@ pub struct Args {
     #[arg(long, value_name = "K/N")]
     pub shard: Option<Shard>,
     /// Worker threads (0 = one per core).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
     pub jobs: usize,
 }
 
@@ -143,6 +144,8 @@ pub struct Job {
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
     let jobs = if let (Some(left), Some(right)) = (&args.left, &args.right) {
+        crate::cli::require_file(left, "left view")?;
+        crate::cli::require_file(right, "right view")?;
         vec![Job {
             reference: left.clone(),
             target: right.clone(),
@@ -172,6 +175,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             None => None,
         },
     };
+    crate::cli::prepare_out(&args.out)?;
     let summary = batch::run(
         &jobs,
         "pairs",
@@ -234,10 +238,11 @@ fn predict_one(
     network: Option<&dyn StereoMatcher>,
     job: &Job,
 ) -> anyhow::Result<Outcome> {
-    let out = args
-        .out
-        .join(format!("{}.{}", job.name, args.format.extension()));
-    let color = args.out.join(format!("{}_color.png", job.name));
+    let out = join_confined(
+        &args.out,
+        &format!("{}.{}", job.name, args.format.extension()),
+    )?;
+    let color = join_confined(&args.out, &format!("{}_color.png", job.name))?;
     if !args.overwrite && out.exists() && (!args.color || color.exists()) {
         return Ok(Outcome::Skipped);
     }

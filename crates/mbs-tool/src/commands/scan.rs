@@ -19,24 +19,25 @@ prints the number of sets per town and weather. Check the result with
 pub struct Args {
     /// The MBS20K root folder.
     pub root: PathBuf,
-    /// Where to write the manifest [default: ROOT/manifest.json]; its paths
-    /// are relative to its own folder.
+    /// Where to write the manifest [default: ROOT/manifest.json]: in ROOT or
+    /// a folder above it, since its paths are relative to its own folder
+    /// and never climb out of it.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Towns whose samples form the test split.
-    #[arg(long, value_delimiter = ',', default_value = "Town10")]
+    #[arg(long, value_delimiter = ',', default_value = "Town10", value_parser = crate::cli::values::folder_name)]
     pub test_towns: Vec<String>,
     #[command(flatten)]
     pub rig: RigArgs,
     /// Depth beyond this many metres is invalid for disparity.
-    #[arg(long, default_value_t = 200.0)]
+    #[arg(long, default_value_t = 200.0, value_parser = crate::cli::values::positive)]
     pub max_depth: f64,
 }
 
 /// Runs `scan`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let options = ScanOptions {
-        rig: args.rig.rig()?,
+        rig: args.rig.rig(),
         test_towns: args.test_towns,
         max_depth_m: args.max_depth,
     };
@@ -48,7 +49,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         out_dir
     };
-    manifest.rebase(&mbs_dataset::manifest::relative_path(out_dir, &args.root)?);
+    // A manifest's paths stay inside its folder (mbs_core::confine), so it
+    // is written in ROOT or in a folder above it.
+    let (out_abs, root_abs) = (
+        std::path::absolute(out_dir)?,
+        std::path::absolute(&args.root)?,
+    );
+    if out_abs != root_abs {
+        let prefix = mbs_core::confine::name_inside(&out_abs, &root_abs).ok_or_else(|| {
+            anyhow::anyhow!(
+                "--out {}: a manifest's paths must stay inside its folder, so write it in {} or in a folder above it",
+                out.display(),
+                args.root.display()
+            )
+        })?;
+        manifest.rebase(std::path::Path::new(&prefix));
+    }
     manifest.save(&out)?;
     print!("{}", Counts::of(&manifest).table());
     eprintln!(

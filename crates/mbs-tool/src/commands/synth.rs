@@ -27,10 +27,10 @@ pub struct Args {
     #[arg(long)]
     pub out: PathBuf,
     /// Scenes per town.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = crate::cli::values::count)]
     pub frames: usize,
     /// Town folder names, comma-separated; each gets its own scenes.
-    #[arg(long, value_delimiter = ',', default_value = "Town01,Town10")]
+    #[arg(long, value_delimiter = ',', default_value = "Town01,Town10", value_parser = crate::cli::values::folder_name)]
     pub towns: Vec<String>,
     /// Weathers every scene is rendered under (ClearNight, ClearNoon,
     /// ClearSunset, CloudyNoon, MidRainyNoon).
@@ -41,7 +41,7 @@ pub struct Args {
     )]
     pub weathers: Vec<Weather>,
     /// Towns whose samples form the test split.
-    #[arg(long, value_delimiter = ',', default_value = "Town10")]
+    #[arg(long, value_delimiter = ',', default_value = "Town10", value_parser = crate::cli::values::folder_name)]
     pub test_towns: Vec<String>,
     #[command(flatten)]
     pub rig: RigArgs,
@@ -49,10 +49,10 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Samples per pixel along each axis (anti-aliasing).
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 2, value_parser = crate::cli::values::supersample)]
     pub supersample: u32,
     /// Depth beyond this many metres is invalid for disparity (recorded in the manifest).
-    #[arg(long, default_value_t = 200.0)]
+    #[arg(long, default_value_t = 200.0, value_parser = crate::cli::values::positive)]
     pub max_depth: f64,
     /// Do not record SHA-256 checksums in the manifest.
     #[arg(long)]
@@ -61,17 +61,15 @@ pub struct Args {
     #[arg(long, value_name = "K/N")]
     pub shard: Option<Shard>,
     /// Worker threads (0 = one per core).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
     pub jobs: usize,
 }
 
 /// Runs `synth`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
-    if args.frames == 0 {
-        anyhow::bail!("--frames must be at least 1");
-    }
-    let rig = args.rig.rig()?;
+    crate::cli::prepare_out(&args.out)?;
+    let rig = args.rig.rig();
     let spec = DatasetSpec {
         rig,
         towns: args.towns,

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use mbs_core::Rig;
 use mbs_dataset::Manifest;
 use mbs_dataset::manifest::{Split, resolve};
+use mbs_dataset::probe::probe;
 
 use crate::error::TrainError;
 
@@ -86,5 +87,50 @@ impl TrainingSamples {
             return Err(TrainError::data(path, "no sample of the `train` split"));
         }
         Ok(Self { rig, samples })
+    }
+}
+
+impl TrainingSamples {
+    /// Checks every view's header (size and completeness, as `validate`
+    /// does without `--deep`) before training starts, so a bad file does
+    /// not end a run hours in; the error lists the problems found.
+    pub fn check_files(&self, manifest: &Path) -> Result<(), TrainError> {
+        use rayon::prelude::*;
+        let problems: Vec<String> = self
+            .samples
+            .par_iter()
+            .flat_map_iter(|sample| {
+                sample.views.iter().filter_map(move |view| {
+                    let problem = match probe(view, false) {
+                        Err(e) => e.to_string(),
+                        Ok(info) if (info.width, info.height) != sample.size => format!(
+                            "image is {}x{}, the manifest says {}x{}",
+                            info.width, info.height, sample.size.0, sample.size.1
+                        ),
+                        Ok(_) => return None,
+                    };
+                    Some(format!(
+                        "sample {}: {}: {problem}",
+                        sample.id,
+                        view.display()
+                    ))
+                })
+            })
+            .collect();
+        if problems.is_empty() {
+            return Ok(());
+        }
+        const SHOWN: usize = 10;
+        let mut message = format!(
+            "{} training view(s) cannot be used (`mbs-tool validate` checks them all):",
+            problems.len()
+        );
+        for line in problems.iter().take(SHOWN) {
+            message.push_str(&format!("\n  {line}"));
+        }
+        if problems.len() > SHOWN {
+            message.push_str(&format!("\n  … and {} more", problems.len() - SHOWN));
+        }
+        Err(TrainError::data(manifest, message))
     }
 }

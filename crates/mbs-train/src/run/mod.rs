@@ -152,6 +152,7 @@ impl TrainingRun {
         let parsed = Manifest::load(manifest)?;
         let crop = (config.data.crop_height, config.data.crop_width);
         let samples = TrainingSamples::from_manifest(manifest, &parsed, crop)?;
+        samples.check_files(manifest)?;
         let validation = ValidationSet::from_manifest(
             manifest,
             &parsed,
@@ -231,8 +232,29 @@ impl TrainingRun {
     }
 
     /// Trains up to the configured number of steps, or until `stop` is set
-    /// (then a checkpoint is saved and [`End::Stopped`] returned).
+    /// (then a checkpoint is saved and [`End::Stopped`] returned). An error
+    /// that ends the run (an unreadable image, a full disk) first saves a
+    /// checkpoint of the steps taken since the last one, when it can.
     pub fn run(
+        &mut self,
+        observer: &mut dyn Observer,
+        stop: &AtomicBool,
+    ) -> Result<End, TrainError> {
+        let result = self.take_steps(observer, stop);
+        if result.is_err() {
+            let saved = Checkpoint::latest(&self.out)
+                .ok()
+                .flatten()
+                .map(|c| c.state.steps);
+            if saved != Some(self.trainer.steps_taken()) && self.trainer.steps_taken() > 0 {
+                let saving = self.checkpoint(observer);
+                warn(observer, saving);
+            }
+        }
+        result
+    }
+
+    fn take_steps(
         &mut self,
         observer: &mut dyn Observer,
         stop: &AtomicBool,

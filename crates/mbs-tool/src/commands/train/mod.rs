@@ -87,7 +87,7 @@ pub struct Args {
     #[arg(long)]
     pub print_config: bool,
     /// Worker threads for the network (0 = one per core).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
     pub jobs: usize,
 }
 
@@ -171,6 +171,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .with_context(|| format!("cannot remove {}", checkpoints.display()))?;
         }
     }
+    crate::cli::require_file(manifest, "manifest")?;
+    crate::cli::prepare_out(out)?;
     let (mut training, start) = TrainingRun::open_on(manifest, out, config, device)?;
     let total = training.config().steps();
     match start {
