@@ -15,6 +15,7 @@ pub mod formats;
 pub mod geometry;
 pub mod limits;
 pub mod metrics;
+pub mod mutation;
 pub mod quality;
 pub mod resample;
 

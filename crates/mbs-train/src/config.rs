@@ -75,6 +75,13 @@ impl RunConfig {
         serde_json::to_value(self).map_err(|e| TrainError::Config(e.to_string()))
     }
 
+    /// Reads a configuration file (JSON, any subset of the keys) for
+    /// [`RunConfig::layered`]; errors name the file.
+    pub fn read_file(path: &std::path::Path) -> Result<Value, TrainError> {
+        let text = std::fs::read_to_string(path).map_err(|e| TrainError::data(path, e))?;
+        serde_json::from_str(&text).map_err(|e| TrainError::data(path, format!("not JSON: {e}")))
+    }
+
     /// The paper's defaults, overlaid with `file` (any subset of the keys)
     /// and then with each `key.path=value` override, checked against the
     /// schema and the ranges.

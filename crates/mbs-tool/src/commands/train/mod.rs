@@ -133,17 +133,11 @@ impl Args {
 
     /// The effective configuration.
     fn run_config(&self) -> anyhow::Result<RunConfig> {
-        let file = match &self.config {
-            Some(path) => {
-                let text = std::fs::read_to_string(path)
-                    .with_context(|| format!("cannot read {}", path.display()))?;
-                Some(
-                    serde_json::from_str(&text)
-                        .with_context(|| format!("{}: not JSON", path.display()))?,
-                )
-            }
-            None => None,
-        };
+        let file = self
+            .config
+            .as_deref()
+            .map(RunConfig::read_file)
+            .transpose()?;
         RunConfig::layered(file.as_ref(), &self.overrides()).with_context(|| match &self.config {
             Some(path) => format!("settings from {} and the flags", path.display()),
             None => "settings from the flags".into(),
