@@ -55,17 +55,29 @@ impl EmbeddedSchema {
             .map(|e| SchemaIssue {
                 pointer: e.instance_path().to_string(),
                 message: match e.kind() {
-                    // The pattern itself is unreadable; its place in the
-                    // schema (e.g. `/$defs/name/pattern`) names the rule.
-                    jsonschema::error::ValidationErrorKind::Pattern { .. } => format!(
-                        "{} breaks the rule at {} in the schema",
-                        e.instance(),
-                        e.schema_path()
-                    ),
+                    jsonschema::error::ValidationErrorKind::Pattern { .. } => {
+                        pattern_message(e.instance(), &e.schema_path().to_string())
+                    }
                     _ => e.to_string(),
                 },
             })
             .collect()
+    }
+}
+
+/// A broken pattern in words: the pattern itself is unreadable, so a
+/// confined name (`/$defs/name`) gets the rule's own reason, any other
+/// string the pattern's place in the schema.
+fn pattern_message(instance: &Value, schema_path: &str) -> String {
+    let reason = instance
+        .as_str()
+        .filter(|_| schema_path.contains("/$defs/name/"))
+        .and_then(|name| mbs_core::confine::check_name(name).err());
+    match reason {
+        Some(why) => {
+            format!("{instance} {why} (paths and ids are confined names, see the schema's `name`)")
+        }
+        None => format!("{instance} breaks the rule at {schema_path} in the schema"),
     }
 }
 

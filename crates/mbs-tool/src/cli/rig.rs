@@ -17,10 +17,10 @@ pub struct RigArgs {
     #[arg(long, default_value_t = 540, value_parser = crate::cli::values::image_side)]
     pub height: u32,
     /// Focal length in pixels.
-    #[arg(long, default_value_t = 480.0, value_parser = crate::cli::values::positive)]
+    #[arg(long, default_value_t = 480.0, value_parser = crate::cli::values::positive, allow_negative_numbers = true)]
     pub focal: f64,
     /// Baseline between neighbouring cameras in metres.
-    #[arg(long, default_value_t = 0.5, value_parser = crate::cli::values::positive)]
+    #[arg(long, default_value_t = 0.5, value_parser = crate::cli::values::positive, allow_negative_numbers = true)]
     pub baseline: f64,
 }
 

@@ -44,13 +44,13 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = DisparityFormat::Png16)]
     pub disparity_format: DisparityFormat,
     /// Depth beyond this many metres is invalid [default: the manifest's, else 200].
-    #[arg(long, value_parser = crate::cli::values::positive)]
+    #[arg(long, value_parser = crate::cli::values::positive, allow_negative_numbers = true)]
     pub max_depth: Option<f64>,
     /// Focal length in pixels for folder input (MBS20K: 480).
-    #[arg(long, default_value_t = 480.0, value_parser = crate::cli::values::positive)]
+    #[arg(long, default_value_t = 480.0, value_parser = crate::cli::values::positive, allow_negative_numbers = true)]
     pub focal: f64,
     /// Baseline between neighbouring cameras in metres for folder input (MBS20K: 0.5).
-    #[arg(long, default_value_t = 0.5, value_parser = crate::cli::values::positive)]
+    #[arg(long, default_value_t = 0.5, value_parser = crate::cli::values::positive, allow_negative_numbers = true)]
     pub baseline: f64,
     /// Number of cameras for folder input (MBS20K: 5).
     #[arg(long, default_value_t = 5, value_parser = crate::cli::values::views)]

@@ -67,10 +67,10 @@ pub struct Args {
     /// GT PNG/PGM codes per pixel of disparity [default: 256 for 16-bit
     /// images (KITTI), 1 for 8-bit ones; Middlebury 2003 quarter size: 4,
     /// Tsukuba: 16].
-    #[arg(long, value_parser = crate::cli::values::positive_f32)]
+    #[arg(long, value_parser = crate::cli::values::positive_f32, allow_negative_numbers = true)]
     pub gt_scale: Option<f32>,
     /// Out-x thresholds in pixels, comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "1,2,3", value_parser = crate::cli::values::positive_f32)]
+    #[arg(long, value_delimiter = ',', default_value = "1,2,3", value_parser = crate::cli::values::positive_f32, allow_hyphen_values = true)]
     pub thresholds: Vec<f32>,
     /// Print JSON instead of a table.
     #[arg(long)]

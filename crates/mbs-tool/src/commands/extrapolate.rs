@@ -106,10 +106,10 @@ pub struct Args {
     #[arg(long)]
     pub preview: bool,
     /// Focal length in pixels, recorded in the manifest's rig (KITTI: about 721).
-    #[arg(long, default_value_t = 721.5377, value_parser = crate::cli::values::positive)]
+    #[arg(long, default_value_t = 721.5377, value_parser = crate::cli::values::positive, allow_negative_numbers = true)]
     pub focal: f64,
     /// Baseline between the two input cameras in metres, recorded in the manifest (KITTI: 0.54).
-    #[arg(long, default_value_t = 0.54, value_parser = crate::cli::values::positive)]
+    #[arg(long, default_value_t = 0.54, value_parser = crate::cli::values::positive, allow_negative_numbers = true)]
     pub baseline: f64,
     /// Process only shard K of N (0-based); run once more without it to write the manifest.
     #[arg(long, value_name = "K/N")]

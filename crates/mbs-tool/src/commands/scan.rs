@@ -30,7 +30,7 @@ pub struct Args {
     #[command(flatten)]
     pub rig: RigArgs,
     /// Depth beyond this many metres is invalid for disparity.
-    #[arg(long, default_value_t = 200.0, value_parser = crate::cli::values::positive)]
+    #[arg(long, default_value_t = 200.0, value_parser = crate::cli::values::positive, allow_negative_numbers = true)]
     pub max_depth: f64,
 }
 

@@ -52,7 +52,7 @@ pub struct Args {
     #[arg(long, default_value_t = 2, value_parser = crate::cli::values::supersample)]
     pub supersample: u32,
     /// Depth beyond this many metres is invalid for disparity (recorded in the manifest).
-    #[arg(long, default_value_t = 200.0, value_parser = crate::cli::values::positive)]
+    #[arg(long, default_value_t = 200.0, value_parser = crate::cli::values::positive, allow_negative_numbers = true)]
     pub max_depth: f64,
     /// Do not record SHA-256 checksums in the manifest.
     #[arg(long)]
