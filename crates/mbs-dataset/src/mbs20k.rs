@@ -287,4 +287,24 @@ mod tests {
             "{err}"
         );
     }
+
+    #[cfg(unix)]
+    #[test]
+    fn linked_towns_are_followed_and_non_utf8_names_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path().join("root");
+        touch(&dir.path().join("elsewhere/Town10/ClearNoon/000000/rgb_0.png"));
+        touch(&root.join("Town01/ClearNoon/000000/rgb_0.png"));
+        std::os::unix::fs::symlink(dir.path().join("elsewhere/Town10"), root.join("Town10"))
+            .unwrap();
+        let frames = frame_dirs(&root).unwrap();
+        assert_eq!(frames.len(), 2, "{frames:?}");
+        assert!(frames[1].starts_with(root.join("Town10")));
+
+        use std::os::unix::ffi::OsStrExt;
+        let odd = root.join(std::ffi::OsStr::from_bytes(b"Town\xff"));
+        std::fs::create_dir_all(&odd).unwrap();
+        let err = frame_dirs(&root).unwrap_err().to_string();
+        assert!(err.contains("not valid UTF-8") && err.contains("Town"), "{err}");
+    }
 }

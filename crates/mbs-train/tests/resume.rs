@@ -155,3 +155,58 @@ fn a_stopped_and_resumed_run_matches_an_uninterrupted_one() {
         assert!((x - y).abs() <= 1e-3, "validation EPE {x} vs {y}");
     }
 }
+
+/// Truncates every training view once `step` steps are taken, as a disk
+/// that goes bad mid-run would.
+struct BreakViewsAfter {
+    step: usize,
+    views: Vec<std::path::PathBuf>,
+}
+
+impl Observer for BreakViewsAfter {
+    fn on_step(&mut self, report: &StepReport, _: f64) {
+        if report.step + 1 == self.step {
+            for view in &self.views {
+                std::fs::write(view, b"\x89PNG broken").unwrap();
+            }
+        }
+    }
+}
+
+#[test]
+fn a_broken_view_is_refused_before_the_first_step_or_checkpointed_after() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = common::synthesise(&dir.path().join("data"), 1, 128, 64);
+    let parsed = mbs_dataset::Manifest::load(&manifest).unwrap();
+    let views: Vec<std::path::PathBuf> = parsed
+        .samples
+        .iter()
+        .filter(|s| s.split == mbs_dataset::Split::Train)
+        .flat_map(|s| s.views.iter().map(|v| manifest.with_file_name(v)))
+        .collect();
+
+    // Broken before the start: refused by name, before any step.
+    let first = views[0].clone();
+    let intact = std::fs::read(&first).unwrap();
+    std::fs::write(&first, &intact[..intact.len() / 2]).unwrap();
+    let err = TrainingRun::open(&manifest, &dir.path().join("early"), config(&[]))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(err.contains("1 training view(s) cannot be used"), "{err}");
+    assert!(err.contains(&first.display().to_string()), "{err}");
+    std::fs::write(&first, &intact).unwrap();
+
+    // Broken mid-run: the error ends the run, the steps taken are kept.
+    let run_dir = dir.path().join("late");
+    let never = AtomicBool::new(false);
+    let (mut run, _) =
+        TrainingRun::open(&manifest, &run_dir, config(&["trainer.lr.total_steps=60"])).unwrap();
+    let mut observer = BreakViewsAfter { step: 2, views };
+    let err = run.run(&mut observer, &never).unwrap_err().to_string();
+    assert!(err.contains("rgb_"), "{err}");
+    let taken = run.steps_taken();
+    assert!((2..60).contains(&taken), "{taken}");
+    let checkpoint = Checkpoint::latest(&run_dir).unwrap().unwrap();
+    assert_eq!(checkpoint.state.steps, taken);
+}

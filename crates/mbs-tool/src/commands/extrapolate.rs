@@ -33,7 +33,9 @@ dilated pixels) and the disparities used, disparity_2 (left view) and
 disparity_3 (right view) as PFM. One pair: OUT/image_1.png, OUT/mask_1.png,
 OUT/disparity_2.pfm... KITTI: sibling folders image_1/, image_4/, mask_1/,
 mask_4/, disparity_2/, disparity_3/ beside image_2/ and image_3/, one file per
-frame. Disparity files may be PFM, EXR or KITTI 16-bit PNG (value / 256,
+frame. The input pair is linked (or copied) into the output as image_2 and
+image_3 (and KITTI's ground truth as disp_occ_0), so OUT/manifest.json names
+only files inside OUT. Disparity files may be PFM, EXR or KITTI 16-bit PNG (value / 256,
 0 = invalid); invalid pixels are filled from the background side. With only
 one view's disparity, the other is derived by warping it (z-buffer) and
 filling the disocclusions from the background side. Without files, the
