@@ -293,7 +293,10 @@ mod tests {
     fn linked_towns_are_followed_and_non_utf8_names_named() {
         let dir = tempfile::tempdir().unwrap();
         let root = dir.path().join("root");
-        touch(&dir.path().join("elsewhere/Town10/ClearNoon/000000/rgb_0.png"));
+        touch(
+            &dir.path()
+                .join("elsewhere/Town10/ClearNoon/000000/rgb_0.png"),
+        );
         touch(&root.join("Town01/ClearNoon/000000/rgb_0.png"));
         std::os::unix::fs::symlink(dir.path().join("elsewhere/Town10"), root.join("Town10"))
             .unwrap();
@@ -305,6 +308,9 @@ mod tests {
         let odd = root.join(std::ffi::OsStr::from_bytes(b"Town\xff"));
         std::fs::create_dir_all(&odd).unwrap();
         let err = frame_dirs(&root).unwrap_err().to_string();
-        assert!(err.contains("not valid UTF-8") && err.contains("Town"), "{err}");
+        assert!(
+            err.contains("not valid UTF-8") && err.contains("Town"),
+            "{err}"
+        );
     }
 }

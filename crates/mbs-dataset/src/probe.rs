@@ -48,6 +48,9 @@ const PNG_IEND: [u8; 12] = [0, 0, 0, 0, b'I', b'E', b'N', b'D', 0xAE, 0x42, 0x60
 /// Probes `path`. Fast mode reads the header and checks that the file is not
 /// truncated; `deep` decodes every pixel (and checks CRCs).
 pub fn probe(path: &Path, deep: bool) -> Result<ImageInfo, ProbeError> {
+    if path.is_dir() {
+        return Err(ProbeError::Corrupt("is a folder, expected a file".into()));
+    }
     if !path.is_file() {
         return Err(ProbeError::Missing);
     }
@@ -259,6 +262,12 @@ mod tests {
         assert_eq!(
             probe(&dir.path().join("none.png"), false),
             Err(ProbeError::Missing)
+        );
+        let folder = dir.path().join("folder.png");
+        std::fs::create_dir(&folder).unwrap();
+        assert_eq!(
+            probe(&folder, false),
+            Err(ProbeError::Corrupt("is a folder, expected a file".into()))
         );
     }
 
