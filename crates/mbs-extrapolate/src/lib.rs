@@ -23,6 +23,7 @@
 
 pub mod disparity;
 pub mod error;
+pub mod evaluation;
 pub mod frame;
 pub mod manifest;
 pub mod pipeline;

@@ -1,0 +1,191 @@
+//! Extrapolation measured on real multi-view scenes: every adjacent pair
+//! `(k, k+1)` of equally spaced views with a real view on each side is
+//! extrapolated, and the new views are scored against views `k-1` and
+//! `k+2` (PSNR and SSIM over all pixels, and over the synthesised pixels:
+//! those the mask marks, holes and dilated pixels).
+
+use std::path::{Path, PathBuf};
+
+use mbs_core::RgbImage;
+use mbs_core::formats::rgb::read_rgb;
+use mbs_core::quality::{psnr, ssim};
+
+use crate::{DisparitySource, ExtrapolateError, Extrapolator};
+
+/// A scene of equally spaced views on one horizontal line, left to right.
+pub struct Scene {
+    /// Its name in reports.
+    pub name: String,
+    /// The views, leftmost first.
+    pub views: Vec<RgbImage>,
+}
+
+impl Scene {
+    /// Reads the views at `paths` (leftmost first), all of one size.
+    pub fn load(name: &str, paths: &[PathBuf]) -> Result<Scene, ExtrapolateError> {
+        let views = paths
+            .iter()
+            .map(|p| read_rgb(p))
+            .collect::<Result<Vec<_>, _>>()?;
+        if let Some((path, view)) = paths
+            .iter()
+            .zip(&views)
+            .find(|(_, v)| v.dimensions() != views[0].dimensions())
+        {
+            return Err(ExtrapolateError::input(
+                path,
+                format!(
+                    "is {:?}, the first view of {name} {:?} (width, height)",
+                    view.dimensions(),
+                    views[0].dimensions()
+                ),
+            ));
+        }
+        Ok(Scene {
+            name: name.to_string(),
+            views,
+        })
+    }
+
+    /// The scenes shipped in a checkout's `testdata/`: Middlebury Tsukuba
+    /// (5 views), Baby2, Bowling2 and Laundry (7 views each).
+    pub fn shipped(testdata: &Path) -> Result<Vec<Scene>, ExtrapolateError> {
+        let tsukuba = testdata.join("middlebury-tsukuba-row3");
+        let mut scenes = vec![Scene::load(
+            "Tsukuba",
+            &(1..=5)
+                .map(|k| tsukuba.join(format!("scene1.row3.col{k}.ppm")))
+                .collect::<Vec<_>>(),
+        )?];
+        for (name, folder) in [
+            ("Baby2", "middlebury-baby2"),
+            ("Bowling2", "middlebury-bowling2"),
+            ("Laundry", "middlebury-laundry"),
+        ] {
+            let dir = testdata.join(folder);
+            let paths: Vec<PathBuf> = (0..7).map(|k| dir.join(format!("view{k}.png"))).collect();
+            scenes.push(Scene::load(name, &paths)?);
+        }
+        Ok(scenes)
+    }
+}
+
+/// The scores of one extrapolated view against the real one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewScore {
+    /// The scene.
+    pub scene: String,
+    /// The input pair `(k, k+1)`.
+    pub pair: (usize, usize),
+    /// The real view it is scored against (`k-1` or `k+2`).
+    pub target: usize,
+    /// PSNR (dB) over all pixels.
+    pub psnr_all: f64,
+    /// SSIM over all pixels.
+    pub ssim_all: f64,
+    /// PSNR (dB) over the synthesised pixels, if there are any.
+    pub psnr_synthesised: Option<f64>,
+    /// Share of the view's pixels that were synthesised.
+    pub synthesised: f64,
+}
+
+/// Extrapolates every adjacent pair of `scene` that has a real view on
+/// both sides, with disparities from `source`, and scores both new views.
+pub fn evaluate_scene(
+    scene: &Scene,
+    extrapolator: &Extrapolator,
+    source: &DisparitySource,
+) -> Result<Vec<ViewScore>, ExtrapolateError> {
+    let mut scores = Vec::new();
+    for k in 1..scene.views.len().saturating_sub(2) {
+        let (left, right) = (&scene.views[k], &scene.views[k + 1]);
+        let disparities = source.disparities(left, right)?;
+        let new = extrapolator.extrapolate(left, right, &disparities)?;
+        for (image, mask, target) in [
+            (&new.image_1, &new.mask_1, k - 1),
+            (&new.image_4, &new.mask_4, k + 2),
+        ] {
+            let real = &scene.views[target];
+            let size_error = || {
+                ExtrapolateError::input(
+                    scene.name.as_str(),
+                    format!("view {target} is not the size of views {k} and {}", k + 1),
+                )
+            };
+            let set = mask.pixels().filter(|p| p.0[0] > 0).count();
+            scores.push(ViewScore {
+                scene: scene.name.clone(),
+                pair: (k, k + 1),
+                target,
+                psnr_all: psnr(image, real, None).ok_or_else(size_error)?,
+                ssim_all: ssim(image, real, None).ok_or_else(size_error)?,
+                psnr_synthesised: psnr(image, real, Some(mask)),
+                synthesised: set as f64 / (mask.width() * mask.height()).max(1) as f64,
+            });
+        }
+    }
+    Ok(scores)
+}
+
+/// Mean scores of a set of views.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MeanScore {
+    /// Views averaged.
+    pub views: usize,
+    /// Mean PSNR (dB) over all pixels.
+    pub psnr_all: f64,
+    /// Mean SSIM over all pixels.
+    pub ssim_all: f64,
+    /// Mean PSNR (dB) over synthesised pixels, of the views that have some.
+    pub psnr_synthesised: f64,
+    /// Mean share of synthesised pixels.
+    pub synthesised: f64,
+}
+
+/// The mean of `scores` (`None` when empty).
+pub fn mean_score<'a>(scores: impl IntoIterator<Item = &'a ViewScore>) -> Option<MeanScore> {
+    let scores: Vec<&ViewScore> = scores.into_iter().collect();
+    if scores.is_empty() {
+        return None;
+    }
+    let n = scores.len() as f64;
+    let synthesised: Vec<f64> = scores.iter().filter_map(|s| s.psnr_synthesised).collect();
+    Some(MeanScore {
+        views: scores.len(),
+        psnr_all: scores.iter().map(|s| s.psnr_all).sum::<f64>() / n,
+        ssim_all: scores.iter().map(|s| s.ssim_all).sum::<f64>() / n,
+        psnr_synthesised: synthesised.iter().sum::<f64>() / synthesised.len().max(1) as f64,
+        synthesised: scores.iter().map(|s| s.synthesised).sum::<f64>() / n,
+    })
+}
+
+/// A Markdown table of the mean per scene and over all views.
+pub fn score_table(scores: &[ViewScore]) -> String {
+    let mut names: Vec<&str> = scores.iter().map(|s| s.scene.as_str()).collect();
+    names.dedup();
+    let mut table = String::from(
+        "| scene | views | PSNR all (dB) | SSIM all | PSNR synthesised (dB) | synthesised |\n| --- | ---: | ---: | ---: | ---: | ---: |\n",
+    );
+    let rows = names
+        .iter()
+        .map(|name| {
+            (
+                name.to_string(),
+                mean_score(scores.iter().filter(|s| s.scene == *name)),
+            )
+        })
+        .chain(std::iter::once(("mean".to_string(), mean_score(scores))));
+    for (name, mean) in rows {
+        if let Some(m) = mean {
+            table.push_str(&format!(
+                "| {name} | {} | {:.2} | {:.3} | {:.2} | {:.1} % |\n",
+                m.views,
+                m.psnr_all,
+                m.ssim_all,
+                m.psnr_synthesised,
+                100.0 * m.synthesised
+            ));
+        }
+    }
+    table
+}
