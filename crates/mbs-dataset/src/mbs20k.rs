@@ -103,6 +103,13 @@ pub fn scan(root: &Path, options: &ScanOptions) -> Result<Manifest, DatasetError
             let town = name_of(weather_dir.parent().unwrap_or(root));
             let weather = name_of(weather_dir);
             let id = format!("{town}/{weather}/{}", name_of(frame));
+            // Ids and paths are confined names (mbs_core::confine).
+            mbs_core::confine::check_name(&id).map_err(|why| DatasetError::Layout {
+                path: frame.clone(),
+                message: format!(
+                    "the sample id {id:?} made of its folder names {why}: rename the folder"
+                ),
+            })?;
             let views = (0..options.rig.num_views)
                 .map(|k| format!("{id}/{}", view_file(k)))
                 .collect();
@@ -115,7 +122,7 @@ pub fn scan(root: &Path, options: &ScanOptions) -> Result<Manifest, DatasetError
             } else {
                 Split::Train
             };
-            Sample {
+            Ok(Sample {
                 id,
                 split,
                 town: Some(town),
@@ -127,13 +134,17 @@ pub fn scan(root: &Path, options: &ScanOptions) -> Result<Manifest, DatasetError
                 synthesized_masks: Vec::new(),
                 sha256: BTreeMap::new(),
                 image_size: None,
-            }
+            })
         })
-        .collect::<Vec<_>>();
+        .collect::<Result<Vec<_>, DatasetError>>()?;
     let has_depth = samples.iter().any(|s| s.depth.is_some());
     Ok(Manifest {
         format: FORMAT.into(),
-        name: name_of(root),
+        name: Some(name_of(
+            &std::path::absolute(root).unwrap_or_else(|_| root.to_path_buf()),
+        ))
+        .filter(|n| !n.is_empty())
+        .unwrap_or_else(|| "mbs20k".into()),
         rig: options.rig,
         depth: has_depth.then_some(DepthInfo {
             encoding: DepthEncoding::CarlaRgb,
@@ -310,6 +321,19 @@ mod tests {
         let err = frame_dirs(&root).unwrap_err().to_string();
         assert!(
             err.contains("not valid UTF-8") && err.contains("Town"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn folder_names_that_break_the_name_rule_are_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        touch(&dir.path().join("Town01/Clear:Noon/000000/rgb_0.png"));
+        let err = scan(dir.path(), &ScanOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("Clear:Noon") && err.contains("rename the folder"),
             "{err}"
         );
     }
