@@ -80,25 +80,29 @@ pub fn write_atomic<F>(path: &Path, write: F) -> Result<()>
 where
     F: FnOnce(&mut BufWriter<fs::File>) -> std::io::Result<()>,
 {
+    place_atomically(path, |partial| {
+        let file = fs::File::create(partial)?;
+        let mut writer = BufWriter::with_capacity(1 << 20, file);
+        write(&mut writer)?;
+        writer.flush()
+    })
+}
+
+/// Creates `path`'s folders, lets `fill` make the file at a fresh temporary
+/// name and renames it to `path`; on failure the temporary is removed.
+fn place_atomically(path: &Path, fill: impl FnOnce(&Path) -> std::io::Result<()>) -> Result<()> {
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         fs::create_dir_all(parent).map_err(|e| FormatError::io(parent, e))?;
     }
     let partial = partial_path(path);
-    let result = (|| {
-        let file = fs::File::create(&partial)?;
-        let mut writer = BufWriter::with_capacity(1 << 20, file);
-        write(&mut writer)?;
-        writer.flush()?;
-        drop(writer);
-        fs::rename(&partial, path)
-    })();
-    result.map_err(|e| {
-        // Best effort: the partial file is garbage either way.
-        let _ = fs::remove_file(&partial);
-        FormatError::io(path, e)
-    })
+    fill(&partial)
+        .and_then(|()| fs::rename(&partial, path))
+        .map_err(|e| {
+            // Best effort: the partial file is garbage either way.
+            let _ = fs::remove_file(&partial);
+            FormatError::io(path, e)
+        })
 }
-
 /// Places a copy of `source` at `path` atomically: a hard link where the
 /// file system allows it (no space used), else a copy. Nothing is done when
 /// `path` already is `source`.
@@ -111,16 +115,8 @@ pub fn link_or_copy(source: &Path, path: &Path) -> Result<()> {
     if !source.is_file() {
         return Err(FormatError::invalid(source, "missing, or not a file"));
     }
-    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-        fs::create_dir_all(parent).map_err(|e| FormatError::io(parent, e))?;
-    }
-    let partial = partial_path(path);
-    let result = fs::hard_link(source, &partial)
-        .or_else(|_| fs::copy(source, &partial).map(|_| ()))
-        .and_then(|()| fs::rename(&partial, path));
-    result.map_err(|e| {
-        let _ = fs::remove_file(&partial);
-        FormatError::io(path, e)
+    place_atomically(path, |partial| {
+        fs::hard_link(source, partial).or_else(|_| fs::copy(source, partial).map(|_| ()))
     })
 }
 

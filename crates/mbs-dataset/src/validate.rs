@@ -138,7 +138,7 @@ pub fn validate_manifest(
         files_checked: 0,
         problems: Vec::new(),
     };
-    let document: serde_json::Value = match std::fs::read_to_string(manifest_path)
+    let mut document: serde_json::Value = match std::fs::read_to_string(manifest_path)
         .map_err(|e| e.to_string())
         .and_then(|text| serde_json::from_str(&text).map_err(|e| format!("not valid JSON: {e}")))
     {
@@ -150,6 +150,9 @@ pub fn validate_manifest(
             return report;
         }
     };
+    // As `Manifest::load` reads it: `1.0` is an integer to the schema and
+    // to the model alike.
+    integral_numbers_as_integers(&mut document);
     let raw_samples = document["samples"].as_array().cloned().unwrap_or_default();
     report.samples = raw_samples.len();
     let id_at = |i: usize| {
@@ -178,9 +181,7 @@ pub fn validate_manifest(
             format!("schema: {}", issue.message),
         ));
     }
-    let mut rig_value = document["rig"].clone();
-    integral_numbers_as_integers(&mut rig_value);
-    let Ok(rig) = serde_json::from_value::<Rig>(rig_value) else {
+    let Ok(rig) = serde_json::from_value::<Rig>(document["rig"].clone()) else {
         // Without a rig nothing on disk can be judged; the schema problem says why.
         report.problems.push(problem(
             None,
@@ -201,9 +202,7 @@ pub fn validate_manifest(
         let reason = if bad_indices.contains(&i) {
             "it breaks the schema (see above)".to_string()
         } else {
-            let mut raw = raw.clone();
-            integral_numbers_as_integers(&mut raw);
-            match serde_json::from_value(raw) {
+            match serde_json::from_value(raw.clone()) {
                 Ok(sample) => {
                     samples.push(sample);
                     continue;
