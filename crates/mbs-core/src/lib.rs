@@ -14,6 +14,7 @@ pub mod fill;
 pub mod formats;
 pub mod geometry;
 pub mod limits;
+pub mod median;
 pub mod metrics;
 pub mod mutation;
 pub mod quality;

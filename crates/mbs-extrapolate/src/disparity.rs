@@ -5,14 +5,35 @@
 use std::path::Path;
 
 use mbs_core::formats::read_float_map;
+use mbs_core::median::median_filter;
 use mbs_core::{FloatImage, RgbImage, Side};
-use mbs_infer::{Sgm, SgmConfig, StereoMatcher, estimate_max_disparity};
+use mbs_infer::{Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max_disparity};
 use mbs_warp::{fill_disparity_background, forward_warp};
 
 use crate::ExtrapolateError;
 
 /// The largest disparity range the built-in matcher estimates per pair.
 pub const MAX_ESTIMATED_DISPARITY: u32 = 256;
+
+/// Radius of the median filter applied to the built-in matcher's
+/// disparities before warping (a 5x5 square).
+pub const SGM_MEDIAN_RADIUS: u32 = 2;
+
+/// The built-in matcher's settings for warping, which differ from the
+/// matching defaults (tuned for Out-N on Middlebury): all eight paths and
+/// no uniqueness test, so fewer pixels are dropped and refilled from the
+/// background. With the 5x5 median ([`SGM_MEDIAN_RADIUS`]) this gave
+/// +0.6 dB PSNR over the 28 extrapolated views of the shipped real scenes
+/// (`examples/extrapolation_eval.rs`) and +0.5 dB at twice the baseline;
+/// larger penalties, a smaller census window, no left-right check or no
+/// speckle removal each lost 0.3 to 1.3 dB there.
+pub fn warping_sgm_config(max_disparity: u32) -> SgmConfig {
+    SgmConfig {
+        paths: SgmPaths::Eight,
+        uniqueness: 0,
+        ..SgmConfig::with_max_disparity(max_disparity)
+    }
+}
 
 /// The disparities of a pair, each on its own view's grid, every pixel
 /// finite (unknown pixels filled from the background side).
@@ -27,7 +48,8 @@ pub struct Disparities {
 /// Where disparities come from for a pair without disparity files.
 pub enum DisparitySource {
     /// The built-in semi-global matcher searching `max_disparity`
-    /// disparities (0 = estimate per pair, up to 256).
+    /// disparities (0 = estimate per pair, up to 256), with the settings
+    /// of [`warping_sgm_config`] and a median filter on its output.
     Sgm {
         /// Number of disparities searched (0 = estimate).
         max_disparity: u32,
@@ -44,22 +66,22 @@ impl DisparitySource {
         right: &RgbImage,
     ) -> Result<Disparities, ExtrapolateError> {
         let sgm;
-        let matcher: &dyn StereoMatcher = match self {
-            DisparitySource::Matcher(matcher) => matcher.as_ref(),
+        let (matcher, median_radius): (&dyn StereoMatcher, u32) = match self {
+            DisparitySource::Matcher(matcher) => (matcher.as_ref(), 0),
             DisparitySource::Sgm { max_disparity } => {
                 let max_disparity = match *max_disparity {
                     0 => estimate_max_disparity(left, right, MAX_ESTIMATED_DISPARITY)?,
                     n => n,
                 };
-                sgm = Sgm::new(SgmConfig::with_max_disparity(max_disparity));
-                &sgm
+                sgm = Sgm::new(warping_sgm_config(max_disparity));
+                (&sgm, SGM_MEDIAN_RADIUS)
             }
         };
-        let dl = matcher.predict(left, right)?.disparity;
-        let dr = matcher.predict_right(left, right)?.disparity;
+        let for_warping =
+            |map: &FloatImage| median_filter(&fill_disparity_background(map), median_radius);
         Ok(Disparities {
-            left: fill_disparity_background(&dl),
-            right: fill_disparity_background(&dr),
+            left: for_warping(&matcher.predict(left, right)?.disparity),
+            right: for_warping(&matcher.predict_right(left, right)?.disparity),
         })
     }
 }

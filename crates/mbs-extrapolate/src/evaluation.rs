@@ -1,14 +1,15 @@
-//! Extrapolation measured on real multi-view scenes: every adjacent pair
-//! `(k, k+1)` of equally spaced views with a real view on each side is
-//! extrapolated, and the new views are scored against views `k-1` and
-//! `k+2` (PSNR and SSIM over all pixels, and over the synthesised pixels:
-//! those the mask marks, holes and dilated pixels).
+//! Extrapolation measured on real multi-view scenes: every pair
+//! `(k, k + step)` of equally spaced views with a real view one baseline
+//! beyond each side is extrapolated, and the new views are scored against
+//! views `k - step` and `k + 2 step` (PSNR and SSIM over all pixels, and
+//! over the synthesised pixels: those the mask marks, holes and dilated
+//! pixels). `step` 1 is adjacent views; 2 doubles the disparities.
 
 use std::path::{Path, PathBuf};
 
-use mbs_core::RgbImage;
 use mbs_core::formats::rgb::read_rgb;
 use mbs_core::quality::{psnr, ssim};
+use mbs_core::{MaskImage, RgbImage};
 
 use crate::{DisparitySource, ExtrapolateError, Extrapolator};
 
@@ -70,14 +71,59 @@ impl Scene {
     }
 }
 
+/// One new view of a scene and the real view it is scored against.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExtrapolatedView {
+    /// The input pair `(k, k + step)`.
+    pub pair: (usize, usize),
+    /// The index of the real view at the new view's position.
+    pub target: usize,
+    /// The new view.
+    pub image: RgbImage,
+    /// Its synthesised pixels (255): holes and dilation.
+    pub mask: MaskImage,
+}
+
+/// Extrapolates every pair `(k, k + step)` of `scene` that has a real view
+/// one baseline (`step` views) beyond each side, with disparities from
+/// `source`: two new views per pair, at views `k - step` and `k + 2 step`.
+pub fn extrapolate_scene(
+    scene: &Scene,
+    extrapolator: &Extrapolator,
+    source: &DisparitySource,
+    step: usize,
+) -> Result<Vec<ExtrapolatedView>, ExtrapolateError> {
+    let mut views = Vec::new();
+    let step = step.max(1);
+    for k in step..scene.views.len().saturating_sub(2 * step) {
+        let (left, right) = (&scene.views[k], &scene.views[k + step]);
+        let disparities = source.disparities(left, right)?;
+        let new = extrapolator.extrapolate(left, right, &disparities)?;
+        let pair = (k, k + step);
+        views.push(ExtrapolatedView {
+            pair,
+            target: k - step,
+            image: new.image_1,
+            mask: new.mask_1,
+        });
+        views.push(ExtrapolatedView {
+            pair,
+            target: k + 2 * step,
+            image: new.image_4,
+            mask: new.mask_4,
+        });
+    }
+    Ok(views)
+}
+
 /// The scores of one extrapolated view against the real one.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ViewScore {
     /// The scene.
     pub scene: String,
-    /// The input pair `(k, k+1)`.
+    /// The input pair `(k, k + step)`.
     pub pair: (usize, usize),
-    /// The real view it is scored against (`k-1` or `k+2`).
+    /// The real view it is scored against (`k - step` or `k + 2 step`).
     pub target: usize,
     /// PSNR (dB) over all pixels.
     pub psnr_all: f64,
@@ -89,42 +135,62 @@ pub struct ViewScore {
     pub synthesised: f64,
 }
 
-/// Extrapolates every adjacent pair of `scene` that has a real view on
-/// both sides, with disparities from `source`, and scores both new views.
+impl ViewScore {
+    /// Scores `view` of `scene` against its real view, with the PSNR of
+    /// synthesised pixels taken over `synthesised` (the view's own mask, or
+    /// one shared by the pipelines being compared).
+    pub fn of(
+        scene: &Scene,
+        view: &ExtrapolatedView,
+        synthesised: &MaskImage,
+    ) -> Result<ViewScore, ExtrapolateError> {
+        let (k, j) = view.pair;
+        let real = scene.views.get(view.target);
+        let size_error = || {
+            ExtrapolateError::input(
+                scene.name.as_str(),
+                format!(
+                    "view {} is missing or not the size of views {k} and {j}",
+                    view.target
+                ),
+            )
+        };
+        let real = real.ok_or_else(size_error)?;
+        let set = synthesised.pixels().filter(|p| p.0[0] > 0).count();
+        Ok(ViewScore {
+            scene: scene.name.clone(),
+            pair: view.pair,
+            target: view.target,
+            psnr_all: psnr(&view.image, real, None).ok_or_else(size_error)?,
+            ssim_all: ssim(&view.image, real, None).ok_or_else(size_error)?,
+            psnr_synthesised: psnr(&view.image, real, Some(synthesised)),
+            synthesised: set as f64 / (synthesised.width() * synthesised.height()).max(1) as f64,
+        })
+    }
+}
+
+/// Extrapolates `scene` at a baseline of `step` views (see
+/// [`extrapolate_scene`]) and scores every new view, the synthesised
+/// pixels by its own mask.
 pub fn evaluate_scene(
     scene: &Scene,
     extrapolator: &Extrapolator,
     source: &DisparitySource,
+    step: usize,
 ) -> Result<Vec<ViewScore>, ExtrapolateError> {
-    let mut scores = Vec::new();
-    for k in 1..scene.views.len().saturating_sub(2) {
-        let (left, right) = (&scene.views[k], &scene.views[k + 1]);
-        let disparities = source.disparities(left, right)?;
-        let new = extrapolator.extrapolate(left, right, &disparities)?;
-        for (image, mask, target) in [
-            (&new.image_1, &new.mask_1, k - 1),
-            (&new.image_4, &new.mask_4, k + 2),
-        ] {
-            let real = &scene.views[target];
-            let size_error = || {
-                ExtrapolateError::input(
-                    scene.name.as_str(),
-                    format!("view {target} is not the size of views {k} and {}", k + 1),
-                )
-            };
-            let set = mask.pixels().filter(|p| p.0[0] > 0).count();
-            scores.push(ViewScore {
-                scene: scene.name.clone(),
-                pair: (k, k + 1),
-                target,
-                psnr_all: psnr(image, real, None).ok_or_else(size_error)?,
-                ssim_all: ssim(image, real, None).ok_or_else(size_error)?,
-                psnr_synthesised: psnr(image, real, Some(mask)),
-                synthesised: set as f64 / (mask.width() * mask.height()).max(1) as f64,
-            });
-        }
+    extrapolate_scene(scene, extrapolator, source, step)?
+        .iter()
+        .map(|view| ViewScore::of(scene, view, &view.mask))
+        .collect()
+}
+
+/// The union of two masks of one size (255 where either is set).
+pub fn mask_union(a: &MaskImage, b: &MaskImage) -> MaskImage {
+    let mut union = a.clone();
+    for (u, v) in union.iter_mut().zip(b.iter()) {
+        *u = (*u).max(*v);
     }
-    Ok(scores)
+    union
 }
 
 /// Mean scores of a set of views.

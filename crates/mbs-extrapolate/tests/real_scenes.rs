@@ -1,6 +1,7 @@
 //! The extrapolation evaluation on the four real multi-view scenes shipped
-//! in `testdata/` with the default settings (built-in matcher, no dilation,
-//! background fill): 28 new views scored against the real ones. The floors
+//! in `testdata/` with the default settings (built-in matcher tuned for
+//! warping, no dilation, background fill): 28 new views from adjacent pairs
+//! and 6 from pairs two views apart, scored against the real ones. The floors
 //! sit 0.3 dB (0.005 SSIM) under the figures measured when this was written,
 //! so a change that makes the views worse fails here.
 
@@ -19,16 +20,17 @@ fn default_extrapolation_of_real_scenes_keeps_its_quality() {
     let scenes = Scene::shipped(&testdata).unwrap();
     let extrapolator = Extrapolator::new(Dilation::None, Box::new(BackgroundFill::default()));
     let source = DisparitySource::Sgm { max_disparity: 0 };
-    // (scene, views, PSNR all, SSIM all) as measured: 28.92, 33.65, 33.40, 29.76 dB.
+    // (scene, views, PSNR all, SSIM all) as measured: 29.53, 34.47, 33.95,
+    // 30.26 dB; SSIM 0.935, 0.968, 0.962, 0.949.
     let floors = [
-        ("Tsukuba", 4, 28.62, 0.923),
-        ("Baby2", 8, 33.35, 0.957),
-        ("Bowling2", 8, 33.10, 0.951),
-        ("Laundry", 8, 29.46, 0.938),
+        ("Tsukuba", 4, 29.23, 0.930),
+        ("Baby2", 8, 34.17, 0.963),
+        ("Bowling2", 8, 33.65, 0.957),
+        ("Laundry", 8, 29.96, 0.944),
     ];
     let mut all = Vec::new();
     for (scene, (name, views, psnr, ssim)) in scenes.iter().zip(floors) {
-        let scores = evaluate_scene(scene, &extrapolator, &source).unwrap();
+        let scores = evaluate_scene(scene, &extrapolator, &source, 1).unwrap();
         let mean = mean_score(&scores).unwrap();
         assert_eq!((scene.name.as_str(), mean.views), (name, views));
         assert!(mean.psnr_all > psnr, "{name}: {mean:?}");
@@ -43,5 +45,25 @@ fn default_extrapolation_of_real_scenes_keeps_its_quality() {
         all.extend(scores);
     }
     let mean = mean_score(&all).unwrap();
-    assert!(mean.psnr_synthesised > 21.79, "{mean:?}"); // measured 22.09 dB
+    assert!(mean.psnr_synthesised > 20.87, "{mean:?}"); // measured 21.17 dB
+}
+
+#[test]
+fn twice_the_baseline_keeps_its_quality() {
+    let testdata = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata");
+    let scenes = Scene::shipped(&testdata).unwrap();
+    let extrapolator = Extrapolator::new(Dilation::None, Box::new(BackgroundFill::default()));
+    let source = DisparitySource::Sgm { max_disparity: 0 };
+    let mut all = Vec::new();
+    for scene in &scenes {
+        all.extend(evaluate_scene(scene, &extrapolator, &source, 2).unwrap());
+    }
+    // Pairs (k, k + 2) with views k - 2 and k + 4: none in the 5 views of
+    // Tsukuba, one pair in each 7-view scene.
+    assert_eq!(all.len(), 6, "{all:?}");
+    let mean = mean_score(&all).unwrap();
+    // Measured 29.07 dB, SSIM 0.932, 18.87 dB over 5.7 % synthesised.
+    assert!(mean.psnr_all > 28.77, "{mean:?}");
+    assert!(mean.ssim_all > 0.927, "{mean:?}");
+    assert!(mean.psnr_synthesised > 18.57, "{mean:?}");
 }
