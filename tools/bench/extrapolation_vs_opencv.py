@@ -26,9 +26,13 @@ SSIM is the Gaussian 11x11, sigma 1.5 form of mbs_core::quality::ssim.
 Needs numpy and opencv-python-headless (not a CI dependency). From the
 repository root:
 
-    python3 tools/bench/extrapolation_vs_opencv.py
+    python3 tools/bench/extrapolation_vs_opencv.py [--num-disparities N]
+
+`--num-disparities N` gives the peer one fixed range for every pair instead
+(a multiple of 16), as a user who does not know each scene's range would.
 """
 
+import argparse
 import json
 import os
 import subprocess
@@ -104,9 +108,9 @@ def splat(image, disp, sign, same_surface=1.0):
     return out, (holes * 255).astype(np.uint8).reshape(h, w)
 
 
-def peer_scene(views, max_disparity, step):
+def peer_scene(views, max_disparity, step, fixed_range=None):
     """Scores of the peer's new views: (psnr_all, ssim_all, psnr_synthesised, synthesised) each."""
-    num = int(np.ceil(1.1 * step * max_disparity / 16)) * 16
+    num = fixed_range or int(np.ceil(1.1 * step * max_disparity / 16)) * 16
     scores = []
     for k in range(step, len(views) - 2 * step):
         left, right = views[k], views[k + step]
@@ -123,6 +127,10 @@ def peer_scene(views, max_disparity, step):
 
 
 def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--num-disparities", type=int, default=None,
+                        help="one SGBM range for every pair (default: each scene's true range + 10 %%)")
+    args = parser.parse_args()
     subprocess.run(["cargo", "build", "--release", "-q", "-p", "mbs-extrapolate", "--example", "extrapolation_eval"],
                    check=True)
     binary = os.path.join(os.path.dirname(__file__), "../../target/release/examples/extrapolation_eval")
@@ -134,7 +142,7 @@ def main():
     cv2.setNumThreads(2)
     scenes = [(name, [read_rgb(os.path.join(TESTDATA, p)) for p in paths], top) for name, paths, top in SCENES]
     start = time.perf_counter()
-    peer = {step: {name: peer_scene(views, top, step) for name, views, top in scenes} for step in (1, 2)}
+    peer = {step: {name: peer_scene(views, top, step, args.num_disparities) for name, views, top in scenes} for step in (1, 2)}
     peer_seconds = time.perf_counter() - start
 
     print(f"mbs {mbs_seconds:.1f} s, peer {peer_seconds:.1f} s for the same views (both steps, "

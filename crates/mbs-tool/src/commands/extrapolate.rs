@@ -74,8 +74,10 @@ pub struct Args {
     #[arg(long, requires = "kitti", conflicts_with = "disparity_dir")]
     pub right_disparity_dir: Option<PathBuf>,
     /// Where disparities come from when no file is given for a frame: `sgm`
-    /// (the built-in semi-global matcher) or `onnx:MODEL.onnx` (a stereo
-    /// network fed as --card says); left view, and right view by mirroring.
+    /// (the built-in semi-global matcher with settings tuned for warping:
+    /// 8 paths, no uniqueness test, a 5x5 median) or `onnx:MODEL.onnx` (a
+    /// stereo network fed as --card says); left view, and right view by
+    /// mirroring.
     #[arg(long, value_name = "sgm|onnx:MODEL", default_value = "sgm", value_parser = parse_disparity_source)]
     pub disparity: DisparityKind,
     /// How to feed `--disparity onnx:MODEL`: a built-in card name or a card FILE.json.
