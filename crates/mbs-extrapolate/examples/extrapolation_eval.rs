@@ -4,8 +4,12 @@
 //! further out, for the default settings and the alternatives, as Markdown
 //! tables (README, BENCHMARKS). With `--json`, one line of per-scene means
 //! of the default settings for `tools/bench/extrapolation_vs_opencv.py`.
+//! With `--hci DIR`, the HCI light-field scene "antinous" (its centre row,
+//! `input_Cam036.png` .. `input_Cam044.png`; CC BY-NC-SA, so not shipped:
+//! `../shared/data/hci-antinous-row4` in the team's checkout) joins the
+//! scenes, its disparities (-3.1 .. 2.7 px per view) offset by 4 px.
 //!
-//! `cargo run --release -p mbs-extrapolate --example extrapolation_eval [-- --json]`
+//! `cargo run --release -p mbs-extrapolate --example extrapolation_eval [-- --json] [-- --hci DIR]`
 
 use std::path::Path;
 
@@ -18,6 +22,10 @@ use mbs_extrapolate::{DisparitySource, ExtrapolateError, Extrapolator};
 use mbs_infer::inpaint::{BackgroundFill, Inpainter, IsotropicFill};
 use mbs_infer::{Disparity, InferError, Sgm, SgmConfig, StereoMatcher, estimate_max_disparity};
 use mbs_warp::Dilation;
+
+/// Disparity offset (px per view step) that makes the HCI scene's
+/// disparities (-3.13 .. 2.69 px) positive.
+const HCI_OFFSET: u32 = 4;
 
 /// Makes a fresh inpainter for one setting.
 type NewInpainter = fn() -> Box<dyn Inpainter>;
@@ -152,7 +160,18 @@ fn json_line(scenes: &[Scene]) -> Result<String, ExtrapolateError> {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let testdata = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata");
-    let scenes = Scene::shipped(&testdata)?;
+    let mut scenes = Scene::shipped(&testdata)?;
+    let args: Vec<String> = std::env::args().collect();
+    if let Some(dir) = args
+        .iter()
+        .position(|a| a == "--hci")
+        .and_then(|i| args.get(i + 1))
+    {
+        let views: Vec<_> = (36..=44)
+            .map(|k| Path::new(dir).join(format!("input_Cam{k:03}.png")))
+            .collect();
+        scenes.push(Scene::load("HCI antinous", &views)?.with_disparity_offset(HCI_OFFSET)?);
+    }
     if std::env::args().any(|a| a == "--json") {
         println!("{}", json_line(&scenes)?);
         return Ok(());

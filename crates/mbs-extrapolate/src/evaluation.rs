@@ -48,6 +48,39 @@ impl Scene {
         })
     }
 
+    /// The scene with `offset` px added to the disparity of every view
+    /// step: view `k` (of `n`) keeps its columns `k * offset ..` for a
+    /// width of `width - (n - 1) * offset`. For rigs whose disparities go
+    /// negative (cameras converged on a focus plane, as in light-field
+    /// data), since the pipeline takes disparity as a non-negative
+    /// magnitude.
+    pub fn with_disparity_offset(self, offset: u32) -> Result<Scene, ExtrapolateError> {
+        let n = self.views.len() as u32;
+        let (width, height) = self.views.first().map_or((0, 0), |v| v.dimensions());
+        let kept = n
+            .checked_sub(1)
+            .and_then(|steps| width.checked_sub(steps * offset))
+            .filter(|w| *w > 0)
+            .ok_or_else(|| {
+                ExtrapolateError::input(
+                    self.name.as_str(),
+                    format!("a disparity offset of {offset} px leaves no column of {n} views {width} px wide"),
+                )
+            })?;
+        let views = self
+            .views
+            .iter()
+            .zip(0u32..)
+            .map(|(view, k)| {
+                image::imageops::crop_imm(view, k * offset, 0, kept, height).to_image()
+            })
+            .collect();
+        Ok(Scene {
+            name: self.name,
+            views,
+        })
+    }
+
     /// The scenes shipped in a checkout's `testdata/`: Middlebury Tsukuba
     /// (5 views), Baby2, Bowling2 and Laundry (7 views each).
     pub fn shipped(testdata: &Path) -> Result<Vec<Scene>, ExtrapolateError> {
@@ -254,4 +287,42 @@ pub fn score_table(scores: &[ViewScore]) -> String {
         }
     }
     table
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_disparity_offset_turns_negative_disparities_positive() {
+        // View k shows the texture at x + k * d with d = -2: disparity -2.
+        let texture = |x: i64| ((x * 37 + 11) % 251) as u8;
+        let views: Vec<RgbImage> = (0..4i64)
+            .map(|k| {
+                RgbImage::from_fn(20, 3, |x, _| {
+                    image::Rgb([texture(x as i64 + 10 - 2 * k); 3])
+                })
+            })
+            .collect();
+        let scene = Scene {
+            name: "converged".into(),
+            views,
+        };
+        let shifted = scene.with_disparity_offset(3).unwrap();
+        assert!(shifted.views.iter().all(|v| v.dimensions() == (11, 3)));
+        // Now a pixel at u in view k is at u - 1 in view k + 1.
+        for pair in shifted.views.windows(2) {
+            for u in 1..11 {
+                assert_eq!(pair[0].get_pixel(u, 1), pair[1].get_pixel(u - 1, 1));
+            }
+        }
+        let Err(err) = shifted.with_disparity_offset(4) else {
+            panic!("an offset wider than the views was accepted");
+        };
+        let err = err.to_string();
+        assert!(
+            err.contains("converged: a disparity offset of 4 px leaves no column"),
+            "{err}"
+        );
+    }
 }
