@@ -123,6 +123,13 @@ fn a_stopped_and_resumed_run_matches_an_uninterrupted_one() {
         (1..=STEPS).map(|s| s as f64).collect::<Vec<_>>()
     );
     assert_eq!(field(&a, "step"), field(&b, "step"));
+    // Every line says how long its steps waited for data (ms per step).
+    for wait in field(&a, "data_wait_ms")
+        .into_iter()
+        .chain(field(&b, "data_wait_ms"))
+    {
+        assert!(wait.is_finite() && (0.0..60e3).contains(&wait), "{wait}");
+    }
     for key in [
         "loss",
         "geometry",

@@ -5,7 +5,7 @@
 use std::fs;
 use std::io::Write;
 use std::path::Path;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use mbs_core::atomic::write_bytes_atomic;
 use mbs_core::metrics::{Metrics, Region};
@@ -81,6 +81,7 @@ pub(crate) struct Interval {
     geometry: f64,
     photometric: f64,
     smoothness: f64,
+    data_wait: Duration,
     last: Option<StepReport>,
 }
 
@@ -93,8 +94,14 @@ impl Interval {
             geometry: 0.0,
             photometric: 0.0,
             smoothness: 0.0,
+            data_wait: Duration::ZERO,
             last: None,
         }
+    }
+
+    /// Adds the time a step waited for its batch from the loader.
+    pub(crate) fn add_data_wait(&mut self, waited: Duration) {
+        self.data_wait += waited;
     }
 
     pub(crate) fn add(&mut self, report: &StepReport) {
@@ -136,6 +143,7 @@ impl Interval {
             "momentum": last.momentum,
             "grad_norm": last.grad_norm,
             "samples_per_s": self.samples_per_second(batch_size),
+            "data_wait_ms": 1e3 * self.data_wait.as_secs_f64() / n,
         })
     }
 }

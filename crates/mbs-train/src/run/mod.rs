@@ -20,6 +20,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
 
 use burn::tensor::Device;
 use mbs_core::atomic::write_bytes_atomic;
@@ -276,7 +277,12 @@ impl TrainingRun {
         if first == 0 {
             metrics = self.validate(observer)?;
         }
-        while let Some(batch) = loader.next_batch() {
+        loop {
+            let asked = Instant::now();
+            let Some(batch) = loader.next_batch() else {
+                break;
+            };
+            interval.add_data_wait(asked.elapsed());
             let batch =
                 batch?.into_step_batch(&self.device, &self.config.augment, self.config.seed);
             let report = self.trainer.step(batch)?;
