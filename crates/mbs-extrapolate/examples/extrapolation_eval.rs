@@ -16,7 +16,7 @@ use std::path::Path;
 use mbs_core::RgbImage;
 use mbs_extrapolate::disparity::MAX_ESTIMATED_DISPARITY;
 use mbs_extrapolate::evaluation::{
-    Scene, ViewScore, evaluate_scene, extrapolate_scene, mask_union, mean_score, score_table,
+    ExtrapolatedView, Scene, ViewScore, extrapolate_scene, mask_union, mean_score, score_table,
 };
 use mbs_extrapolate::{DisparitySource, ExtrapolateError, Extrapolator};
 use mbs_infer::inpaint::{BackgroundFill, Inpainter, IsotropicFill};
@@ -103,44 +103,56 @@ fn source(matching_defaults: bool) -> DisparitySource {
     }
 }
 
-fn evaluate(
+/// The new views of every scene (with the index of their scene) for one
+/// setting, pairs `step` views apart.
+type Views = Vec<(usize, ExtrapolatedView)>;
+
+fn extrapolate_all(
     scenes: &[Scene],
     setting: &Setting,
     step: usize,
-) -> Result<Vec<ViewScore>, ExtrapolateError> {
+) -> Result<Views, ExtrapolateError> {
     let (_, matching_defaults, dilation, inpainter) = setting;
     let extrapolator = Extrapolator::new(*dilation, inpainter());
     let source = source(*matching_defaults);
-    let mut scores = Vec::new();
-    for scene in scenes {
-        scores.extend(evaluate_scene(scene, &extrapolator, &source, step)?);
+    let mut views = Vec::new();
+    for (i, scene) in scenes.iter().enumerate() {
+        let new = extrapolate_scene(scene, &extrapolator, &source, step)?;
+        views.extend(new.into_iter().map(|view| (i, view)));
     }
-    Ok(scores)
+    Ok(views)
 }
 
-/// Synthesised-pixel PSNR of the default and the `before` setting over the
-/// same pixels: the union of both masks, view by view.
-fn shared_mask_psnr(scenes: &[Scene], step: usize) -> Result<(f64, f64), ExtrapolateError> {
-    let extrapolator = Extrapolator::new(Dilation::None, Box::new(BackgroundFill::default()));
-    let (mut now, mut before) = (Vec::new(), Vec::new());
-    for scene in scenes {
-        let new = extrapolate_scene(scene, &extrapolator, &source(false), step)?;
-        let old = extrapolate_scene(scene, &extrapolator, &source(true), step)?;
-        for (n, o) in new.iter().zip(&old) {
-            let union = mask_union(&n.mask, &o.mask);
-            now.push(ViewScore::of(scene, n, &union)?);
-            before.push(ViewScore::of(scene, o, &union)?);
-        }
+/// The scores of `views`, the synthesised pixels by each view's own mask.
+fn score(scenes: &[Scene], views: &Views) -> Result<Vec<ViewScore>, ExtrapolateError> {
+    views
+        .iter()
+        .map(|(i, view)| ViewScore::of(&scenes[*i], view, &view.mask))
+        .collect()
+}
+
+/// Synthesised-pixel PSNR of the default's and the `before` setting's
+/// views over the same pixels: the union of both masks, view by view.
+fn shared_mask_psnr(
+    scenes: &[Scene],
+    default: &Views,
+    before: &Views,
+) -> Result<(f64, f64), ExtrapolateError> {
+    let (mut now, mut then) = (Vec::new(), Vec::new());
+    for ((i, new), (_, old)) in default.iter().zip(before) {
+        let union = mask_union(&new.mask, &old.mask);
+        now.push(ViewScore::of(&scenes[*i], new, &union)?);
+        then.push(ViewScore::of(&scenes[*i], old, &union)?);
     }
     let synthesised =
         |scores: &[ViewScore]| mean_score(scores).map_or(f64::NAN, |m| m.psnr_synthesised);
-    Ok((synthesised(&now), synthesised(&before)))
+    Ok((synthesised(&now), synthesised(&then)))
 }
 
 fn json_line(scenes: &[Scene]) -> Result<String, ExtrapolateError> {
     let mut steps = serde_json::Map::new();
     for step in [1, 2] {
-        let scores = evaluate(scenes, &SETTINGS[0], step)?;
+        let scores = score(scenes, &extrapolate_all(scenes, &SETTINGS[0], step)?)?;
         let mut per_scene = serde_json::Map::new();
         for scene in scenes {
             if let Some(m) = mean_score(scores.iter().filter(|s| s.scene == scene.name)) {
@@ -172,17 +184,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .collect();
         scenes.push(Scene::load("HCI antinous", &views)?.with_disparity_offset(HCI_OFFSET)?);
     }
-    if std::env::args().any(|a| a == "--json") {
+    if args.iter().any(|a| a == "--json") {
         println!("{}", json_line(&scenes)?);
         return Ok(());
     }
     let mut summary = String::from(
         "| settings | PSNR all (dB) | SSIM all | PSNR synthesised (dB) | at 2x baseline: PSNR all | SSIM all | PSNR synthesised |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: |\n",
     );
+    // The views of the default and the `before` setting, per step, for the
+    // shared-mask comparison.
+    let (mut default_views, mut before_views) = (Vec::new(), Vec::new());
     for (i, setting) in SETTINGS.iter().enumerate() {
         summary.push_str(&format!("| {} ", setting.0));
         for step in [1, 2] {
-            let scores = evaluate(&scenes, setting, step)?;
+            let views = extrapolate_all(&scenes, setting, step)?;
+            let scores = score(&scenes, &views)?;
             if i == 0 {
                 println!(
                     "{} views apart, {}:\n\n{}",
@@ -197,14 +213,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     m.psnr_all, m.ssim_all, m.psnr_synthesised
                 ));
             }
+            match i {
+                0 => default_views.push(views),
+                1 => before_views.push(views),
+                _ => {}
+            }
         }
         summary.push_str("|\n");
     }
     println!("Mean over every view of every scene:\n\n{summary}");
-    for step in [1, 2] {
-        let (now, before) = shared_mask_psnr(&scenes, step)?;
+    for ((step, default), before) in [1, 2].iter().zip(&default_views).zip(&before_views) {
+        let (now, then) = shared_mask_psnr(&scenes, default, before)?;
         println!(
-            "{step} views apart, synthesised pixels of either mask: default {now:.2} dB, before {before:.2} dB"
+            "{step} views apart, synthesised pixels of either mask: default {now:.2} dB, before {then:.2} dB"
         );
     }
     Ok(())

@@ -59,7 +59,8 @@ impl Scene {
         let (width, height) = self.views.first().map_or((0, 0), |v| v.dimensions());
         let kept = n
             .checked_sub(1)
-            .and_then(|steps| width.checked_sub(steps * offset))
+            .and_then(|steps| steps.checked_mul(offset))
+            .and_then(|cut| width.checked_sub(cut))
             .filter(|w| *w > 0)
             .ok_or_else(|| {
                 ExtrapolateError::input(

@@ -9,17 +9,25 @@
 
 use std::path::Path;
 
-use mbs_extrapolate::evaluation::{Scene, evaluate_scene, mean_score};
+use mbs_extrapolate::evaluation::{Scene, ViewScore, evaluate_scene, mean_score};
 use mbs_extrapolate::{DisparitySource, Extrapolator};
 use mbs_infer::inpaint::BackgroundFill;
 use mbs_warp::Dilation;
 
-#[test]
-fn default_extrapolation_of_real_scenes_keeps_its_quality() {
-    let testdata = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata");
-    let scenes = Scene::shipped(&testdata).unwrap();
+fn shipped_scenes() -> Vec<Scene> {
+    Scene::shipped(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata")).unwrap()
+}
+
+/// The scores of `scene`'s new views with the default settings, pairs
+/// `step` views apart.
+fn default_scores(scene: &Scene, step: usize) -> Vec<ViewScore> {
     let extrapolator = Extrapolator::new(Dilation::None, Box::new(BackgroundFill::default()));
     let source = DisparitySource::Sgm { max_disparity: 0 };
+    evaluate_scene(scene, &extrapolator, &source, step).unwrap()
+}
+
+#[test]
+fn default_extrapolation_of_real_scenes_keeps_its_quality() {
     // (scene, views, PSNR all, SSIM all) as measured: 29.53, 34.47, 33.95,
     // 30.26 dB; SSIM 0.935, 0.968, 0.962, 0.949.
     let floors = [
@@ -29,8 +37,8 @@ fn default_extrapolation_of_real_scenes_keeps_its_quality() {
         ("Laundry", 8, 29.96, 0.944),
     ];
     let mut all = Vec::new();
-    for (scene, (name, views, psnr, ssim)) in scenes.iter().zip(floors) {
-        let scores = evaluate_scene(scene, &extrapolator, &source, 1).unwrap();
+    for (scene, (name, views, psnr, ssim)) in shipped_scenes().iter().zip(floors) {
+        let scores = default_scores(scene, 1);
         let mean = mean_score(&scores).unwrap();
         assert_eq!((scene.name.as_str(), mean.views), (name, views));
         assert!(mean.psnr_all > psnr, "{name}: {mean:?}");
@@ -50,13 +58,9 @@ fn default_extrapolation_of_real_scenes_keeps_its_quality() {
 
 #[test]
 fn twice_the_baseline_keeps_its_quality() {
-    let testdata = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata");
-    let scenes = Scene::shipped(&testdata).unwrap();
-    let extrapolator = Extrapolator::new(Dilation::None, Box::new(BackgroundFill::default()));
-    let source = DisparitySource::Sgm { max_disparity: 0 };
     let mut all = Vec::new();
-    for scene in &scenes {
-        all.extend(evaluate_scene(scene, &extrapolator, &source, 2).unwrap());
+    for scene in &shipped_scenes() {
+        all.extend(default_scores(scene, 2));
     }
     // Pairs (k, k + 2) with views k - 2 and k + 4: none in the 5 views of
     // Tsukuba, one pair in each 7-view scene.
