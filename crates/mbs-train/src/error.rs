@@ -49,6 +49,15 @@ pub enum TrainError {
         /// What went wrong.
         reason: String,
     },
+    /// A weights file (an official checkpoint, an export) could not be
+    /// read, written or matched to the network.
+    #[error("weights {path}: {reason}")]
+    Weights {
+        /// The weights file.
+        path: PathBuf,
+        /// What went wrong.
+        reason: String,
+    },
 }
 
 impl From<mbs_core::FormatError> for TrainError {
@@ -73,6 +82,14 @@ impl TrainError {
     /// A [`TrainError::Data`] for `path`.
     pub fn data(path: impl Into<PathBuf>, reason: impl ToString) -> Self {
         TrainError::Data {
+            path: path.into(),
+            reason: reason.to_string(),
+        }
+    }
+
+    /// A [`TrainError::Weights`] for `path`.
+    pub fn weights(path: impl Into<PathBuf>, reason: impl ToString) -> Self {
+        TrainError::Weights {
             path: path.into(),
             reason: reason.to_string(),
         }

@@ -2,6 +2,11 @@
 //! full-resolution disparity can be trained with S3 (SPEC §5).
 
 pub mod cost_volume;
+mod layers;
+pub mod norm;
+pub mod official;
+pub mod raft_stereo;
+pub mod seeded;
 pub mod upsample;
 
 use burn::module::Module;
@@ -11,12 +16,20 @@ use mbs_core::geometry::Side;
 use crate::mirror::mirror_left;
 
 pub use cost_volume::{CostVolumeNet, CostVolumeNetConfig};
+pub use raft_stereo::{RaftStereo, RaftStereoConfig};
 
 /// A stereo network for a target on the **right** of the reference.
 pub trait Backbone: Module {
     /// Disparity `[B, 1, H, W]` (pixels, >= 0, on the reference grid) for
     /// reference and target images `[B, 3, H, W]` in `[0, 1]`.
     fn disparity(&self, reference: Tensor<4>, target: Tensor<4>) -> Tensor<4>;
+
+    /// The training-time predictions, coarsest iteration first and the
+    /// final one last (iterative networks return one per update; others
+    /// their single [`Backbone::disparity`]).
+    fn disparities(&self, reference: Tensor<4>, target: Tensor<4>) -> Vec<Tensor<4>> {
+        vec![self.disparity(reference, target)]
+    }
 }
 
 /// Disparity for pairs whose targets lie on either side: left-side items

@@ -1,7 +1,10 @@
-//! Bilinear upsampling as two matrix products with fixed interpolation
-//! matrices, `U_h D U_w^T`: it has a backward pass on every burn backend
-//! (burn's GPU `interpolate` has none) and runs as fast on flex.
+//! Upsampling of network outputs. Bilinear resizing is two matrix products
+//! with fixed interpolation matrices, `U_h D U_w^T`: it has a backward pass
+//! on every burn backend (burn's GPU `interpolate` has none) and runs as
+//! fast on flex. Convex upsampling is RAFT's learned 3x3 combination.
 
+use burn::tensor::activation::softmax;
+use burn::tensor::ops::PadMode;
 use burn::tensor::{Device, Tensor, TensorData};
 
 /// The `[n_out, n_in]` matrix of 1-D linear interpolation with PyTorch's
@@ -21,18 +24,49 @@ pub fn interpolation_matrix(n_out: usize, n_in: usize) -> Vec<f32> {
     matrix
 }
 
-/// Bilinear resize of `maps` (`[B, C, h, w]`) to `[B, C, height, width]`.
+/// The `[n_out, n_in]` matrix of 1-D linear interpolation with PyTorch's
+/// `align_corners = true` convention (the first and last samples of both
+/// grids coincide).
+pub fn aligned_interpolation_matrix(n_out: usize, n_in: usize) -> Vec<f32> {
+    let mut matrix = vec![0.0f32; n_out * n_in];
+    let scale = if n_out > 1 {
+        (n_in - 1) as f64 / (n_out - 1) as f64
+    } else {
+        0.0
+    };
+    for i in 0..n_out {
+        let source = i as f64 * scale;
+        let left = (source.floor() as usize).min(n_in - 1);
+        let right = (left + 1).min(n_in - 1);
+        let weight = (source - left as f64) as f32;
+        matrix[i * n_in + left] += 1.0 - weight;
+        matrix[i * n_in + right] += weight;
+    }
+    matrix
+}
+
+/// Bilinear resize of `maps` (`[B, C, h, w]`) to `[B, C, height, width]`
+/// (`align_corners = false`).
 pub fn upsample_bilinear(maps: Tensor<4>, height: usize, width: usize) -> Tensor<4> {
+    resize(maps, height, width, interpolation_matrix)
+}
+
+/// Bilinear resize of `maps` (`[B, C, h, w]`) to `[B, C, height, width]`
+/// with `align_corners = true`.
+pub fn resize_bilinear_aligned(maps: Tensor<4>, height: usize, width: usize) -> Tensor<4> {
+    resize(maps, height, width, aligned_interpolation_matrix)
+}
+
+fn resize(
+    maps: Tensor<4>,
+    height: usize,
+    width: usize,
+    matrix: fn(usize, usize) -> Vec<f32>,
+) -> Tensor<4> {
     let [batch, channels, h, w] = maps.dims();
     let device: Device = maps.device();
-    let rows = Tensor::<2>::from_data(
-        TensorData::new(interpolation_matrix(height, h), [height, h]),
-        &device,
-    );
-    let cols = Tensor::<2>::from_data(
-        TensorData::new(interpolation_matrix(width, w), [width, w]),
-        &device,
-    );
+    let rows = Tensor::<2>::from_data(TensorData::new(matrix(height, h), [height, h]), &device);
+    let cols = Tensor::<2>::from_data(TensorData::new(matrix(width, w), [width, w]), &device);
     let rows = rows
         .reshape([1, 1, height, h])
         .expand([batch, channels, height, h]);
@@ -41,6 +75,27 @@ pub fn upsample_bilinear(maps: Tensor<4>, height: usize, width: usize) -> Tensor
         .reshape([1, 1, w, width])
         .expand([batch, channels, w, width]);
     rows.matmul(maps).matmul(cols_t)
+}
+
+/// RAFT's convex upsampling of a one-channel map `[B, 1, h, w]` by
+/// `factor`: each output pixel is a softmax-weighted combination of the 3x3
+/// neighbourhood (zero outside) of its coarse pixel, scaled by `factor`.
+/// `mask` is `[B, 9 factor^2, h, w]`, laid out as the official code reads
+/// it (`[9, factor, factor]` per pixel).
+pub fn convex_upsample(map: Tensor<4>, mask: Tensor<4>, factor: usize) -> Tensor<4> {
+    let [batch, _, h, w] = map.dims();
+    let weights = softmax(mask.reshape([batch, 9, factor, factor, h, w]), 1);
+    let padded = (map * factor as f64).pad((1, 1, 1, 1), PadMode::Constant(0.0));
+    let taps = (0..3)
+        .flat_map(|dy| (0..3).map(move |dx| (dy, dx)))
+        .map(|(dy, dx)| padded.clone().narrow(2, dy, h).narrow(3, dx, w))
+        .collect();
+    let neighbours: Tensor<6> = Tensor::cat(taps, 1).reshape([batch, 9, 1, 1, h, w]);
+    (weights * neighbours)
+        .sum_dim(1)
+        .reshape([batch, factor, factor, h, w])
+        .permute([0, 3, 1, 4, 2])
+        .reshape([batch, 1, h * factor, w * factor])
 }
 
 #[cfg(test)]
@@ -59,6 +114,20 @@ mod tests {
         for row in m.chunks(4) {
             assert!((row.iter().sum::<f32>() - 1.0).abs() < 1e-6);
         }
+    }
+
+    #[test]
+    fn aligned_matrix_matches_pytorch_align_corners_true() {
+        // interpolate([0, 1], size=3, mode="linear", align_corners=True) = [0, 0.5, 1].
+        let m = aligned_interpolation_matrix(3, 2);
+        assert_close(&m, &[1.0, 0.0, 0.5, 0.5, 0.0, 1.0], 1e-6);
+        // Downsampling 5 -> 3 keeps the ends and the centre.
+        let m = aligned_interpolation_matrix(3, 5);
+        let picked: Vec<usize> = m
+            .chunks(5)
+            .map(|row| row.iter().position(|w| *w == 1.0).expect("exact sample"))
+            .collect();
+        assert_eq!(picked, [0, 2, 4]);
     }
 
     #[test]

@@ -1,0 +1,132 @@
+//! Parity with the official implementation: the fixtures of
+//! `tools/parity/raft_stereo_fixtures.py` (official code, seeded weights)
+//! against this module with the same weights.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use burn::tensor::{Device, Tensor, TensorData};
+use serde_json::Value;
+
+use super::*;
+use crate::backbone::official::{StateDict, StateTensor, export_state_dict, load_state_dict};
+use crate::backbone::seeded::seeded_tensor;
+use crate::test_util::values;
+
+/// Largest difference allowed to the official output (pixels).
+const TOLERANCE_PX: f32 = 1e-3;
+
+fn fixture_path(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../testdata/parity")
+        .join(format!("raft_stereo_{name}.safetensors"))
+}
+
+/// The fixture's tensors and its metadata (`config`, `state_dict` shapes).
+fn fixture(name: &str) -> (StateDict, Value, BTreeMap<String, Vec<usize>>) {
+    let path = fixture_path(name);
+    let bytes = std::fs::read(&path).expect("fixture is in testdata/parity");
+    let (_, metadata) = safetensors::SafeTensors::read_metadata(&bytes).expect("safetensors");
+    let metadata = metadata.metadata().clone().expect("fixture metadata");
+    let config = serde_json::from_str(&metadata["config"]).expect("config JSON");
+    let shapes = serde_json::from_str(&metadata["state_dict"]).expect("state_dict JSON");
+    (StateDict::read(&path).expect("readable"), config, shapes)
+}
+
+fn config_of(official: &Value) -> RaftStereoConfig {
+    let number = |key: &str| official[key].as_u64().expect("integer setting") as usize;
+    let context_norm = match official["context_norm"].as_str() {
+        Some("batch") => NormKind::Batch,
+        Some("instance") => NormKind::Instance,
+        Some("group") => NormKind::Group,
+        _ => NormKind::None,
+    };
+    RaftStereoConfig::new()
+        .with_hidden_dim(official["hidden_dims"][0].as_u64().expect("hidden dims") as usize)
+        .with_gru_levels(number("n_gru_layers"))
+        .with_corr_levels(number("corr_levels"))
+        .with_corr_radius(number("corr_radius"))
+        .with_n_downsample(number("n_downsample"))
+        .with_context_norm(context_norm)
+        .with_slow_fast_gru(official["slow_fast_gru"].as_bool().expect("flag"))
+        .with_train_iters(number("iters"))
+}
+
+/// The seeded state dict over the official keys (counters excepted).
+fn seeded_dict(shapes: &BTreeMap<String, Vec<usize>>) -> StateDict {
+    StateDict {
+        tensors: shapes
+            .iter()
+            .filter(|(key, _)| !key.ends_with("num_batches_tracked"))
+            .map(|(key, shape)| {
+                let values = seeded_tensor(key, shape).expect("seeded rule covers the key");
+                (
+                    key.clone(),
+                    StateTensor {
+                        shape: shape.clone(),
+                        values,
+                    },
+                )
+            })
+            .collect(),
+    }
+}
+
+fn input(dict: &StateDict, key: &str, device: &Device) -> Tensor<4> {
+    let t = &dict.tensors[key];
+    let shape: [usize; 4] = t.shape.clone().try_into().expect("4-D");
+    Tensor::from_data(TensorData::new(t.values.clone(), shape), device)
+}
+
+fn check_parity(name: &str) {
+    let device = Device::flex();
+    let (fixture, official, shapes) = fixture(name);
+    let config = config_of(&official);
+    let net = config.init(&device).expect("valid config");
+
+    // Structure: the same keys with the same shapes as the official module.
+    let (exported, counters) = export_state_dict(&net);
+    let mut ours: BTreeMap<String, Vec<usize>> = exported
+        .tensors
+        .iter()
+        .map(|(k, t)| (k.clone(), t.shape.clone()))
+        .collect();
+    ours.extend(counters.iter().map(|k| (k.clone(), vec![])));
+    let missing: Vec<_> = shapes.keys().filter(|k| !ours.contains_key(*k)).collect();
+    let extra: Vec<_> = ours.keys().filter(|k| !shapes.contains_key(*k)).collect();
+    assert!(
+        missing.is_empty() && extra.is_empty(),
+        "missing {missing:?}, extra {extra:?}"
+    );
+    for (key, shape) in &shapes {
+        assert_eq!(&ours[key], shape, "{key}");
+    }
+
+    let net = load_state_dict(net, &seeded_dict(&shapes), &fixture_path(name))
+        .expect("the seeded official state dict loads");
+    let left = input(&fixture, "left", &device);
+    let right = input(&fixture, "right", &device);
+    let predictions = net.iterate(left, right, config.train_iters);
+    assert_eq!(predictions.len(), config.train_iters);
+    for (i, prediction) in predictions.into_iter().enumerate() {
+        let want = &fixture.tensors[&format!("disparity_{i}")].values;
+        let got = values(prediction);
+        let worst = got
+            .iter()
+            .zip(want)
+            .map(|(g, w)| (g - w).abs())
+            .fold(0.0f32, f32::max);
+        println!("{name}: iteration {i}: largest difference {worst:.2e} px");
+        assert!(worst <= TOLERANCE_PX, "{name} iteration {i}: {worst} px");
+    }
+}
+
+#[test]
+fn matches_the_official_three_level_network() {
+    check_parity("three_levels");
+}
+
+#[test]
+fn matches_the_official_two_level_slow_fast_network() {
+    check_parity("two_levels_slow_fast");
+}

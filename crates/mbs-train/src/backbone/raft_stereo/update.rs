@@ -1,0 +1,218 @@
+//! RAFT-Stereo's multi-level update operator (the official `core/update.py`):
+//! a motion encoder of the correlation lookup and the current disparity, one
+//! convolutional GRU per level exchanging states with its neighbours, the
+//! disparity head and the convex-upsampling mask head.
+
+use burn::module::Module;
+use burn::nn::conv::Conv2d;
+use burn::tensor::Device;
+use burn::tensor::Tensor;
+use burn::tensor::activation::{relu, sigmoid, tanh};
+use burn::tensor::module::avg_pool2d;
+use burn::tensor::ops::AvgPoolOptions;
+
+use crate::backbone::layers::conv;
+use crate::backbone::upsample::resize_bilinear_aligned;
+
+/// Channels of the motion features (official `encoder_output_dim`).
+const MOTION_CHANNELS: usize = 128;
+
+/// The official `BasicMotionEncoder`.
+#[derive(Module, Debug)]
+pub struct MotionEncoder {
+    convc1: Conv2d,
+    convc2: Conv2d,
+    convf1: Conv2d,
+    convf2: Conv2d,
+    conv: Conv2d,
+}
+
+impl MotionEncoder {
+    fn new(correlation_channels: usize, device: &Device) -> Self {
+        MotionEncoder {
+            convc1: conv(correlation_channels, 64, 1, 1, 0, device),
+            convc2: conv(64, 64, 3, 1, 1, device),
+            convf1: conv(2, 64, 7, 1, 3, device),
+            convf2: conv(64, 64, 3, 1, 1, device),
+            conv: conv(128, MOTION_CHANNELS - 2, 3, 1, 1, device),
+        }
+    }
+
+    /// Motion features `[B, 128, h, w]` of the flow `[B, 2, h, w]` and the
+    /// correlation lookup.
+    fn forward(&self, flow: Tensor<4>, correlation: Tensor<4>) -> Tensor<4> {
+        let c = relu(self.convc1.forward(correlation));
+        let c = relu(self.convc2.forward(c));
+        let f = relu(self.convf1.forward(flow.clone()));
+        let f = relu(self.convf2.forward(f));
+        let out = relu(self.conv.forward(Tensor::cat(vec![c, f], 1)));
+        Tensor::cat(vec![out, flow], 1)
+    }
+}
+
+/// The official `ConvGRU` (3x3) whose gates also receive precomputed
+/// context terms `cz, cr, cq`.
+#[derive(Module, Debug)]
+pub struct ConvGru {
+    convz: Conv2d,
+    convr: Conv2d,
+    convq: Conv2d,
+}
+
+impl ConvGru {
+    fn new(hidden: usize, input: usize, device: &Device) -> Self {
+        let gate = || conv(hidden + input, hidden, 3, 1, 1, device);
+        ConvGru {
+            convz: gate(),
+            convr: gate(),
+            convq: gate(),
+        }
+    }
+
+    fn forward(&self, h: Tensor<4>, context: &[Tensor<4>; 3], inputs: Vec<Tensor<4>>) -> Tensor<4> {
+        let x = Tensor::cat(inputs, 1);
+        let hx = Tensor::cat(vec![h.clone(), x.clone()], 1);
+        let z = sigmoid(self.convz.forward(hx.clone()) + context[0].clone());
+        let r = sigmoid(self.convr.forward(hx) + context[1].clone());
+        let q =
+            tanh(self.convq.forward(Tensor::cat(vec![r * h.clone(), x], 1)) + context[2].clone());
+        (z.clone().neg() + 1.0) * h + z * q
+    }
+}
+
+/// The official `FlowHead`: two 3x3 convolutions to a flow update.
+#[derive(Module, Debug)]
+pub struct FlowHead {
+    conv1: Conv2d,
+    conv2: Conv2d,
+}
+
+/// The convex-upsampling weights head (official `mask`, layers `0` and `2`).
+#[derive(Module, Debug)]
+pub struct MaskHead {
+    conv1: Conv2d,
+    conv2: Conv2d,
+}
+
+/// The official `BasicMultiUpdateBlock`.
+#[derive(Module, Debug)]
+pub struct UpdateBlock {
+    encoder: MotionEncoder,
+    gru08: ConvGru,
+    gru16: ConvGru,
+    gru32: ConvGru,
+    flow_head: FlowHead,
+    mask: MaskHead,
+    levels: usize,
+}
+
+/// Which GRU levels one call of [`UpdateBlock::forward`] updates.
+#[derive(Debug, Clone, Copy)]
+pub struct LevelsToUpdate {
+    /// The 1/4-of-features level (official `iter32`).
+    pub coarsest: bool,
+    /// The middle level (official `iter16`).
+    pub middle: bool,
+    /// The finest level, with the motion features (official `iter08`).
+    pub finest: bool,
+}
+
+/// The GRU states, finest first, and their precomputed context terms.
+pub struct GruState {
+    /// Hidden state per level.
+    pub hidden: Vec<Tensor<4>>,
+    /// `cz, cr, cq` per level.
+    pub context: Vec<[Tensor<4>; 3]>,
+}
+
+/// `avg_pool2d(x, 3, stride=2, padding=1)`, counting the padding.
+fn pool2x(x: Tensor<4>) -> Tensor<4> {
+    avg_pool2d(
+        x,
+        AvgPoolOptions::new([3, 3])
+            .with_stride([2, 2])
+            .with_padding([1, 1]),
+    )
+}
+
+/// `x` resized to the spatial size of `like` (bilinear, corners aligned).
+fn interp(x: Tensor<4>, like: &Tensor<4>) -> Tensor<4> {
+    let [_, _, height, width] = like.dims();
+    resize_bilinear_aligned(x, height, width)
+}
+
+impl UpdateBlock {
+    /// The block for `levels` GRU levels of `hidden` channels, a lookup of
+    /// `correlation_channels` and a `factor`x upsampling.
+    pub fn new(
+        hidden: usize,
+        levels: usize,
+        correlation_channels: usize,
+        factor: usize,
+        device: &Device,
+    ) -> Self {
+        let finest_input = MOTION_CHANNELS + if levels > 1 { hidden } else { 0 };
+        let middle_input = if levels == 3 { hidden } else { 0 } + hidden;
+        UpdateBlock {
+            encoder: MotionEncoder::new(correlation_channels, device),
+            gru08: ConvGru::new(hidden, finest_input, device),
+            gru16: ConvGru::new(hidden, middle_input, device),
+            gru32: ConvGru::new(hidden, hidden, device),
+            flow_head: FlowHead {
+                conv1: conv(hidden, 256, 3, 1, 1, device),
+                conv2: conv(256, 2, 3, 1, 1, device),
+            },
+            mask: MaskHead {
+                conv1: conv(hidden, 256, 3, 1, 1, device),
+                conv2: conv(256, factor * factor * 9, 1, 1, 0, device),
+            },
+            levels,
+        }
+    }
+
+    /// Updates the GRU states of the chosen levels in place; the finest
+    /// level needs the `flow` and `correlation` of the current estimate.
+    pub fn update(
+        &self,
+        state: &mut GruState,
+        which: LevelsToUpdate,
+        motion: Option<(Tensor<4>, Tensor<4>)>,
+    ) {
+        let h = &mut state.hidden;
+        let c = &state.context;
+        if which.coarsest && self.levels == 3 {
+            h[2] = self
+                .gru32
+                .forward(h[2].clone(), &c[2], vec![pool2x(h[1].clone())]);
+        }
+        if which.middle && self.levels >= 2 {
+            let mut inputs = vec![pool2x(h[0].clone())];
+            if self.levels > 2 {
+                inputs.push(interp(h[2].clone(), &h[1]));
+            }
+            h[1] = self.gru16.forward(h[1].clone(), &c[1], inputs);
+        }
+        if let (true, Some((flow, correlation))) = (which.finest, motion) {
+            let mut inputs = vec![self.encoder.forward(flow, correlation)];
+            if self.levels > 1 {
+                inputs.push(interp(h[1].clone(), &h[0]));
+            }
+            h[0] = self.gru08.forward(h[0].clone(), &c[0], inputs);
+        }
+    }
+
+    /// The flow update `[B, 2, h, w]` and the upsampling weights (scaled by
+    /// 1/4, as the official code does) of the finest hidden state.
+    pub fn heads(&self, finest: Tensor<4>) -> (Tensor<4>, Tensor<4>) {
+        let delta = self
+            .flow_head
+            .conv2
+            .forward(relu(self.flow_head.conv1.forward(finest.clone())));
+        let mask = self
+            .mask
+            .conv2
+            .forward(relu(self.mask.conv1.forward(finest)))
+            * 0.25;
+        (delta, mask)
+    }
+}
