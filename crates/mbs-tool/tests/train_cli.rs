@@ -47,7 +47,7 @@ const SMALL: [&str; 12] = [
     "--max-disparity",
     "32",
     "--set",
-    "network.features=8",
+    "network.compact.features=8",
     "--set",
     "augment.occlusion_max_side=20",
     "--set",

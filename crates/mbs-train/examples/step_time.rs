@@ -249,12 +249,11 @@ fn run(args: &Args) -> Result<String, BoxError> {
     train_device.seed(args.seed);
     device.seed(args.seed);
     let net = CostVolumeNetConfig::new()
-        .with_max_disparity(args.max_disparity)
         .with_features(args.features)
         .with_hidden(args.hidden);
     let total_steps = args.warmup + 2 * args.steps;
     let config = TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(2e-4, total_steps));
-    let student = net.init(&train_device)?;
+    let student = net.init(args.max_disparity, &train_device)?;
     let mut trainer = S3Trainer::new(student.clone(), &config)?;
     let batch = batch(args, &device);
     for _ in 0..args.warmup {

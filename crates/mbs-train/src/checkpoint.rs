@@ -15,14 +15,14 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use burn::module::Module;
-use burn::optim::{AdamConfig, ModuleOptimizer};
+use burn::optim::ModuleOptimizer;
 use burn::store::{BurnpackStore, ModuleSnapshot};
 use burn::tensor::{Bytes, Device};
 use mbs_core::atomic::partial_path;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-use crate::backbone::CostVolumeNet;
+use crate::backbone::StereoNetwork;
 use crate::config::RunConfig;
 use crate::error::TrainError;
 
@@ -206,13 +206,13 @@ impl Checkpoint {
     }
 
     /// The teacher (the network used for inference) on `device`.
-    pub fn teacher(&self, device: &Device) -> Result<CostVolumeNet, TrainError> {
+    pub fn teacher(&self, device: &Device) -> Result<StereoNetwork, TrainError> {
         let net = self.config()?.network.init(device)?;
         self.load_module(net, TEACHER_FILE)
     }
 
     /// The student on `device`.
-    pub fn student(&self, device: &Device) -> Result<CostVolumeNet, TrainError> {
+    pub fn student(&self, device: &Device) -> Result<StereoNetwork, TrainError> {
         let net = self.config()?.network.init(device)?;
         self.load_module(net, STUDENT_FILE)
     }
@@ -221,7 +221,9 @@ impl Checkpoint {
     pub fn optimizer(&self) -> Result<ModuleOptimizer, TrainError> {
         let path = self.dir.join(OPTIMIZER_FILE);
         let bytes = fs::read(&path).map_err(|e| TrainError::checkpoint(&path, e))?;
-        AdamConfig::new()
+        self.config()?
+            .trainer
+            .optimizer
             .init()
             .from_bytes(Bytes::from_bytes_vec(bytes))
             .map_err(|e| TrainError::checkpoint(&path, e))

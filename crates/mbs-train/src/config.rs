@@ -11,7 +11,7 @@ use mbs_dataset::schema::EmbeddedSchema;
 use serde_json::Value;
 
 use crate::augment::AugmentConfig;
-use crate::backbone::CostVolumeNetConfig;
+use crate::backbone::NetworkConfig;
 use crate::data::DataConfig;
 use crate::error::TrainError;
 use crate::losses::LossConfig;
@@ -28,7 +28,7 @@ pub struct RunConfig {
     /// Loss, learning rate, EMA and clipping.
     pub trainer: TrainerConfig,
     /// The backbone.
-    pub network: CostVolumeNetConfig,
+    pub network: NetworkConfig,
     /// The student's augmentation.
     pub augment: AugmentConfig,
     /// Batches, crops, loading and validation pairs.
@@ -59,7 +59,7 @@ impl RunConfig {
     pub fn paper() -> Self {
         RunConfig::new(
             TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(2e-4, 200_000)),
-            CostVolumeNetConfig::new().with_max_disparity(192),
+            NetworkConfig::new(),
             AugmentConfig::new(),
             DataConfig::new(),
         )

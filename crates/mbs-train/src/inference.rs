@@ -8,10 +8,9 @@ use burn::tensor::Device;
 use mbs_core::{FloatImage, MaskImage, RgbImage, Side};
 use mbs_infer::{Disparity, InferError, StereoMatcher};
 
-use crate::CostVolumeNet;
 use crate::checkpoint::Checkpoint;
 
-use crate::backbone::{Backbone, predict};
+use crate::backbone::{Backbone, StereoNetwork, predict};
 use crate::error::TrainError;
 use crate::host::image_tensor;
 use crate::host::read_all;
@@ -47,7 +46,7 @@ pub fn predict_image<B: Backbone>(
 /// The teacher of a training checkpoint as a [`StereoMatcher`], on the
 /// CPU: what `predict --checkpoint` and `eval --checkpoint` run.
 pub struct TeacherMatcher {
-    net: CostVolumeNet,
+    net: StereoNetwork,
     device: Device,
     name: String,
 }

@@ -30,6 +30,7 @@ pub mod inference;
 pub mod losses;
 pub mod mask;
 pub mod mirror;
+pub mod optimizer;
 mod ranges;
 pub mod run;
 pub mod sampling;
@@ -40,7 +41,10 @@ pub mod tensorboard;
 #[cfg(test)]
 mod test_util;
 
-pub use backbone::{Backbone, CostVolumeNet, CostVolumeNetConfig};
+pub use backbone::{
+    Backbone, BackboneKind, CostVolumeNet, CostVolumeNetConfig, NetworkConfig, RaftStereo,
+    RaftStereoConfig, StereoNetwork,
+};
 pub use config::RunConfig;
 pub use data::StepBatch;
 pub use error::TrainError;

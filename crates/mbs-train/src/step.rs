@@ -3,16 +3,17 @@
 //! with gradient clipping, EMA update of the teacher.
 
 use burn::config::Config;
-use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::optim::{GradientsParams, ModuleOptimizer};
 use burn::tensor::Tensor;
 
-use crate::backbone::{Backbone, predict};
+use crate::backbone::{Backbone, predict, predict_sequence};
 use crate::clip::clip_global_norm;
 use crate::data::StepBatch;
 use crate::ema::ema_update;
 use crate::error::TrainError;
 use crate::host::{read_all, read_scalar};
 use crate::losses::{LossConfig, LossInputs, LossOutput, S3Loss};
+use crate::optimizer::OptimizerConfig;
 use crate::ranges;
 use crate::schedule::{CosineMomentum, OneCycle, OneCycleConfig};
 
@@ -33,6 +34,33 @@ pub struct TrainerConfig {
     /// Limit of the global gradient L2 norm (as PyTorch's `clip_grad_norm_`).
     #[config(default = 1.0)]
     pub grad_clip_norm: f64,
+    /// The optimiser.
+    #[config(default = "OptimizerConfig::new()")]
+    pub optimizer: OptimizerConfig,
+    /// Decay `gamma` of the weights of an iterative student's earlier
+    /// predictions ([`sequence_weights`]).
+    #[config(default = 0.9)]
+    pub sequence_gamma: f64,
+    /// Supervise only an iterative student's final prediction.
+    #[config(default = false)]
+    pub final_prediction_only: bool,
+}
+
+/// The loss weight of each of `n` predictions of an iterative network,
+/// first to last: `gamma'^(n - 1 - i)` with `gamma' = gamma^(15 / (n - 1))`,
+/// as the official RAFT-Stereo and IGEV-Stereo sequence losses (the
+/// adjustment keeps the weights comparable for any iteration count); the
+/// final prediction weighs 1. With `final_only`, the earlier ones weigh 0.
+pub fn sequence_weights(n: usize, gamma: f64, final_only: bool) -> Vec<f64> {
+    if n <= 1 || final_only {
+        let mut weights = vec![0.0; n];
+        if let Some(last) = weights.last_mut() {
+            *last = 1.0;
+        }
+        return weights;
+    }
+    let adjusted = gamma.powf(15.0 / (n - 1) as f64);
+    (0..n).map(|i| adjusted.powi((n - 1 - i) as i32)).collect()
 }
 
 /// What one step reports.
@@ -86,6 +114,8 @@ pub struct S3Trainer<B: Backbone> {
     lr: OneCycle,
     momentum: CosineMomentum,
     ema: bool,
+    sequence_gamma: f64,
+    final_prediction_only: bool,
     grad_clip_norm: f64,
     step: usize,
 }
@@ -96,6 +126,8 @@ impl TrainerConfig {
         self.loss.validate()?;
         self.lr.init()?;
         ranges::unit("ema_base", self.ema_base)?;
+        ranges::unit("sequence_gamma", self.sequence_gamma)?;
+        self.optimizer.validate()?;
         ranges::positive("grad_clip_norm", self.grad_clip_norm)
     }
 }
@@ -107,7 +139,7 @@ impl<B: Backbone> S3Trainer<B> {
         config.validate()?;
         let loss = S3Loss::new(config.loss.clone())?;
         let lr = config.lr.init()?;
-        let optimizer = AdamConfig::new().init();
+        let optimizer = config.optimizer.init();
         Ok(Self {
             teacher: student.valid(),
             student,
@@ -119,6 +151,8 @@ impl<B: Backbone> S3Trainer<B> {
                 total_steps: config.lr.total_steps,
             },
             ema: config.ema,
+            sequence_gamma: config.sequence_gamma,
+            final_prediction_only: config.final_prediction_only,
             grad_clip_norm: config.grad_clip_norm,
             step: 0,
         })
@@ -178,13 +212,21 @@ impl<B: Backbone> S3Trainer<B> {
             let [batch, _, height, width] = reference.dims();
             Tensor::zeros([batch, 1, height, width], &reference.device())
         };
-        let student_disparity = predict(
+        let mut predictions = predict_sequence(
             student,
             augmented_reference,
             augmented_target,
             &student_sides,
         );
-        self.loss.compute(LossInputs {
+        let weights = sequence_weights(
+            predictions.len(),
+            self.sequence_gamma,
+            self.final_prediction_only,
+        );
+        let student_disparity = predictions
+            .pop()
+            .ok_or_else(|| TrainError::Shape("the student returned no prediction".into()))?;
+        let inputs = LossInputs {
             reference,
             student_target,
             teacher_target,
@@ -193,7 +235,20 @@ impl<B: Backbone> S3Trainer<B> {
             student_sides,
             teacher_sides,
             ratios,
-        })
+        };
+        // The final prediction's terms are the ones reported; the earlier
+        // predictions add their weighted totals.
+        let mut out = self.loss.compute(inputs.clone())?;
+        for (prediction, weight) in predictions.into_iter().zip(weights) {
+            if weight > 0.0 {
+                let earlier = self.loss.compute(LossInputs {
+                    student_disparity: prediction,
+                    ..inputs.clone()
+                })?;
+                out.total = out.total + earlier.total * weight;
+            }
+        }
+        Ok(out)
     }
 
     /// The maps of `batch` (predictions and masks) without a gradient step.

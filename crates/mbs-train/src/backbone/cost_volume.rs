@@ -17,12 +17,10 @@ use super::upsample::upsample_bilinear;
 use crate::error::TrainError;
 use crate::ranges;
 
-/// Hyper-parameters of [`CostVolumeNet`].
+/// Hyper-parameters of [`CostVolumeNet`] (its disparity range is the
+/// run's `network.max_disparity`).
 #[derive(Config, Debug, PartialEq)]
 pub struct CostVolumeNetConfig {
-    /// Largest disparity (full-resolution pixels); a multiple of 4.
-    #[config(default = 64)]
-    pub max_disparity: usize,
     /// Channels of the 1/4-resolution features.
     #[config(default = 16)]
     pub features: usize,
@@ -36,12 +34,13 @@ pub struct CostVolumeNetConfig {
 }
 
 impl CostVolumeNetConfig {
-    /// Checks the disparity range and the layer widths.
-    pub fn validate(&self) -> Result<(), TrainError> {
+    /// Checks the disparity range `max_disparity` (full-resolution pixels)
+    /// and the layer widths.
+    pub fn validate(&self, max_disparity: usize) -> Result<(), TrainError> {
         ranges::require(
-            self.max_disparity >= 4 && self.max_disparity % 4 == 0,
+            max_disparity >= 4 && max_disparity % 4 == 0,
             "max_disparity",
-            self.max_disparity,
+            max_disparity,
             "a positive multiple of 4",
         )?;
         for (name, value) in [("features", self.features), ("hidden", self.hidden)] {
@@ -50,16 +49,17 @@ impl CostVolumeNetConfig {
         Ok(())
     }
 
-    /// Builds the network with fresh weights on `device`.
-    pub fn init(&self, device: &Device) -> Result<CostVolumeNet, TrainError> {
-        self.validate()?;
+    /// Builds the network for disparities up to `max_disparity` (a multiple
+    /// of 4) with fresh weights on `device`.
+    pub fn init(&self, max_disparity: usize, device: &Device) -> Result<CostVolumeNet, TrainError> {
+        self.validate(max_disparity)?;
         let conv = |from: usize, to: usize, stride: usize| {
             Conv2dConfig::new([from, to], [3, 3])
                 .with_stride([stride, stride])
                 .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
                 .init(device)
         };
-        let candidates = self.max_disparity / 4;
+        let candidates = max_disparity / 4;
         let (features, hidden) = (self.features, self.hidden);
         Ok(CostVolumeNet {
             stem: conv(3, features / 2, 2),
@@ -150,8 +150,9 @@ mod tests {
     #[test]
     fn forward_backward_gives_finite_gradients() {
         let device = Device::flex().autodiff();
-        let config = CostVolumeNetConfig::new().with_max_disparity(32);
-        let net = config.init(&device).expect("valid config");
+        let net = CostVolumeNetConfig::new()
+            .init(32, &device)
+            .expect("valid config");
         let (batch, height, width) = (2, 64, 128);
         let reference =
             Tensor::<4>::random([batch, 3, height, width], Distribution::Default, &device);
@@ -187,11 +188,6 @@ mod tests {
     #[test]
     fn rejects_a_disparity_range_not_divisible_by_four() {
         let device = Device::flex();
-        assert!(
-            CostVolumeNetConfig::new()
-                .with_max_disparity(30)
-                .init(&device)
-                .is_err()
-        );
+        assert!(CostVolumeNetConfig::new().init(30, &device).is_err());
     }
 }

@@ -3,6 +3,7 @@
 
 pub mod cost_volume;
 mod layers;
+pub mod network;
 pub mod norm;
 pub mod official;
 pub mod raft_stereo;
@@ -16,6 +17,7 @@ use mbs_core::geometry::Side;
 use crate::mirror::mirror_left;
 
 pub use cost_volume::{CostVolumeNet, CostVolumeNetConfig};
+pub use network::{BackboneKind, NetworkConfig, StereoNetwork};
 pub use raft_stereo::{RaftStereo, RaftStereoConfig};
 
 /// A stereo network for a target on the **right** of the reference.
@@ -46,4 +48,24 @@ pub fn predict<B: Backbone>(
     let reference = mirror_left(reference, sides);
     let target = mirror_left(target, sides);
     mirror_left(backbone.disparity(reference, target), sides)
+}
+
+/// Every training-time prediction ([`Backbone::disparities`]) for pairs
+/// whose targets lie on either side, as [`predict`].
+///
+/// # Panics
+/// When `sides.len()` differs from the batch size.
+pub fn predict_sequence<B: Backbone>(
+    backbone: &B,
+    reference: Tensor<4>,
+    target: Tensor<4>,
+    sides: &[Side],
+) -> Vec<Tensor<4>> {
+    let reference = mirror_left(reference, sides);
+    let target = mirror_left(target, sides);
+    backbone
+        .disparities(reference, target)
+        .into_iter()
+        .map(|d| mirror_left(d, sides))
+        .collect()
 }

@@ -60,6 +60,16 @@ pub struct LossConfig {
     /// the teacher sees (OAE, Table 4).
     #[config(default = true)]
     pub occlusion_enhancement: bool,
+    /// Divide each disparity map by its mean in the smoothness term, as
+    /// monodepth2; off as the paper's eq. 3.
+    #[config(default = false)]
+    pub normalise_smoothness: bool,
+    /// Largest target `r d_t` (pixels) the geometry term supervises; 0
+    /// supervises every pixel. Wide MBS20K pairs reach `d = 960 / z` px at
+    /// a 2 m baseline, beyond a cost volume's range: set it to the
+    /// network's range (`network.max_disparity`) for such backbones.
+    #[config(default = 0.0)]
+    pub max_target_disparity: f64,
 }
 
 impl LossConfig {
@@ -92,6 +102,7 @@ impl LossConfig {
         ranges::non_negative("lambda_p", self.lambda_p)?;
         ranges::non_negative("lambda_s_ratio", self.lambda_s_ratio)?;
         ranges::unit("alpha", self.alpha)?;
+        ranges::non_negative("max_target_disparity", self.max_target_disparity)?;
         ranges::require(
             self.ssim_window % 2 == 1,
             "ssim_window",
@@ -242,6 +253,7 @@ impl S3Loss {
                     teacher_disparity,
                     &ratios,
                     a.clone(),
+                    (config.max_target_disparity > 0.0).then_some(config.max_target_disparity),
                 );
                 total = total + term.clone();
                 out.geometry = Some(term);
@@ -251,7 +263,8 @@ impl S3Loss {
             out.student_mask = Some(m_s);
         }
         if config.smoothness {
-            let term = edge_aware_smoothness(student_disparity, reference);
+            let term =
+                edge_aware_smoothness(student_disparity, reference, config.normalise_smoothness);
             total = total + term.clone() * config.lambda_s();
             out.smoothness = Some(term);
         }

@@ -27,7 +27,7 @@ use mbs_core::atomic::write_bytes_atomic;
 use mbs_core::{FloatImage, RgbImage};
 use mbs_dataset::Manifest;
 
-use crate::backbone::CostVolumeNet;
+use crate::backbone::StereoNetwork;
 use crate::checkpoint::{self, Checkpoint};
 use crate::config::RunConfig;
 use crate::data::StepBatch;
@@ -124,7 +124,7 @@ pub struct TrainingRun {
     config: RunConfig,
     samples: Arc<TrainingSamples>,
     validation: ValidationSet,
-    trainer: S3Trainer<CostVolumeNet>,
+    trainer: S3Trainer<StereoNetwork>,
     device: Device,
     report: RunReport,
 }
@@ -228,7 +228,7 @@ impl TrainingRun {
     }
 
     /// The teacher (the network used for inference).
-    pub fn teacher(&self) -> &CostVolumeNet {
+    pub fn teacher(&self) -> &StereoNetwork {
         self.trainer.teacher()
     }
 

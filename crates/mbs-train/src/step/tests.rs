@@ -107,16 +107,13 @@ fn loss_decreases_over_twenty_steps() {
     train_device.seed(42);
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let scenes: Vec<_> = (0..2).map(|_| scene(&mut rng)).collect();
-    let net = CostVolumeNetConfig::new()
-        .with_max_disparity(32)
-        .with_features(8)
-        .with_hidden(16);
+    let net = CostVolumeNetConfig::new().with_features(8).with_hidden(16);
     let config = TrainerConfig::new(
         LossConfig::new(),
         OneCycleConfig::new(2e-3, 20).with_pct_start(0.1),
     );
-    let mut trainer =
-        S3Trainer::new(net.init(&train_device).expect("valid net"), &config).expect("valid config");
+    let mut trainer = S3Trainer::new(net.init(32, &train_device).expect("valid net"), &config)
+        .expect("valid config");
     // One fixed batch (the loss of random triplets varies more than it
     // falls in 20 steps): a right-right item with r = 1/2 and a left-left
     // item with r = 2, which goes through the mirroring.
@@ -196,10 +193,7 @@ fn fixed_teacher_stays_fixed_and_ema_teacher_moves() {
     let train_device = device.clone().autodiff();
     let mut rng = ChaCha8Rng::seed_from_u64(5);
     let scenes = vec![scene(&mut rng)];
-    let net = CostVolumeNetConfig::new()
-        .with_max_disparity(32)
-        .with_features(4)
-        .with_hidden(4);
+    let net = CostVolumeNetConfig::new().with_features(4).with_hidden(4);
     let weights = |trainer: &S3Trainer<crate::backbone::CostVolumeNet>| {
         let mut reader = crate::test_util::FlatParams::default();
         trainer.teacher().visit(&mut reader);
@@ -210,7 +204,7 @@ fn fixed_teacher_stays_fixed_and_ema_teacher_moves() {
             .with_ema(ema)
             .with_ema_base(0.5);
         let mut trainer =
-            S3Trainer::new(net.init(&train_device).expect("valid"), &config).expect("valid");
+            S3Trainer::new(net.init(32, &train_device).expect("valid"), &config).expect("valid");
         let before = weights(&trainer);
         let triplets = [TripletSampler::new(VIEWS, 1).expect("3 views").sample()];
         let report = trainer
@@ -236,10 +230,10 @@ fn step_time_at_256x512() {
     let device = Device::flex();
     let train_device = device.clone().autodiff();
     let (batch, height, width) = (2, 256, 512);
-    let net = CostVolumeNetConfig::new().with_max_disparity(128);
+    let net = CostVolumeNetConfig::new();
     let config = TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(2e-4, 100));
     let mut trainer =
-        S3Trainer::new(net.init(&train_device).expect("valid"), &config).expect("valid");
+        S3Trainer::new(net.init(128, &train_device).expect("valid"), &config).expect("valid");
     let image = || {
         Tensor::<4>::random(
             [batch, 3, height, width],
@@ -293,16 +287,13 @@ fn table3_row_a_trains_without_the_teacher() {
     let train_device = device.clone().autodiff();
     let mut rng = ChaCha8Rng::seed_from_u64(6);
     let scenes = vec![scene(&mut rng)];
-    let net = CostVolumeNetConfig::new()
-        .with_max_disparity(16)
-        .with_features(4)
-        .with_hidden(4);
+    let net = CostVolumeNetConfig::new().with_features(4).with_hidden(4);
     let config = TrainerConfig::new(
         LossConfig::new().with_geometry(false),
         OneCycleConfig::new(1e-3, 10),
     );
     let mut trainer =
-        S3Trainer::new(net.init(&train_device).expect("valid"), &config).expect("valid");
+        S3Trainer::new(net.init(16, &train_device).expect("valid"), &config).expect("valid");
     let triplets = [Triplet {
         reference: 1,
         student: 0,
@@ -313,4 +304,22 @@ fn table3_row_a_trains_without_the_teacher() {
         .expect("step runs");
     assert!(report.loss.is_finite() && report.loss > 0.0);
     assert!(report.grad_norm.is_finite());
+}
+
+#[test]
+fn sequence_weights_follow_the_official_adjusted_gamma() {
+    use crate::step::sequence_weights;
+    // 16 iterations: gamma' = 0.9^(15/15) = 0.9; weights 0.9^15 ... 0.9, 1.
+    let weights = sequence_weights(16, 0.9, false);
+    assert_eq!(weights.len(), 16);
+    assert!((weights[15] - 1.0).abs() < 1e-12);
+    assert!((weights[14] - 0.9).abs() < 1e-12);
+    assert!((weights[0] - 0.9f64.powi(15)).abs() < 1e-12);
+    // 4 iterations: gamma' = 0.9^5, so the first weighs 0.9^15 as well.
+    let weights = sequence_weights(4, 0.9, false);
+    assert!((weights[0] - 0.9f64.powi(15)).abs() < 1e-12);
+    assert!((weights[2] - 0.9f64.powi(5)).abs() < 1e-12);
+    // Final only, and a single prediction.
+    assert_eq!(sequence_weights(3, 0.9, true), [0.0, 0.0, 1.0]);
+    assert_eq!(sequence_weights(1, 0.9, false), [1.0]);
 }

@@ -1,0 +1,165 @@
+//! The backbone a run trains, chosen by `network.backbone`: the compact
+//! cost-volume network or RAFT-Stereo, behind one module type so that runs,
+//! checkpoints and inference handle either.
+
+use std::fmt;
+use std::path::Path;
+use std::str::FromStr;
+
+use burn::config::Config;
+use burn::module::Module;
+use burn::tensor::{Device, Tensor};
+use serde::{Deserialize, Serialize};
+
+use super::official::{OfficialLayout, StateDict, export_state_dict, load_state_dict};
+use super::{Backbone, CostVolumeNet, CostVolumeNetConfig, RaftStereo, RaftStereoConfig};
+use crate::error::TrainError;
+use crate::ranges;
+
+/// Which network a run trains.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BackboneKind {
+    /// [`CostVolumeNet`]: 45k parameters, learns on the CPU in minutes.
+    Compact,
+    /// [`RaftStereo`], the official architecture.
+    RaftStereo,
+}
+
+impl BackboneKind {
+    /// Every kind, as `--backbone` spells it.
+    pub const NAMES: [&str; 2] = ["compact", "raft-stereo"];
+}
+
+impl fmt::Display for BackboneKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            BackboneKind::Compact => "compact",
+            BackboneKind::RaftStereo => "raft-stereo",
+        })
+    }
+}
+
+impl FromStr for BackboneKind {
+    type Err = TrainError;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        match text {
+            "compact" => Ok(BackboneKind::Compact),
+            "raft-stereo" | "raft_stereo" | "raftstereo" => Ok(BackboneKind::RaftStereo),
+            other => Err(TrainError::Config(format!(
+                "unknown backbone `{other}`; expected one of {}",
+                BackboneKind::NAMES.join(", ")
+            ))),
+        }
+    }
+}
+
+/// The `network` part of a run's configuration.
+#[derive(Config, Debug)]
+pub struct NetworkConfig {
+    /// The network trained.
+    #[config(default = "BackboneKind::Compact")]
+    pub backbone: BackboneKind,
+    /// Largest disparity (full-resolution pixels) of the data: the compact
+    /// network's candidate range (a multiple of 4) and the colour scale of
+    /// the run's pictures for every backbone.
+    #[config(default = 192)]
+    pub max_disparity: usize,
+    /// Settings of the compact network.
+    #[config(default = "CostVolumeNetConfig::new()")]
+    pub compact: CostVolumeNetConfig,
+    /// Settings of RAFT-Stereo (the official options and defaults).
+    #[config(default = "RaftStereoConfig::new()")]
+    pub raft_stereo: RaftStereoConfig,
+}
+
+impl NetworkConfig {
+    /// Checks the chosen backbone's settings.
+    pub fn validate(&self) -> Result<(), TrainError> {
+        ranges::require(
+            self.max_disparity >= 1,
+            "max_disparity",
+            self.max_disparity,
+            "at least 1",
+        )?;
+        match self.backbone {
+            BackboneKind::Compact => self.compact.validate(self.max_disparity),
+            BackboneKind::RaftStereo => self.raft_stereo.validate(),
+        }
+    }
+
+    /// Builds the chosen network with fresh weights on `device`.
+    pub fn init(&self, device: &Device) -> Result<StereoNetwork, TrainError> {
+        Ok(match self.backbone {
+            BackboneKind::Compact => {
+                StereoNetwork::Compact(self.compact.init(self.max_disparity, device)?)
+            }
+            BackboneKind::RaftStereo => StereoNetwork::RaftStereo(self.raft_stereo.init(device)?),
+        })
+    }
+}
+
+/// The network of a run (see the module documentation).
+// burn's `Module` derive has no `Box` field support; the network is moved
+// once per step, which its size does not make noticeable.
+#[allow(clippy::large_enum_variant)]
+#[derive(Module, Debug)]
+pub enum StereoNetwork {
+    /// The compact cost-volume network.
+    Compact(CostVolumeNet),
+    /// RAFT-Stereo.
+    RaftStereo(RaftStereo),
+}
+
+impl StereoNetwork {
+    /// The network with the weights of `path`: an official state dict
+    /// (`.pth` or `.safetensors`, official keys) or an export of mbs
+    /// ([`StereoNetwork::export`]). The file must match the network's
+    /// structure exactly; the error lists what does not.
+    pub fn with_weights(self, path: &Path) -> Result<Self, TrainError> {
+        let dict = StateDict::read(path)?;
+        Ok(match self {
+            StereoNetwork::Compact(net) => {
+                StereoNetwork::Compact(load_state_dict(net, &dict, path)?)
+            }
+            StereoNetwork::RaftStereo(net) => {
+                StereoNetwork::RaftStereo(load_state_dict(net, &dict, path)?)
+            }
+        })
+    }
+
+    /// Writes the weights to `path` as safetensors under the official keys
+    /// (the compact network, which has no official implementation, under
+    /// its own parameter paths).
+    pub fn export(&self, path: &Path) -> Result<(), TrainError> {
+        let (dict, counters) = match self {
+            StereoNetwork::Compact(net) => export_state_dict(net),
+            StereoNetwork::RaftStereo(net) => export_state_dict(net),
+        };
+        dict.write_safetensors(path, &counters)
+    }
+}
+
+impl OfficialLayout for CostVolumeNet {
+    /// No official implementation: the burn paths are the keys.
+    fn official_key(path: &str) -> String {
+        path.to_string()
+    }
+}
+
+impl Backbone for StereoNetwork {
+    fn disparity(&self, reference: Tensor<4>, target: Tensor<4>) -> Tensor<4> {
+        match self {
+            StereoNetwork::Compact(net) => net.disparity(reference, target),
+            StereoNetwork::RaftStereo(net) => net.disparity(reference, target),
+        }
+    }
+
+    fn disparities(&self, reference: Tensor<4>, target: Tensor<4>) -> Vec<Tensor<4>> {
+        match self {
+            StereoNetwork::Compact(net) => net.disparities(reference, target),
+            StereoNetwork::RaftStereo(net) => net.disparities(reference, target),
+        }
+    }
+}
