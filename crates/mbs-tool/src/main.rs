@@ -43,6 +43,8 @@ enum Command {
     Validate(commands::validate::Args),
     /// Train a stereo network without ground truth (S3 teacher-student).
     Train(commands::train::Args),
+    /// Write a training run's network as safetensors with the official keys.
+    Export(commands::export::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -57,6 +59,7 @@ fn main() -> std::process::ExitCode {
         Command::Scan(args) => commands::scan::run(args),
         Command::Validate(args) => commands::validate::run(args),
         Command::Train(args) => commands::train::run(args),
+        Command::Export(args) => commands::export::run(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -1,6 +1,8 @@
 //! A trained backbone on whole images: `RgbImage` pair in, disparity map
 //! on the reference grid out (targets on the left go through mirroring);
-//! a checkpoint's teacher as a `StereoMatcher` for `predict` and `eval`.
+//! a checkpoint's teacher, or a backbone with weights from a file (an
+//! official checkpoint, an export), as a `StereoMatcher` for `predict` and
+//! `eval`.
 
 use std::path::Path;
 
@@ -10,7 +12,7 @@ use mbs_infer::{Disparity, InferError, StereoMatcher};
 
 use crate::checkpoint::Checkpoint;
 
-use crate::backbone::{Backbone, StereoNetwork, predict};
+use crate::backbone::{Backbone, NetworkConfig, StereoNetwork, predict};
 use crate::error::TrainError;
 use crate::host::image_tensor;
 use crate::host::read_all;
@@ -43,15 +45,27 @@ pub fn predict_image<B: Backbone>(
         .ok_or_else(|| TrainError::Shape("the network returned a map of the wrong size".into()))
 }
 
-/// The teacher of a training checkpoint as a [`StereoMatcher`], on the
-/// CPU: what `predict --checkpoint` and `eval --checkpoint` run.
-pub struct TeacherMatcher {
+/// A trained network as a [`StereoMatcher`], on the CPU: what `predict`
+/// and `eval` run with `--checkpoint` or `--weights`.
+pub struct NetworkMatcher {
     net: StereoNetwork,
     device: Device,
     name: String,
 }
 
-impl TeacherMatcher {
+impl NetworkMatcher {
+    /// The network of `config` with the weights of `path` (an official
+    /// `.pth`/`.safetensors` state dict or an `mbs-tool export`).
+    pub fn with_weights(config: &NetworkConfig, path: &Path) -> Result<Self, TrainError> {
+        let device = Device::flex();
+        let net = config.init(&device)?.with_weights(path)?;
+        Ok(Self {
+            net,
+            device,
+            name: format!("{} ({})", config.backbone, path.display()),
+        })
+    }
+
     /// Loads the teacher of a checkpoint folder, or of the newest
     /// checkpoint of a training run folder.
     pub fn open(path: &Path) -> Result<Self, TrainError> {
@@ -70,7 +84,7 @@ impl TeacherMatcher {
     }
 }
 
-impl StereoMatcher for TeacherMatcher {
+impl StereoMatcher for NetworkMatcher {
     fn name(&self) -> &str {
         &self.name
     }

@@ -2,6 +2,7 @@
 //! progress bar and a summary, thread-pool setup, ONNX Runtime flags.
 
 pub mod batch;
+pub mod network;
 pub mod onnx;
 pub mod pair;
 pub mod report_error;

@@ -16,7 +16,9 @@ use mbs_dataset::ground_truth::{
 };
 use mbs_dataset::{Manifest, Split};
 use mbs_infer::StereoMatcher;
-use mbs_train::inference::TeacherMatcher;
+use mbs_train::inference::NetworkMatcher;
+
+use crate::cli::network::NetworkArgs;
 use rayon::prelude::*;
 use serde_json::Value;
 
@@ -27,29 +29,31 @@ use serde_json::Value;
   mbs-tool eval pred/im2.pfm --gt teddy/disp2.png --gt-scale 4 --json
   mbs-tool eval pred --manifest mbs-demo/manifest.json --pair 0:1
   mbs-tool eval --checkpoint mbs-demo/run --manifest mbs-demo/train-data/manifest.json --split test
+  mbs-tool eval --backbone raft-stereo --weights raftstereo-eth3d.pth --kitti /data/kitti2015/training
 
 Predictions are looked up as <PREDICTIONS>/<name>.pfm, .png (KITTI 16-bit)
 or .exr, <name> being the GT file stem (KITTI) or the sample id (manifest).
-With --checkpoint, the run's teacher network predicts every pair instead.
+With --checkpoint, the run's teacher network predicts every pair instead;
+with --backbone and --weights, that network (e.g. official RAFT-Stereo
+weights) does.
 A missing prediction value (+inf/NaN, 0 in PNGs) counts as an outlier for
 Out-x and D1 and is left out of EPE; the density column says how many
 pixels had one. ALL = valid GT; NOC = valid non-occluded GT (KITTI
 disp_noc, a --noc mask, or the manifest's occlusion mask); OCC = ALL - NOC.")]
 pub struct Args {
     /// A folder of predicted disparities, or one file with --gt.
-    #[arg(required_unless_present = "checkpoint")]
+    #[arg(required_unless_present_any = ["checkpoint", "weights"], conflicts_with_all = ["checkpoint", "weights"])]
     pub predictions: Option<PathBuf>,
-    /// Predict with the teacher of a training run (or of one of its
-    /// checkpoints/step-N folders) instead of reading PREDICTIONS.
-    #[arg(long, value_name = "RUN|CHECKPOINT", conflicts_with_all = ["predictions", "gt"])]
-    pub checkpoint: Option<PathBuf>,
+    /// A trained network that predicts every pair instead of PREDICTIONS.
+    #[command(flatten)]
+    pub network: NetworkArgs,
     /// A KITTI 2015 (disp_occ_0, disp_noc_0) or 2012 (disp_occ, disp_noc)
     /// training folder.
     #[arg(long, conflicts_with_all = ["gt", "manifest"])]
     pub kitti: Option<PathBuf>,
     /// Ground truth of a single prediction: PFM/EXR (+inf = unknown) or
     /// PNG/PGM (see --gt-scale).
-    #[arg(long, conflicts_with = "manifest")]
+    #[arg(long, conflicts_with_all = ["manifest", "checkpoint", "weights"])]
     pub gt: Option<PathBuf>,
     /// Non-occluded mask for --gt (non-zero = non-occluded), e.g.
     /// Middlebury's nonocc.png.
@@ -135,11 +139,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         bail!("no ground truth: give --kitti DIR, --gt FILE or --manifest FILE");
     };
-    let network = args
-        .checkpoint
-        .as_deref()
-        .map(TeacherMatcher::open)
-        .transpose()?;
+    let network = args.network.matcher()?;
     let results: Vec<anyhow::Result<RegionSums>> = items
         .par_iter()
         .map(|item| {
@@ -235,7 +235,7 @@ pub fn manifest_items(
 
 /// Reads an item's prediction, or computes it with the checkpoint's
 /// network; with the file it came from (for messages).
-fn predict(item: &Item, network: Option<&TeacherMatcher>) -> anyhow::Result<(FloatImage, PathBuf)> {
+fn predict(item: &Item, network: Option<&NetworkMatcher>) -> anyhow::Result<(FloatImage, PathBuf)> {
     match (&item.prediction, network) {
         (Prediction::File(path), _) => Ok((read_disparity(path, None)?, path.clone())),
         (Prediction::Missing(folder), _) => bail!(

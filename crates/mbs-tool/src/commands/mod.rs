@@ -3,6 +3,7 @@
 pub mod decode_depth;
 pub mod demo;
 pub mod eval;
+pub mod export;
 pub mod extrapolate;
 pub mod predict;
 pub mod scan;

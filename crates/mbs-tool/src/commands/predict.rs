@@ -15,10 +15,10 @@ use mbs_infer::{Disparity, Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max
 use mbs_viz::colormap::{colorize_disparity, disparity_scale};
 
 use crate::cli::batch::{self, Outcome};
+use crate::cli::network::NetworkArgs;
 use crate::cli::onnx::OnnxArgs;
 use crate::cli::pair::parse_pair;
 use crate::cli::shard::Shard;
-use mbs_train::inference::TeacherMatcher;
 
 /// Arguments of `predict`.
 #[derive(Parser)]
@@ -28,6 +28,7 @@ use mbs_train::inference::TeacherMatcher;
   mbs-tool predict --manifest mbs-demo/manifest.json --pair 2:1 --out pred
   mbs-tool predict --kitti DIR --model igev.onnx --card igev --device cuda --out pred
   mbs-tool predict --manifest data/manifest.json --pair 0:1 --checkpoint runs/demo --out pred
+  mbs-tool predict --kitti DIR --backbone raft-stereo --weights raftstereo-sceneflow.pth --out pred
 
 Outputs: <out>/<name>.pfm (+inf = invalid) or <out>/<name>.png (KITTI 16-bit,
 value/256, 0 = invalid), where <name> is the left view's file stem (pairs and
@@ -65,15 +66,14 @@ pub struct Args {
     #[arg(long)]
     pub color: bool,
     /// An ONNX stereo network to use instead of the built-in matcher.
-    #[arg(long, value_name = "FILE.onnx", requires = "card")]
+    #[arg(long, value_name = "FILE.onnx", requires = "card", conflicts_with_all = ["checkpoint", "weights"])]
     pub model: Option<PathBuf>,
     /// How to feed --model: a built-in card name or a card FILE.json.
     #[arg(long, value_name = "NAME|FILE.json", requires = "model")]
     pub card: Option<String>,
-    /// A training run (or one of its checkpoints/step-N folders): predict
-    /// with its teacher network instead of the built-in matcher.
-    #[arg(long, value_name = "RUN|CHECKPOINT", conflicts_with = "model")]
-    pub checkpoint: Option<PathBuf>,
+    /// A trained network instead of the built-in matcher.
+    #[command(flatten)]
+    pub network: NetworkArgs,
     /// ONNX Runtime settings (with --model).
     #[command(flatten)]
     pub onnx: OnnxArgs,
@@ -170,8 +170,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .report_fallback(&model.display().to_string(), stereo.device());
             Some(Box::new(stereo))
         }
-        _ => match &args.checkpoint {
-            Some(path) => Some(Box::new(TeacherMatcher::open(path)?)),
+        _ => match args.network.matcher()? {
+            Some(matcher) => Some(Box::new(matcher)),
             None => None,
         },
     };

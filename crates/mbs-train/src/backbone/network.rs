@@ -118,25 +118,36 @@ impl StereoNetwork {
     /// ([`StereoNetwork::export`]). The file must match the network's
     /// structure exactly; the error lists what does not.
     pub fn with_weights(self, path: &Path) -> Result<Self, TrainError> {
-        let dict = StateDict::read(path)?;
+        self.with_state_dict(&StateDict::read(path)?, path)
+    }
+
+    /// The network with the weights of `dict` (read from `source`, which
+    /// errors name).
+    pub fn with_state_dict(self, dict: &StateDict, source: &Path) -> Result<Self, TrainError> {
         Ok(match self {
             StereoNetwork::Compact(net) => {
-                StereoNetwork::Compact(load_state_dict(net, &dict, path)?)
+                StereoNetwork::Compact(load_state_dict(net, dict, source)?)
             }
             StereoNetwork::RaftStereo(net) => {
-                StereoNetwork::RaftStereo(load_state_dict(net, &dict, path)?)
+                StereoNetwork::RaftStereo(load_state_dict(net, dict, source)?)
             }
         })
     }
 
-    /// Writes the weights to `path` as safetensors under the official keys
-    /// (the compact network, which has no official implementation, under
-    /// its own parameter paths).
-    pub fn export(&self, path: &Path) -> Result<(), TrainError> {
-        let (dict, counters) = match self {
+    /// The weights under the official keys (the compact network, which has
+    /// no official implementation, under its own parameter paths), and the
+    /// batch-norm counter keys an export adds.
+    pub fn state_dict(&self) -> (StateDict, Vec<String>) {
+        match self {
             StereoNetwork::Compact(net) => export_state_dict(net),
             StereoNetwork::RaftStereo(net) => export_state_dict(net),
-        };
+        }
+    }
+
+    /// Writes [`StereoNetwork::state_dict`] to `path` as safetensors, which
+    /// the official PyTorch module loads with `load_state_dict`.
+    pub fn export(&self, path: &Path) -> Result<(), TrainError> {
+        let (dict, counters) = self.state_dict();
         dict.write_safetensors(path, &counters)
     }
 }

@@ -28,6 +28,7 @@ use mbs_core::{FloatImage, RgbImage};
 use mbs_dataset::Manifest;
 
 use crate::backbone::StereoNetwork;
+use crate::backbone::official::StateDict;
 use crate::checkpoint::{self, Checkpoint};
 use crate::config::RunConfig;
 use crate::data::StepBatch;
@@ -118,6 +119,18 @@ pub enum End {
     Stopped(usize),
 }
 
+/// The weights a new run starts from (`train --init`): the teacher of a
+/// run or checkpoint folder, or a weights file (an official `.pth` or
+/// `.safetensors` state dict, or an `mbs-tool export`).
+pub fn initial_weights(path: &Path) -> Result<StateDict, TrainError> {
+    if path.is_dir() {
+        let teacher = Checkpoint::open(path)?.teacher(&Device::flex())?;
+        Ok(teacher.state_dict().0)
+    } else {
+        StateDict::read(path)
+    }
+}
+
 /// A training run in an output folder.
 pub struct TrainingRun {
     out: PathBuf,
@@ -137,17 +150,20 @@ impl TrainingRun {
         out: &Path,
         config: RunConfig,
     ) -> Result<(Self, Start), TrainError> {
-        Self::open_on(manifest, out, config, Device::flex())
+        Self::open_on(manifest, out, config, Device::flex(), None)
     }
 
     /// Opens the run in `out` on the training data of `manifest`, training on
-    /// `device`: resumes from the newest checkpoint there, or starts fresh.
-    /// Resuming with a configuration that changes what is computed is refused.
+    /// `device`: resumes from the newest checkpoint there, or starts fresh,
+    /// from the weights of `init` when given (see [`initial_weights`]; a
+    /// resumed run ignores it). Resuming with a configuration that changes
+    /// what is computed is refused.
     pub fn open_on(
         manifest: &Path,
         out: &Path,
         config: RunConfig,
         device: Device,
+        init: Option<&Path>,
     ) -> Result<(Self, Start), TrainError> {
         config.validate()?;
         let parsed = Manifest::load(manifest)?;
@@ -167,7 +183,10 @@ impl TrainingRun {
             // Only fresh weights need the seed; a checkpoint has its own.
             train_device.seed(config.seed);
         }
-        let student = config.network.init(&train_device)?;
+        let mut student = config.network.init(&train_device)?;
+        if let (None, Some(init)) = (&latest, init) {
+            student = student.with_state_dict(&initial_weights(init)?, init)?;
+        }
         let mut trainer = S3Trainer::new(student, &config.trainer)?;
         let start = match latest {
             Some(checkpoint) => {

@@ -25,6 +25,8 @@ use report::Report;
   mbs-tool train kitti.json --out runs/ft --config ft.json --set trainer.loss.omega=3
   mbs-tool train data.json --out runs/a --set trainer.loss.geometry=false   # Table 3 (A)
   mbs-tool train --print-config > my.json            # every setting, with defaults
+  mbs-tool train mbs20k.json --out runs/raft --backbone raft-stereo --crop 384x512
+  mbs-tool train kitti-mb.json --out runs/ft --backbone raft-stereo --init runs/raft --lr 5e-5
 
 Training uses the manifest's `train` samples; validation scores the
 teacher on the `val` samples (or `test` when there is no `val`) that have
@@ -65,9 +67,19 @@ pub struct Args {
     /// Peak learning rate (trainer.lr.max_lr).
     #[arg(long)]
     pub lr: Option<f64>,
-    /// Largest disparity of the network, a multiple of 4 (network.max_disparity).
+    /// Largest disparity of the data (network.max_disparity): the compact
+    /// network's range, a multiple of 4.
     #[arg(long)]
     pub max_disparity: Option<usize>,
+    /// The network trained (network.backbone): compact or raft-stereo.
+    #[arg(long, value_name = "NAME")]
+    pub backbone: Option<String>,
+    /// Start a new run from these weights instead of fresh ones (student and
+    /// teacher both; the schedule and optimiser start afresh): another run
+    /// or checkpoint folder (its teacher), an official checkpoint (.pth or
+    /// .safetensors) or an `mbs-tool export`. A resumed run ignores it.
+    #[arg(long, value_name = "RUN|FILE")]
+    pub init: Option<PathBuf>,
     /// Seed of the weights and of every random choice (seed).
     #[arg(long)]
     pub seed: Option<u64>,
@@ -121,6 +133,7 @@ impl Args {
             "network.max_disparity",
             self.max_disparity.map(|v| v.to_string()),
         );
+        push("network.backbone", self.backbone.clone());
         push("seed", self.seed.map(|v| v.to_string()));
         push("val_every", self.val_every.map(|v| v.to_string()));
         push(
@@ -167,10 +180,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     crate::cli::require_file(manifest, "manifest")?;
     crate::cli::prepare_out(out)?;
-    let (mut training, start) = TrainingRun::open_on(manifest, out, config, device)?;
+    if let Some(init) = &args.init
+        && !init.exists()
+    {
+        bail!("--init {}: no such file or folder", init.display());
+    }
+    let (mut training, start) =
+        TrainingRun::open_on(manifest, out, config, device, args.init.as_deref())?;
     let total = training.config().steps();
     match start {
-        Start::Fresh => eprintln!("train: {total} steps into {}", out.display()),
+        Start::Fresh => match &args.init {
+            Some(init) => eprintln!(
+                "train: {total} steps into {}, starting from {}",
+                out.display(),
+                init.display()
+            ),
+            None => eprintln!("train: {total} steps into {}", out.display()),
+        },
         Start::Resumed(steps) if steps >= total => {
             eprintln!(
                 "train: {} is complete ({steps} of {total} steps); --restart to train again",
@@ -179,8 +205,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             return Ok(());
         }
         Start::Resumed(steps) => eprintln!(
-            "train: resuming {} at step {steps} of {total}",
-            out.display()
+            "train: resuming {} at step {steps} of {total}{}",
+            out.display(),
+            if args.init.is_some() {
+                " (its checkpoint's weights; --init applies to new runs)"
+            } else {
+                ""
+            }
         ),
     }
     if training.validation().is_empty() {

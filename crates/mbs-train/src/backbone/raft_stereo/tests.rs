@@ -130,3 +130,102 @@ fn matches_the_official_three_level_network() {
 fn matches_the_official_two_level_slow_fast_network() {
     check_parity("two_levels_slow_fast");
 }
+
+/// The three-level fixture network with the seeded weights.
+fn seeded_network() -> (RaftStereo, RaftStereoConfig, BTreeMap<String, Vec<usize>>) {
+    let (_, official, shapes) = fixture("three_levels");
+    let config = config_of(&official);
+    let net = config.init(&Device::flex()).expect("valid config");
+    let net = load_state_dict(net, &seeded_dict(&shapes), Path::new("seeded")).expect("loads");
+    (net, config, shapes)
+}
+
+#[test]
+fn export_writes_the_official_keys_and_reads_back_identically() {
+    let device = Device::flex();
+    let (net, config, shapes) = seeded_network();
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("raft.safetensors");
+    let (dict, counters) = export_state_dict(&net);
+    dict.write_safetensors(&path, &counters).expect("written");
+
+    // Every key of the official state dict, counters included, and no other.
+    let bytes = std::fs::read(&path).expect("readable");
+    let file = safetensors::SafeTensors::deserialize(&bytes).expect("safetensors");
+    let mut names: Vec<String> = file.names().into_iter().map(str::to_owned).collect();
+    names.sort();
+    assert_eq!(names, shapes.keys().cloned().collect::<Vec<_>>());
+    let counter = file
+        .tensor("cnet.norm1.num_batches_tracked")
+        .expect("batch-norm counter");
+    assert_eq!(counter.dtype(), safetensors::Dtype::I64);
+
+    let reloaded = config.init(&device).expect("valid config");
+    let reloaded = load_state_dict(reloaded, &StateDict::read(&path).expect("reads"), &path)
+        .expect("an export loads back");
+    let (fixture, _, _) = fixture("three_levels");
+    let run = |net: &RaftStereo| {
+        let left = input(&fixture, "left", &device);
+        let right = input(&fixture, "right", &device);
+        values(net.iterate(left, right, 2).pop().expect("two iterations"))
+    };
+    assert_eq!(run(&net), run(&reloaded));
+}
+
+#[test]
+fn reads_a_pytorch_pth_with_the_data_parallel_prefix() {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/parity/raft_stereo_part.pth");
+    let dict = StateDict::read(&path).expect("a .pth state dict");
+    let keys: Vec<&String> = dict.tensors.keys().collect();
+    assert_eq!(
+        keys,
+        [
+            "context_zqr_convs.0.bias",
+            "context_zqr_convs.0.weight",
+            "context_zqr_convs.1.bias",
+            "context_zqr_convs.1.weight",
+            "context_zqr_convs.2.bias",
+            "context_zqr_convs.2.weight",
+        ]
+    );
+    for (key, tensor) in &dict.tensors {
+        let want = seeded_tensor(key, &tensor.shape).expect("seeded");
+        assert_eq!(tensor.values, want, "{key}");
+    }
+    // A partial state dict is refused, naming what is missing (and not the
+    // keys it has).
+    let (_, official, _) = fixture("three_levels");
+    let net = config_of(&official).init(&Device::flex()).expect("valid");
+    let message = load_state_dict(net, &dict, &path)
+        .expect_err("incomplete")
+        .to_string();
+    assert!(message.contains("raft_stereo_part.pth"), "{message}");
+    assert!(message.contains("keys missing: cnet."), "{message}");
+    assert!(!message.contains("context_zqr_convs"), "{message}");
+    assert!(!message.contains("unexpected"), "{message}");
+}
+
+#[test]
+fn weights_of_another_configuration_are_refused_with_the_keys() {
+    let (net, _, _) = seeded_network();
+    let (dict, _) = export_state_dict(&net);
+    let (_, official, _) = fixture("two_levels_slow_fast");
+    let other = config_of(&official).init(&Device::flex()).expect("valid");
+    let message = load_state_dict(other, &dict, Path::new("three.safetensors"))
+        .expect_err("different widths and levels")
+        .to_string();
+    assert!(
+        message.starts_with("weights three.safetensors: does not match"),
+        "{message}"
+    );
+    assert!(message.contains("with the wrong shape: "), "{message}");
+    assert!(
+        message.contains("(file [96, 32, 3, 3], network [72, 24, 3, 3])"),
+        "{message}"
+    );
+    assert!(
+        message.contains("unexpected: context_zqr_convs.2."),
+        "{message}"
+    );
+}

@@ -1,0 +1,63 @@
+//! `mbs-tool export`: a training run's network as safetensors under the
+//! official implementation's keys, for the official PyTorch code and its
+//! ONNX export recipes (`tools/onnx/EXPORT.md`).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, bail};
+use burn::tensor::Device;
+use clap::Parser;
+use mbs_train::checkpoint::Checkpoint;
+
+/// Arguments of `export`.
+#[derive(Parser)]
+#[command(after_help = "Examples:
+  mbs-tool export runs/raft --out teacher.safetensors
+  mbs-tool export runs/raft/checkpoints/step-0005000 --student --out student.safetensors
+
+RAFT-Stereo weights carry the official keys (princeton-vl/RAFT-Stereo), so
+the official code loads them unchanged:
+
+  from safetensors.torch import load_file
+  model = RAFTStereo(args)        # the run's network.raft_stereo settings
+  model.load_state_dict(load_file('teacher.safetensors'))
+
+The compact network has no official implementation; its file holds mbs's
+own parameter names, which `--init` and `--weights` read back.")]
+pub struct Args {
+    /// A training run (its newest checkpoint) or a checkpoints/step-N folder.
+    pub run: PathBuf,
+    /// The safetensors file to write.
+    #[arg(long, value_name = "FILE.safetensors")]
+    pub out: PathBuf,
+    /// Export the student instead of the teacher.
+    #[arg(long)]
+    pub student: bool,
+}
+
+/// Runs `export`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.out.is_dir() {
+        bail!("--out {} is a folder; give a file name", args.out.display());
+    }
+    let checkpoint = Checkpoint::open(&args.run)?;
+    let device = Device::flex();
+    let (which, net) = if args.student {
+        ("student", checkpoint.student(&device)?)
+    } else {
+        ("teacher", checkpoint.teacher(&device)?)
+    };
+    if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("cannot create {}", parent.display()))?;
+    }
+    net.export(&args.out)?;
+    let backbone = checkpoint.config()?.network.backbone;
+    eprintln!(
+        "export: the {which} of {} ({backbone}, step {}) -> {}",
+        checkpoint.dir.display(),
+        checkpoint.state.steps,
+        args.out.display()
+    );
+    Ok(())
+}
