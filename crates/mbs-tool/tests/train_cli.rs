@@ -87,7 +87,7 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     let config: Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("config.json")).unwrap()).unwrap();
     assert_eq!(config["data"]["batch_size"], 2);
-    assert_eq!(config["network"]["features"], 8);
+    assert_eq!(config["network"]["compact"]["features"], 8);
     assert_eq!(
         config["trainer"]["loss"]["omega"], 2.0,
         "paper default kept"

@@ -1,14 +1,18 @@
-//! Times the S3 training step ([`S3Trainer::step`]) of a [`CostVolumeNet`]
-//! on the CPU (`flex` backend); called by
-//! `tools/bench/train_step_vs_torch.py`. Run in release:
+//! Times the S3 training step ([`S3Trainer::step`]) of the compact network
+//! or of RAFT-Stereo (`--backbone raft-stereo`) on the CPU (`flex` backend);
+//! called by `tools/bench/train_step_vs_torch.py` and
+//! `tools/bench/raft_step_vs_torch.py`. Run in release:
 //!
 //! ```text
 //! RAYON_NUM_THREADS=2 cargo run --release -p mbs-train --example step_time -- \
 //!     --batch 2 --height 256 --width 512 --max-disparity 128 --steps 5 --warmup 2
 //! ```
 //!
-//! The network has the default 16 feature and 32 hidden channels and the
-//! loss the paper's defaults. The batch is random images (fixed seed) with
+//! The compact network has the default 16 feature and 32 hidden channels;
+//! RAFT-Stereo the official defaults unless `--hidden-dim`, `--gru-levels`,
+//! `--n-downsample`, `--train-iters`, `--test-iters` say otherwise (its
+//! full size at the paper's 384x512 crop: `--backbone raft-stereo --height
+//! 384 --width 512 --steps 1 --warmup 0`); the loss has the paper's defaults. The batch is random images (fixed seed) with
 //! the student's targets alternately right and left of the reference (so
 //! every other item goes through the mirroring), teacher targets on the
 //! right and baseline ratios alternately 1 and 1/2, as the ignored test
@@ -37,7 +41,7 @@ use std::fmt::Write as _;
 use std::time::Instant;
 
 use burn::module::Module;
-use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
+use burn::optim::{GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, Distribution, Tensor};
 use mbs_core::geometry::Side;
 use mbs_train::backbone::predict;
@@ -45,20 +49,23 @@ use mbs_train::clip::clip_global_norm;
 use mbs_train::ema::ema_update;
 use mbs_train::schedule::OneCycleConfig;
 use mbs_train::{
-    CostVolumeNet, CostVolumeNetConfig, LossConfig, LossInputs, S3Loss, S3Trainer, StepBatch,
-    TrainerConfig,
+    BackboneKind, CostVolumeNetConfig, LossConfig, LossInputs, NetworkConfig, RaftStereoConfig,
+    S3Loss, S3Trainer, StepBatch, StereoNetwork, TrainerConfig,
 };
 
 type BoxError = Box<dyn std::error::Error>;
 
-const USAGE: &str = "usage: step_time [--batch B] [--height H] [--width W] [--max-disparity D] \
-[--steps N] [--warmup K] [--features F] [--hidden C] [--seed S] [--breakdown]
-defaults: --batch 2 --height 256 --width 512 --max-disparity 128 --steps 5 --warmup 2 \
---features 16 --hidden 32 --seed 42";
+const USAGE: &str = "usage: step_time [--backbone compact|raft-stereo] [--batch B] [--height H] \
+[--width W] [--max-disparity D] [--steps N] [--warmup K] [--features F] [--hidden C] [--seed S] \
+[--breakdown] [--hidden-dim C] [--gru-levels L] [--n-downsample N] [--train-iters I] [--test-iters I]
+defaults: --backbone compact --batch 2 --height 256 --width 512 --max-disparity 128 --steps 5 \
+--warmup 2 --features 16 --hidden 32 --seed 42; RAFT-Stereo's official defaults";
 
 /// What the command line sets.
 #[derive(Debug)]
 struct Args {
+    backbone: BackboneKind,
+    raft: RaftStereoConfig,
     batch: usize,
     height: usize,
     width: usize,
@@ -75,6 +82,8 @@ impl Args {
     /// Parses `--name value` pairs (and the `--breakdown` switch).
     fn parse(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
         let mut out = Args {
+            backbone: BackboneKind::Compact,
+            raft: RaftStereoConfig::new(),
             batch: 2,
             height: 256,
             width: 512,
@@ -94,6 +103,11 @@ impl Args {
                 out.breakdown = true;
                 continue;
             }
+            if flag == "--backbone" {
+                let value = args.next().ok_or("--backbone needs a value")?;
+                out.backbone = value.parse().map_err(|e| format!("{e}"))?;
+                continue;
+            }
             let slot: &mut usize = match flag.as_str() {
                 "--batch" => &mut out.batch,
                 "--height" => &mut out.height,
@@ -103,6 +117,11 @@ impl Args {
                 "--warmup" => &mut out.warmup,
                 "--features" => &mut out.features,
                 "--hidden" => &mut out.hidden,
+                "--hidden-dim" => &mut out.raft.hidden_dim,
+                "--gru-levels" => &mut out.raft.gru_levels,
+                "--n-downsample" => &mut out.raft.n_downsample,
+                "--train-iters" => &mut out.raft.train_iters,
+                "--test-iters" => &mut out.raft.test_iters,
                 "--seed" => {
                     let value = args.next().ok_or("--seed needs a value")?;
                     out.seed = value
@@ -176,7 +195,7 @@ fn millis(start: Instant) -> f64 {
 /// The step taken apart into its phases, as `S3Trainer::step` runs them;
 /// returns the mean milliseconds of each phase over `steps` steps.
 fn breakdown(
-    student: CostVolumeNet,
+    student: StereoNetwork,
     config: &TrainerConfig,
     batch: &StepBatch,
     steps: usize,
@@ -185,7 +204,7 @@ fn breakdown(
     let mut teacher = student.valid();
     let loss = S3Loss::new(config.loss.clone())?;
     let schedule = config.lr.init()?;
-    let mut optimizer: ModuleOptimizer = AdamConfig::new().init();
+    let mut optimizer: ModuleOptimizer = config.optimizer.init();
     let names = [
         "teacher_forward",
         "student_forward",
@@ -248,12 +267,21 @@ fn run(args: &Args) -> Result<String, BoxError> {
     // Seeds the weights and the random images.
     train_device.seed(args.seed);
     device.seed(args.seed);
-    let net = CostVolumeNetConfig::new()
-        .with_features(args.features)
-        .with_hidden(args.hidden);
+    if args.breakdown && args.backbone != BackboneKind::Compact {
+        return Err("--breakdown times the compact network only".into());
+    }
+    let network = NetworkConfig::new()
+        .with_backbone(args.backbone)
+        .with_max_disparity(args.max_disparity)
+        .with_compact(
+            CostVolumeNetConfig::new()
+                .with_features(args.features)
+                .with_hidden(args.hidden),
+        )
+        .with_raft_stereo(args.raft.clone());
     let total_steps = args.warmup + 2 * args.steps;
     let config = TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(2e-4, total_steps));
-    let student = net.init(args.max_disparity, &train_device)?;
+    let student = network.init(&train_device)?;
     let mut trainer = S3Trainer::new(student.clone(), &config)?;
     let batch = batch(args, &device);
     for _ in 0..args.warmup {
@@ -278,10 +306,16 @@ fn run(args: &Args) -> Result<String, BoxError> {
         "null".to_string()
     };
     let mut line = format!(
-        "{{\"framework\":\"burn-flex\",\"batch\":{},\"height\":{},\"width\":{},\"max_disparity\":{},\
+        "{{\"framework\":\"burn-flex\",\"backbone\":\"{}\",\"batch\":{},\"height\":{},\"width\":{},\"max_disparity\":{},\
          \"ms_per_step\":{ms_per_step:.2},\"peak_rss_mib\":{rss},\"steps\":{},\"warmup\":{},\
          \"rayon_threads\":\"{threads}\",\"loss\":{loss}",
-        args.batch, args.height, args.width, args.max_disparity, args.steps, args.warmup,
+        args.backbone,
+        args.batch,
+        args.height,
+        args.width,
+        args.max_disparity,
+        args.steps,
+        args.warmup,
     );
     if let Some(parts) = parts {
         line.push_str(",\"breakdown_ms\":{");

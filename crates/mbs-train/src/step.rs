@@ -238,17 +238,12 @@ impl<B: Backbone> S3Trainer<B> {
         };
         // The final prediction's terms are the ones reported; the earlier
         // predictions add their weighted totals.
-        let mut out = self.loss.compute(inputs.clone())?;
-        for (prediction, weight) in predictions.into_iter().zip(weights) {
-            if weight > 0.0 {
-                let earlier = self.loss.compute(LossInputs {
-                    student_disparity: prediction,
-                    ..inputs.clone()
-                })?;
-                out.total = out.total + earlier.total * weight;
-            }
-        }
-        Ok(out)
+        let earlier = predictions
+            .into_iter()
+            .zip(weights)
+            .filter(|(_, weight)| *weight > 0.0)
+            .collect();
+        self.loss.compute_sequence(inputs, earlier)
     }
 
     /// The maps of `batch` (predictions and masks) without a gradient step.

@@ -179,42 +179,88 @@ impl S3Loss {
         &self.config
     }
 
-    /// Photometric map `P` of a prediction and the identity map `P(I_r, I_tgt)`
-    /// of the un-warped target.
-    fn photometric_pair(
+    /// Photometric map `P(I_r, I_tgt)` of a target against the reference:
+    /// the un-warped target (the identity map of auto-masking) or, with a
+    /// disparity, the target warped to the reference.
+    fn photometric(
         &self,
         reference: &Tensor<4>,
         target: Tensor<4>,
-        disparity: Tensor<4>,
-        sides: &[Side],
-    ) -> (Tensor<4>, Tensor<4>) {
-        let window = self.config.ssim_window;
-        let alpha = self.config.alpha;
-        let identity = photometric_map(reference.clone(), target.clone(), alpha, window);
-        let warped = warp_to_reference(target, disparity, sides);
-        (
-            photometric_map(reference.clone(), warped, alpha, window),
-            identity,
+        warp: Option<(Tensor<4>, &[Side])>,
+    ) -> Tensor<4> {
+        let target = match warp {
+            Some((disparity, sides)) => warp_to_reference(target, disparity, sides),
+            None => target,
+        };
+        photometric_map(
+            reference.clone(),
+            target,
+            self.config.alpha,
+            self.config.ssim_window,
         )
     }
 
     /// Computes `L` and its parts for one batch.
     pub fn compute(&self, inputs: LossInputs) -> Result<LossOutput, TrainError> {
-        check_shapes(&inputs, self.config.ssim_window)?;
-        let config = &self.config;
-        let parts = config.mask_parts();
-        let LossInputs {
-            reference,
-            student_target,
-            teacher_target,
-            student_disparity,
-            teacher_disparity,
-            student_sides,
-            teacher_sides,
-            ratios,
-        } = inputs;
+        self.compute_sequence(inputs, Vec::new())
+    }
 
-        let mut total = Tensor::<1>::zeros([1], &student_disparity.device());
+    /// Computes `L` and its parts for the final student prediction of
+    /// `inputs`, and adds to the total `weight * L` of each `earlier`
+    /// prediction of an iterative student (same shape). What does not
+    /// depend on the student's prediction (the teacher's mask and the
+    /// identity maps) is computed once.
+    pub fn compute_sequence(
+        &self,
+        inputs: LossInputs,
+        earlier: Vec<(Tensor<4>, f64)>,
+    ) -> Result<LossOutput, TrainError> {
+        check_shapes(&inputs, self.config.ssim_window)?;
+        let want = inputs.student_disparity.dims();
+        if let Some((other, _)) = earlier.iter().find(|(d, _)| d.dims() != want) {
+            return Err(TrainError::Shape(format!(
+                "an earlier student prediction is {:?}, expected {want:?}",
+                other.dims()
+            )));
+        }
+        let shared = self.shared(&inputs);
+        let mut out = self.terms(&inputs, &shared, inputs.student_disparity.clone());
+        for (disparity, weight) in earlier {
+            let terms = self.terms(&inputs, &shared, disparity);
+            out.total = out.total + terms.total * weight;
+        }
+        Ok(out)
+    }
+
+    /// The parts of the loss that do not depend on the student's prediction.
+    fn shared(&self, inputs: &LossInputs) -> Shared {
+        let config = &self.config;
+        let needs_mask = config.photometric || config.geometry;
+        let student_identity = needs_mask
+            .then(|| self.photometric(&inputs.reference, inputs.student_target.clone(), None));
+        let teacher = config.geometry.then(|| {
+            let disparity = inputs.teacher_disparity.clone().detach();
+            let warped = self.photometric(
+                &inputs.reference,
+                inputs.teacher_target.clone(),
+                Some((disparity.clone(), &inputs.teacher_sides)),
+            );
+            let identity = self.photometric(&inputs.reference, inputs.teacher_target.clone(), None);
+            (
+                validity_mask(warped, identity, config.mask_parts()),
+                disparity,
+            )
+        });
+        Shared {
+            student_identity,
+            teacher,
+        }
+    }
+
+    /// `L` and its parts for one student prediction.
+    fn terms(&self, inputs: &LossInputs, shared: &Shared, student: Tensor<4>) -> LossOutput {
+        let config = &self.config;
+        let mut total = Tensor::<1>::zeros([1], &student.device());
         let mut out = LossOutput {
             total: total.clone(),
             geometry: None,
@@ -224,53 +270,54 @@ impl S3Loss {
             teacher_mask: None,
             weight_map: None,
         };
-
-        if config.photometric || config.geometry {
-            let (p_s, id_s) = self.photometric_pair(
-                &reference,
-                student_target,
-                student_disparity.clone(),
-                &student_sides,
+        if let Some(identity) = &shared.student_identity {
+            let p_s = self.photometric(
+                &inputs.reference,
+                inputs.student_target.clone(),
+                Some((student.clone(), &inputs.student_sides)),
             );
-            let m_s = validity_mask(p_s.clone(), id_s, parts);
+            let m_s = validity_mask(p_s.clone(), identity.clone(), config.mask_parts());
             if config.photometric {
                 let term = (m_s.clone() * p_s).mean();
                 total = total + term.clone() * config.lambda_p;
                 out.photometric = Some(term);
             }
-            if config.geometry {
-                let teacher_disparity = teacher_disparity.detach();
-                let (p_t, id_t) = self.photometric_pair(
-                    &reference,
-                    teacher_target,
-                    teacher_disparity.clone(),
-                    &teacher_sides,
-                );
-                let m_t = validity_mask(p_t, id_t, parts);
+            if let Some((m_t, teacher_disparity)) = &shared.teacher {
                 let a = weight_map(m_t.clone(), m_s.clone(), config.effective_omega());
                 let term = geometry_consistency(
-                    student_disparity.clone(),
-                    teacher_disparity,
-                    &ratios,
+                    student.clone(),
+                    teacher_disparity.clone(),
+                    &inputs.ratios,
                     a.clone(),
                     (config.max_target_disparity > 0.0).then_some(config.max_target_disparity),
                 );
                 total = total + term.clone();
                 out.geometry = Some(term);
-                out.teacher_mask = Some(m_t);
+                out.teacher_mask = Some(m_t.clone());
                 out.weight_map = Some(a);
             }
             out.student_mask = Some(m_s);
         }
         if config.smoothness {
-            let term =
-                edge_aware_smoothness(student_disparity, reference, config.normalise_smoothness);
+            let term = edge_aware_smoothness(
+                student,
+                inputs.reference.clone(),
+                config.normalise_smoothness,
+            );
             total = total + term.clone() * config.lambda_s();
             out.smoothness = Some(term);
         }
         out.total = total;
-        Ok(out)
+        out
     }
+}
+
+/// What every student prediction's loss shares: the identity photometric
+/// map of the student's pair (when a mask is needed) and the teacher's
+/// validity mask with its detached disparity (when the geometry term is on).
+struct Shared {
+    student_identity: Option<Tensor<4>>,
+    teacher: Option<(Tensor<4>, Tensor<4>)>,
 }
 
 /// Checks the shapes the loss relies on.

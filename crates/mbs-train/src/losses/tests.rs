@@ -164,3 +164,36 @@ fn rejects_bad_settings_and_shapes() {
             .is_err()
     );
 }
+
+#[test]
+fn a_sequence_adds_each_earlier_prediction_weighted() {
+    let device = Device::flex();
+    let loss = S3Loss::new(l1_config()).expect("valid");
+    let shape = [1, 1, 2, 4];
+    // An earlier prediction of 2 px everywhere, scored on its own too.
+    let earlier = tensor4(&rows([2.0; 4]), shape, &device);
+    let alone = loss
+        .compute(LossInputs {
+            student_disparity: earlier.clone(),
+            ..inputs(&device)
+        })
+        .expect("valid");
+    let last = loss.compute(inputs(&device)).expect("valid");
+    let sequence = loss
+        .compute_sequence(inputs(&device), vec![(earlier, 0.25)])
+        .expect("valid");
+    let total = |out: &LossOutput| values(out.total.clone())[0];
+    assert!((total(&sequence) - (total(&last) + 0.25 * total(&alone))).abs() < 1e-6);
+    assert!(
+        total(&alone) > 0.1,
+        "the earlier prediction has a loss of its own"
+    );
+    // The reported terms are the final prediction's.
+    assert_eq!(scalar(sequence.geometry), scalar(last.geometry));
+    // An earlier prediction of another shape is refused.
+    let wrong = Tensor::<4>::zeros([1, 1, 2, 3], &device);
+    assert!(
+        loss.compute_sequence(inputs(&device), vec![(wrong, 1.0)])
+            .is_err()
+    );
+}

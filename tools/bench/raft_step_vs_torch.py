@@ -1,0 +1,190 @@
+#!/usr/bin/env python3
+"""S3 training step of RAFT-Stereo in mbs-train (burn, flex CPU backend)
+against the same step with the official PyTorch RAFT-Stereo on the CPU, in
+the same run, same batch, crop and iteration counts.
+
+- burn: the release example `step_time --backbone raft-stereo`
+  (crates/mbs-train/examples/step_time.rs): `S3Trainer::step` of
+  `RaftStereo`, RAYON_NUM_THREADS=THREADS;
+- PyTorch: the official `RAFTStereo` (a checkout given with --official,
+  batch norm frozen as its training script does) in the step of
+  tools/bench/s3_torch.py: teacher forward under no_grad with the test
+  iterations, student forward with the training iterations, the S3 loss of
+  every student iteration weighted as the official sequence loss (gamma 0.9
+  adjusted to 0.9^(15/(n-1))), backward, clipping, Adam (eps 1e-8), EMA;
+  torch.set_num_threads(THREADS).
+
+Both take random images with a fixed seed, WARMUP untimed steps, then STEPS
+timed steps, each in its own process; peak RSS is that process's VmHWM.
+
+Needs PyTorch and the official code (never in CI):
+    git clone https://github.com/princeton-vl/RAFT-Stereo /tmp/RAFT-Stereo
+    python3 tools/bench/raft_step_vs_torch.py --official /tmp/RAFT-Stereo
+"""
+
+import argparse
+import copy
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+
+
+def rss_mib(field):
+    with open("/proc/self/status") as status:
+        for line in status:
+            if line.startswith(field + ":"):
+                return int(line.split()[1]) / 1024.0
+    return None
+
+
+def sequence_weights(n, gamma=0.9):
+    if n == 1:
+        return [1.0]
+    adjusted = gamma ** (15.0 / (n - 1))
+    return [adjusted ** (n - 1 - i) for i in range(n)]
+
+
+def torch_worker(args):
+    import torch
+
+    sys.path.insert(0, str(HERE))
+    sys.path.insert(0, str(args.official))
+    import s3_torch
+    from core.raft_stereo import RAFTStereo
+
+    torch.set_num_threads(args.threads)
+    torch.manual_seed(args.seed)
+    official = argparse.Namespace(
+        hidden_dims=[args.hidden_dim] * 3, n_gru_layers=args.gru_levels, corr_levels=4, corr_radius=4,
+        n_downsample=args.n_downsample, context_norm="batch", slow_fast_gru=False, shared_backbone=False,
+        corr_implementation="reg", mixed_precision=False)
+    student = RAFTStereo(official)
+    student.train()
+    student.freeze_bn()
+    teacher = copy.deepcopy(student).requires_grad_(False).eval()
+
+    def final(net, reference, target):
+        _, flow = net(reference * 255.0, target * 255.0, iters=args.test_iters, test_mode=True)
+        return -flow
+
+    def every(net, reference, target):
+        return [-f for f in net(reference * 255.0, target * 255.0, iters=args.train_iters)]
+
+    loss = s3_torch.S3Loss()
+    optimizer = torch.optim.Adam(student.parameters(), lr=2e-4, betas=(0.9, 0.999), eps=1e-8)
+    batch = s3_torch.make_batch(args.batch, args.height, args.width)
+    weights = sequence_weights(args.train_iters)
+
+    def step(index):
+        with torch.no_grad():
+            d_t = s3_torch.predict(lambda r, t: final(teacher, r, t), batch["reference"],
+                                   batch["teacher_target"], batch["teacher_sides"])
+        sides = batch["student_sides"]
+        predictions = every(student, s3_torch.mirror_left(batch["augmented_reference"], sides),
+                            s3_torch.mirror_left(batch["augmented_target"], sides))
+        total = 0.0
+        for weight, d_s in zip(weights, predictions):
+            total = total + weight * loss(batch["reference"], batch["student_target"], batch["teacher_target"],
+                                          s3_torch.mirror_left(d_s, sides), d_t, sides,
+                                          batch["teacher_sides"], batch["ratios"])
+        value = total.item()
+        optimizer.zero_grad(set_to_none=True)
+        total.backward()
+        torch.nn.utils.clip_grad_norm_(student.parameters(), 1.0)
+        for group in optimizer.param_groups:
+            group["lr"] = s3_torch.one_cycle_lr(index, 2e-4, args.warmup + args.steps)
+        optimizer.step()
+        momentum = s3_torch.cosine_momentum(index, 0.996, args.warmup + args.steps)
+        with torch.no_grad():
+            for t, s in zip(teacher.parameters(), student.parameters()):
+                t.mul_(momentum).add_(s, alpha=1.0 - momentum)
+        return value
+
+    before = rss_mib("VmRSS")
+    for i in range(args.warmup):
+        step(i)
+    start = time.perf_counter()
+    value = float("nan")
+    for i in range(args.steps):
+        value = step(args.warmup + i)
+    ms = (time.perf_counter() - start) * 1e3 / args.steps
+    print(json.dumps({"framework": "torch", "ms_per_step": round(ms, 1), "peak_rss_mib": round(rss_mib("VmHWM"), 1),
+                      "rss_before_steps_mib": round(before, 1), "loss": value,
+                      "torch_version": torch.__version__}))
+
+
+def build_example():
+    command = ["cargo", "build", "--release", "-p", "mbs-train", "--example", "step_time",
+               "--message-format=json-render-diagnostics"]
+    out = subprocess.run(command, cwd=ROOT, check=True, stdout=subprocess.PIPE, text=True)
+    for line in out.stdout.splitlines():
+        message = json.loads(line)
+        if message.get("reason") == "compiler-artifact" and message["target"]["name"] == "step_time":
+            if message.get("executable"):
+                return message["executable"]
+    sys.exit("cargo built no step_time executable")
+
+
+def run_json(command, env):
+    out = subprocess.run(command, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    if out.returncode != 0:
+        sys.exit(f"{' '.join(map(str, command))} failed:\n{out.stderr}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--official", type=Path, required=True, help="checkout of princeton-vl/RAFT-Stereo")
+    parser.add_argument("--batch", type=int, default=2)
+    parser.add_argument("--height", type=int, default=384)
+    parser.add_argument("--width", type=int, default=512)
+    parser.add_argument("--hidden-dim", type=int, default=128)
+    parser.add_argument("--gru-levels", type=int, default=3)
+    parser.add_argument("--n-downsample", type=int, default=2)
+    parser.add_argument("--train-iters", type=int, default=16)
+    parser.add_argument("--test-iters", type=int, default=32)
+    parser.add_argument("--steps", type=int, default=2)
+    parser.add_argument("--warmup", type=int, default=1)
+    parser.add_argument("--rounds", type=int, default=1)
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--seed", type=int, default=42)
+    parser.add_argument("--no-build", metavar="EXE", help="use this step_time executable instead of building it")
+    parser.add_argument("--torch-worker", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.torch_worker:
+        torch_worker(args)
+        return
+    exe = args.no_build or build_example()
+    shape = ["--batch", str(args.batch), "--height", str(args.height), "--width", str(args.width),
+             "--steps", str(args.steps), "--warmup", str(args.warmup)]
+    network = ["--hidden-dim", str(args.hidden_dim), "--gru-levels", str(args.gru_levels),
+               "--n-downsample", str(args.n_downsample), "--train-iters", str(args.train_iters),
+               "--test-iters", str(args.test_iters)]
+    env = dict(os.environ, RAYON_NUM_THREADS=str(args.threads))
+    burn, torch = [], []
+    load_before = os.getloadavg()
+    for _ in range(args.rounds):
+        burn.append(run_json([exe, "--backbone", "raft-stereo"] + shape + network, env))
+        torch.append(run_json([sys.executable, __file__, "--torch-worker", "--official", str(args.official),
+                               "--threads", str(args.threads), "--seed", str(args.seed)] + shape + network, env))
+    burn = min(burn, key=lambda r: r["ms_per_step"])
+    torch = min(torch, key=lambda r: r["ms_per_step"])
+    print(f"{args.threads} threads, torch {torch['torch_version']}, load average {load_before[0]:.2f} before / "
+          f"{os.getloadavg()[0]:.2f} after; RAFT-Stereo hidden {args.hidden_dim}, {args.gru_levels} GRU levels, "
+          f"1/{2 ** args.n_downsample} resolution, {args.train_iters} train / {args.test_iters} test iterations\n")
+    print("| batch, crop | burn-flex ms/step | PyTorch ms/step | burn / PyTorch | burn peak RSS MiB | "
+          "PyTorch peak RSS MiB (before 1st step) |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: |")
+    print(f"| {args.batch}, {args.height}x{args.width} | {burn['ms_per_step']:.0f} | {torch['ms_per_step']:.0f} "
+          f"| {burn['ms_per_step'] / torch['ms_per_step']:.2f} | {burn['peak_rss_mib']:.0f} "
+          f"| {torch['peak_rss_mib']:.0f} ({torch['rss_before_steps_mib']:.0f}) |")
+
+
+if __name__ == "__main__":
+    main()
