@@ -211,6 +211,83 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
         map.iter()
             .all(|d| d.is_finite() && (0.0..=32.0).contains(d))
     );
+
+    // export writes the teacher; predict --weights with it gives the same map.
+    let exported = dir.path().join("teacher.safetensors");
+    let exported_s = exported.display().to_string();
+    let output = run(&["export", &out_s, "--out", &exported_s]);
+    assert!(output.status.success(), "{}", text(&output));
+    let pred_weights = dir.path().join("pred-weights");
+    let output = run(&[
+        "predict",
+        "--manifest",
+        &manifest,
+        "--pair",
+        "1:0",
+        "--backbone",
+        "compact",
+        "--weights",
+        &exported_s,
+        "--set",
+        "network.max_disparity=32",
+        "--set",
+        "network.compact.features=8",
+        "--out",
+        &pred_weights.display().to_string(),
+    ]);
+    assert!(output.status.success(), "{}", text(&output));
+    let same =
+        mbs_core::formats::pfm::read_pfm_grey(&pred_weights.join("Town10/ClearNoon/000000.pfm"))
+            .unwrap();
+    assert_eq!(same.as_raw(), map.as_raw());
+
+    // train --init (the run, or its export) starts a new run from the
+    // teacher: its step-0 validation is the first run's last one.
+    for (name, init) in [("ft-run", &out_s), ("ft-file", &exported_s)] {
+        let ft = dir.path().join(name);
+        let ft_s = ft.display().to_string();
+        let mut args = vec![
+            "train", &manifest, "--out", &ft_s, "--init", init, "--steps", "2",
+        ];
+        args.extend(SMALL);
+        let output = run(&args);
+        assert!(output.status.success(), "{}", text(&output));
+        assert!(
+            String::from_utf8_lossy(&output.stderr).contains("starting from"),
+            "{}",
+            text(&output)
+        );
+        let first = &lines(&ft.join("val.jsonl"))[0];
+        assert_eq!(first["step"], 0);
+        let epe = first["ALL"]["epe"].as_f64().unwrap();
+        assert!(
+            (epe - validated_epe).abs() < 1e-6,
+            "{name}: {epe} vs {validated_epe}"
+        );
+    }
+    // Weights of another network are refused, naming the file and the keys.
+    let mismatch = dir.path().join("mismatch");
+    let mut args = vec![
+        "train",
+        &manifest,
+        "--out",
+        mismatch.to_str().unwrap(),
+        "--init",
+        &exported_s,
+        "--backbone",
+        "raft-stereo",
+        "--steps",
+        "2",
+    ];
+    args.extend(SMALL);
+    let output = run(&args);
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("teacher.safetensors: does not match the network"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("keys missing: cnet."), "{stderr}");
 }
 
 #[test]
