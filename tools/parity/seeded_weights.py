@@ -6,7 +6,8 @@ seeded with the FNV-1a hash of the key gives 24-bit uniforms u in [0, 1).
 parity fixtures carry only inputs and outputs, not megabytes of weights.
 
 Rule (by the last part of the key):
-  weight of a convolution: (2u - 1) * sqrt(6 / fan_in)  (He uniform)
+  weight of a convolution (2-D or more): (2u - 1) * sqrt(6 / fan_in)  (He uniform,
+                           fan_in the product of every dimension but the first)
   bias:                    (2u - 1) * 0.1
   norm weight:             1 + (2u - 1) * 0.2
   running_mean:            (2u - 1) * 0.1
@@ -46,8 +47,8 @@ def seeded_tensor(key: str, shape) -> np.ndarray:
     u = uniforms(key, count)
     two, one = np.float32(2.0), np.float32(1.0)
     name = key.rsplit(".", 1)[-1]
-    if name == "weight" and len(shape) == 4:
-        fan_in = shape[1] * shape[2] * shape[3]
+    if name == "weight" and len(shape) >= 2:
+        fan_in = int(np.prod(shape[1:]))
         values = (two * u - one) * np.float32(math.sqrt(6.0 / fan_in))
     elif name == "weight":
         values = one + (two * u - one) * np.float32(0.2)

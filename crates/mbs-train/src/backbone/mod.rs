@@ -2,6 +2,7 @@
 //! full-resolution disparity can be trained with S3 (SPEC §5).
 
 pub mod cost_volume;
+pub mod igev_stereo;
 mod layers;
 pub mod network;
 pub mod norm;

@@ -4,8 +4,10 @@
 //! weights.
 //!
 //! A SplitMix64 stream seeded with the FNV-1a hash of the key gives 24-bit
-//! uniforms `u` in `[0, 1)`; by the key's last part: a convolution weight is
-//! `(2u - 1) sqrt(6 / fan_in)`, another weight `1 + 0.2 (2u - 1)`, a bias or
+//! uniforms `u` in `[0, 1)`; by the key's last part: a convolution weight
+//! (two dimensions or more) is `(2u - 1) sqrt(6 / fan_in)` with `fan_in` the
+//! product of all dimensions but the first, another weight
+//! `1 + 0.2 (2u - 1)`, a bias or
 //! running mean `0.1 (2u - 1)`, a running variance `1 + 0.5 u`.
 
 /// `count` uniforms in `[0, 1)` from the stream of `key`.
@@ -35,8 +37,8 @@ pub fn seeded_tensor(key: &str, shape: &[usize]) -> Option<Vec<f32>> {
             .collect()
     };
     match name {
-        "weight" if shape.len() == 4 => {
-            let fan_in = shape[1] * shape[2] * shape[3];
+        "weight" if shape.len() >= 2 => {
+            let fan_in: usize = shape[1..].iter().product();
             Some(scaled((6.0 / fan_in as f64).sqrt() as f32, 0.0))
         }
         "weight" => Some(scaled(0.2, 1.0)),

@@ -76,7 +76,7 @@ impl CorrelationPyramid {
 /// `rows[n]` sampled at the fractional columns `positions[n, k]`, linearly
 /// between the two neighbours, each counting zero outside the row (as
 /// `grid_sample` with `align_corners=True` and zero padding).
-fn sample_linear(rows: &Tensor<2>, positions: Tensor<2>) -> Tensor<2> {
+pub(crate) fn sample_linear(rows: &Tensor<2>, positions: Tensor<2>) -> Tensor<2> {
     let width = rows.dims()[1] as f64;
     let left = positions.clone().floor();
     let weight = positions - left.clone();

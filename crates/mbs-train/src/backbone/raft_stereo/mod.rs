@@ -10,9 +10,9 @@
 //! The official setting `shared_backbone` and the CUDA correlation kernels
 //! are not provided (the default `reg` correlation is).
 
-mod correlation;
-mod encoder;
-mod update;
+pub(crate) mod correlation;
+pub(crate) mod encoder;
+pub(crate) mod update;
 
 use burn::config::Config;
 use burn::module::Module;

@@ -5,32 +5,21 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::Device;
 use serde_json::Value;
 
 use super::*;
-use crate::backbone::official::{StateDict, StateTensor, export_state_dict, load_state_dict};
+use crate::backbone::official::{StateDict, export_state_dict, load_state_dict};
 use crate::backbone::seeded::seeded_tensor;
+use crate::test_util::parity::{self, input, seeded_dict};
 use crate::test_util::values;
 
-/// Largest difference allowed to the official output (pixels).
-const TOLERANCE_PX: f32 = 1e-3;
-
 fn fixture_path(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../testdata/parity")
-        .join(format!("raft_stereo_{name}.safetensors"))
+    parity::fixture_path(&format!("raft_stereo_{name}"))
 }
 
-/// The fixture's tensors and its metadata (`config`, `state_dict` shapes).
 fn fixture(name: &str) -> (StateDict, Value, BTreeMap<String, Vec<usize>>) {
-    let path = fixture_path(name);
-    let bytes = std::fs::read(&path).expect("fixture is in testdata/parity");
-    let (_, metadata) = safetensors::SafeTensors::read_metadata(&bytes).expect("safetensors");
-    let metadata = metadata.metadata().clone().expect("fixture metadata");
-    let config = serde_json::from_str(&metadata["config"]).expect("config JSON");
-    let shapes = serde_json::from_str(&metadata["state_dict"]).expect("state_dict JSON");
-    (StateDict::read(&path).expect("readable"), config, shapes)
+    parity::fixture(&format!("raft_stereo_{name}"))
 }
 
 fn config_of(official: &Value) -> RaftStereoConfig {
@@ -52,55 +41,13 @@ fn config_of(official: &Value) -> RaftStereoConfig {
         .with_train_iters(number("iters"))
 }
 
-/// The seeded state dict over the official keys (counters excepted).
-fn seeded_dict(shapes: &BTreeMap<String, Vec<usize>>) -> StateDict {
-    StateDict {
-        tensors: shapes
-            .iter()
-            .filter(|(key, _)| !key.ends_with("num_batches_tracked"))
-            .map(|(key, shape)| {
-                let values = seeded_tensor(key, shape).expect("seeded rule covers the key");
-                (
-                    key.clone(),
-                    StateTensor {
-                        shape: shape.clone(),
-                        values,
-                    },
-                )
-            })
-            .collect(),
-    }
-}
-
-fn input(dict: &StateDict, key: &str, device: &Device) -> Tensor<4> {
-    let t = &dict.tensors[key];
-    let shape: [usize; 4] = t.shape.clone().try_into().expect("4-D");
-    Tensor::from_data(TensorData::new(t.values.clone(), shape), device)
-}
-
 fn check_parity(name: &str) {
     let device = Device::flex();
     let (fixture, official, shapes) = fixture(name);
     let config = config_of(&official);
     let net = config.init(&device).expect("valid config");
 
-    // Structure: the same keys with the same shapes as the official module.
-    let (exported, counters) = export_state_dict(&net);
-    let mut ours: BTreeMap<String, Vec<usize>> = exported
-        .tensors
-        .iter()
-        .map(|(k, t)| (k.clone(), t.shape.clone()))
-        .collect();
-    ours.extend(counters.iter().map(|k| (k.clone(), vec![])));
-    let missing: Vec<_> = shapes.keys().filter(|k| !ours.contains_key(*k)).collect();
-    let extra: Vec<_> = ours.keys().filter(|k| !shapes.contains_key(*k)).collect();
-    assert!(
-        missing.is_empty() && extra.is_empty(),
-        "missing {missing:?}, extra {extra:?}"
-    );
-    for (key, shape) in &shapes {
-        assert_eq!(&ours[key], shape, "{key}");
-    }
+    parity::assert_official_keys(&export_state_dict(&net), &shapes);
 
     let net = load_state_dict(net, &seeded_dict(&shapes), &fixture_path(name))
         .expect("the seeded official state dict loads");
@@ -109,15 +56,7 @@ fn check_parity(name: &str) {
     let predictions = net.iterate(left, right, config.train_iters);
     assert_eq!(predictions.len(), config.train_iters);
     for (i, prediction) in predictions.into_iter().enumerate() {
-        let want = &fixture.tensors[&format!("disparity_{i}")].values;
-        let got = values(prediction);
-        let worst = got
-            .iter()
-            .zip(want)
-            .map(|(g, w)| (g - w).abs())
-            .fold(0.0f32, f32::max);
-        println!("{name}: iteration {i}: largest difference {worst:.2e} px");
-        assert!(worst <= TOLERANCE_PX, "{name} iteration {i}: {worst} px");
+        parity::assert_matches(&fixture, &format!("disparity_{i}"), prediction, name);
     }
 }
 

@@ -60,7 +60,8 @@ pub struct ConvGru {
 }
 
 impl ConvGru {
-    fn new(hidden: usize, input: usize, device: &Device) -> Self {
+    /// A GRU of `hidden` channels over `input` input channels.
+    pub(crate) fn new(hidden: usize, input: usize, device: &Device) -> Self {
         let gate = || conv(hidden + input, hidden, 3, 1, 1, device);
         ConvGru {
             convz: gate(),
@@ -69,7 +70,13 @@ impl ConvGru {
         }
     }
 
-    fn forward(&self, h: Tensor<4>, context: &[Tensor<4>; 3], inputs: Vec<Tensor<4>>) -> Tensor<4> {
+    /// The next hidden state from `h`, the context terms and the inputs.
+    pub(crate) fn forward(
+        &self,
+        h: Tensor<4>,
+        context: &[Tensor<4>; 3],
+        inputs: Vec<Tensor<4>>,
+    ) -> Tensor<4> {
         let x = Tensor::cat(inputs, 1);
         let hx = Tensor::cat(vec![h.clone(), x.clone()], 1);
         let z = sigmoid(self.convz.forward(hx.clone()) + context[0].clone());
@@ -126,7 +133,7 @@ pub struct GruState {
 }
 
 /// `avg_pool2d(x, 3, stride=2, padding=1)`, counting the padding.
-fn pool2x(x: Tensor<4>) -> Tensor<4> {
+pub(crate) fn pool2x(x: Tensor<4>) -> Tensor<4> {
     avg_pool2d(
         x,
         AvgPoolOptions::new([3, 3])
@@ -136,7 +143,7 @@ fn pool2x(x: Tensor<4>) -> Tensor<4> {
 }
 
 /// `x` resized to the spatial size of `like` (bilinear, corners aligned).
-fn interp(x: Tensor<4>, like: &Tensor<4>) -> Tensor<4> {
+pub(crate) fn interp(x: Tensor<4>, like: &Tensor<4>) -> Tensor<4> {
     let [_, _, height, width] = like.dims();
     resize_bilinear_aligned(x, height, width)
 }

@@ -1,0 +1,119 @@
+//! IGEV-Stereo's update operator (the official `core/update.py`): RAFT's
+//! multi-level ConvGRU driven by a motion encoder of the geometry lookup
+//! and the disparity, a disparity head and the features of the upsampling
+//! weights.
+
+use burn::module::Module;
+use burn::nn::conv::Conv2d;
+use burn::tensor::activation::relu;
+use burn::tensor::{Device, Tensor};
+
+use crate::backbone::layers::conv;
+use crate::backbone::raft_stereo::update::{ConvGru, GruState, LevelsToUpdate, interp, pool2x};
+
+/// Channels of the motion features.
+const MOTION_CHANNELS: usize = 128;
+
+/// The official `BasicMotionEncoder` of IGEV-Stereo.
+#[derive(Module, Debug)]
+pub struct MotionEncoder {
+    convc1: Conv2d,
+    convc2: Conv2d,
+    convd1: Conv2d,
+    convd2: Conv2d,
+    conv: Conv2d,
+}
+
+impl MotionEncoder {
+    fn forward(&self, disparity: Tensor<4>, lookup: Tensor<4>) -> Tensor<4> {
+        let c = relu(self.convc2.forward(relu(self.convc1.forward(lookup))));
+        let d = relu(
+            self.convd2
+                .forward(relu(self.convd1.forward(disparity.clone()))),
+        );
+        let out = relu(self.conv.forward(Tensor::cat(vec![c, d], 1)));
+        Tensor::cat(vec![out, disparity], 1)
+    }
+}
+
+/// The official `DispHead`.
+#[derive(Module, Debug)]
+pub struct DispHead {
+    conv1: Conv2d,
+    conv2: Conv2d,
+}
+
+/// The official `BasicMultiUpdateBlock` of IGEV-Stereo.
+#[derive(Module, Debug)]
+pub struct UpdateBlock {
+    encoder: MotionEncoder,
+    gru04: ConvGru,
+    gru08: ConvGru,
+    gru16: ConvGru,
+    disp_head: DispHead,
+    mask_feat_4: Vec<Conv2d>,
+    levels: usize,
+}
+
+impl UpdateBlock {
+    /// The block for `levels` GRU levels of `hidden` channels and a lookup of
+    /// `lookup_channels`.
+    pub fn new(hidden: usize, levels: usize, lookup_channels: usize, device: &Device) -> Self {
+        let finest_input = MOTION_CHANNELS + if levels > 1 { hidden } else { 0 };
+        let middle_input = if levels == 3 { hidden } else { 0 } + hidden;
+        UpdateBlock {
+            encoder: MotionEncoder {
+                convc1: conv(lookup_channels, 64, 1, 1, 0, device),
+                convc2: conv(64, 64, 3, 1, 1, device),
+                convd1: conv(1, 64, 7, 1, 3, device),
+                convd2: conv(64, 64, 3, 1, 1, device),
+                conv: conv(128, MOTION_CHANNELS - 1, 3, 1, 1, device),
+            },
+            gru04: ConvGru::new(hidden, finest_input, device),
+            gru08: ConvGru::new(hidden, middle_input, device),
+            gru16: ConvGru::new(hidden, hidden, device),
+            disp_head: DispHead {
+                conv1: conv(hidden, 256, 3, 1, 1, device),
+                conv2: conv(256, 1, 3, 1, 1, device),
+            },
+            mask_feat_4: vec![conv(hidden, 32, 3, 1, 1, device)],
+            levels,
+        }
+    }
+
+    /// One update of the chosen levels; returns the upsampling features
+    /// (`[B, 32, h, w]`) and the disparity update of the finest level.
+    pub fn update(
+        &self,
+        state: &mut GruState,
+        which: LevelsToUpdate,
+        disparity: Tensor<4>,
+        lookup: Tensor<4>,
+    ) -> (Tensor<4>, Tensor<4>) {
+        let h = &mut state.hidden;
+        let c = &state.context;
+        if which.coarsest && self.levels == 3 {
+            h[2] = self
+                .gru16
+                .forward(h[2].clone(), &c[2], vec![pool2x(h[1].clone())]);
+        }
+        if which.middle && self.levels >= 2 {
+            let mut inputs = vec![pool2x(h[0].clone())];
+            if self.levels > 2 {
+                inputs.push(interp(h[2].clone(), &h[1]));
+            }
+            h[1] = self.gru08.forward(h[1].clone(), &c[1], inputs);
+        }
+        let mut inputs = vec![self.encoder.forward(disparity, lookup)];
+        if self.levels > 1 {
+            inputs.push(interp(h[1].clone(), &h[0]));
+        }
+        h[0] = self.gru04.forward(h[0].clone(), &c[0], inputs);
+        let delta = self
+            .disp_head
+            .conv2
+            .forward(relu(self.disp_head.conv1.forward(h[0].clone())));
+        let features = relu(self.mask_feat_4[0].forward(h[0].clone()));
+        (features, delta)
+    }
+}
