@@ -42,8 +42,8 @@ pub mod tensorboard;
 mod test_util;
 
 pub use backbone::{
-    Backbone, BackboneKind, CostVolumeNet, CostVolumeNetConfig, NetworkConfig, RaftStereo,
-    RaftStereoConfig, StereoNetwork,
+    Backbone, BackboneKind, CostVolumeNet, CostVolumeNetConfig, IgevStereo, IgevStereoConfig,
+    NetworkConfig, RaftStereo, RaftStereoConfig, StereoNetwork,
 };
 pub use config::RunConfig;
 pub use data::StepBatch;

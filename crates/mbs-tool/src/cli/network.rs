@@ -20,7 +20,7 @@ pub struct NetworkArgs {
     /// prefix) or an `mbs-tool export`.
     #[arg(long, value_name = "FILE", requires = "backbone")]
     pub weights: Option<PathBuf>,
-    /// The network of --weights: compact or raft-stereo.
+    /// The network of --weights: compact, raft-stereo or igev.
     #[arg(long, value_name = "NAME", requires = "weights")]
     pub backbone: Option<String>,
     /// A network setting for --weights (repeatable), e.g.

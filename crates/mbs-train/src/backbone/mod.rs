@@ -18,6 +18,7 @@ use mbs_core::geometry::Side;
 use crate::mirror::mirror_left;
 
 pub use cost_volume::{CostVolumeNet, CostVolumeNetConfig};
+pub use igev_stereo::{IgevStereo, IgevStereoConfig};
 pub use network::{BackboneKind, NetworkConfig, StereoNetwork};
 pub use raft_stereo::{RaftStereo, RaftStereoConfig};
 

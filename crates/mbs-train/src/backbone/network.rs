@@ -1,6 +1,6 @@
 //! The backbone a run trains, chosen by `network.backbone`: the compact
-//! cost-volume network or RAFT-Stereo, behind one module type so that runs,
-//! checkpoints and inference handle either.
+//! cost-volume network, RAFT-Stereo or IGEV-Stereo, behind one module type
+//! so that runs, checkpoints and inference handle any of them.
 
 use std::fmt;
 use std::path::Path;
@@ -11,6 +11,7 @@ use burn::module::Module;
 use burn::tensor::{Device, Tensor};
 use serde::{Deserialize, Serialize};
 
+use super::igev_stereo::{IgevStereo, IgevStereoConfig};
 use super::official::{OfficialLayout, StateDict, export_state_dict, load_state_dict};
 use super::{Backbone, CostVolumeNet, CostVolumeNetConfig, RaftStereo, RaftStereoConfig};
 use crate::error::TrainError;
@@ -24,11 +25,13 @@ pub enum BackboneKind {
     Compact,
     /// [`RaftStereo`], the official architecture.
     RaftStereo,
+    /// [`IgevStereo`], the official architecture (the paper's main backbone).
+    Igev,
 }
 
 impl BackboneKind {
     /// Every kind, as `--backbone` spells it.
-    pub const NAMES: [&str; 2] = ["compact", "raft-stereo"];
+    pub const NAMES: [&str; 3] = ["compact", "raft-stereo", "igev"];
 }
 
 impl fmt::Display for BackboneKind {
@@ -36,6 +39,7 @@ impl fmt::Display for BackboneKind {
         f.write_str(match self {
             BackboneKind::Compact => "compact",
             BackboneKind::RaftStereo => "raft-stereo",
+            BackboneKind::Igev => "igev",
         })
     }
 }
@@ -47,6 +51,7 @@ impl FromStr for BackboneKind {
         match text {
             "compact" => Ok(BackboneKind::Compact),
             "raft-stereo" | "raft_stereo" | "raftstereo" => Ok(BackboneKind::RaftStereo),
+            "igev" | "igev-stereo" | "igev_stereo" => Ok(BackboneKind::Igev),
             other => Err(TrainError::Config(format!(
                 "unknown backbone `{other}`; expected one of {}",
                 BackboneKind::NAMES.join(", ")
@@ -72,6 +77,9 @@ pub struct NetworkConfig {
     /// Settings of RAFT-Stereo (the official options and defaults).
     #[config(default = "RaftStereoConfig::new()")]
     pub raft_stereo: RaftStereoConfig,
+    /// Settings of IGEV-Stereo (the official options and defaults).
+    #[config(default = "IgevStereoConfig::new()")]
+    pub igev: IgevStereoConfig,
 }
 
 impl NetworkConfig {
@@ -86,6 +94,7 @@ impl NetworkConfig {
         match self.backbone {
             BackboneKind::Compact => self.compact.validate(self.max_disparity),
             BackboneKind::RaftStereo => self.raft_stereo.validate(),
+            BackboneKind::Igev => self.igev.validate(),
         }
     }
 
@@ -96,6 +105,7 @@ impl NetworkConfig {
                 StereoNetwork::Compact(self.compact.init(self.max_disparity, device)?)
             }
             BackboneKind::RaftStereo => StereoNetwork::RaftStereo(self.raft_stereo.init(device)?),
+            BackboneKind::Igev => StereoNetwork::Igev(self.igev.init(device)?),
         })
     }
 }
@@ -110,6 +120,8 @@ pub enum StereoNetwork {
     Compact(CostVolumeNet),
     /// RAFT-Stereo.
     RaftStereo(RaftStereo),
+    /// IGEV-Stereo.
+    Igev(IgevStereo),
 }
 
 impl StereoNetwork {
@@ -131,6 +143,7 @@ impl StereoNetwork {
             StereoNetwork::RaftStereo(net) => {
                 StereoNetwork::RaftStereo(load_state_dict(net, dict, source)?)
             }
+            StereoNetwork::Igev(net) => StereoNetwork::Igev(load_state_dict(net, dict, source)?),
         })
     }
 
@@ -141,6 +154,7 @@ impl StereoNetwork {
         match self {
             StereoNetwork::Compact(net) => export_state_dict(net),
             StereoNetwork::RaftStereo(net) => export_state_dict(net),
+            StereoNetwork::Igev(net) => export_state_dict(net),
         }
     }
 
@@ -164,6 +178,7 @@ impl Backbone for StereoNetwork {
         match self {
             StereoNetwork::Compact(net) => net.disparity(reference, target),
             StereoNetwork::RaftStereo(net) => net.disparity(reference, target),
+            StereoNetwork::Igev(net) => net.disparity(reference, target),
         }
     }
 
@@ -171,6 +186,7 @@ impl Backbone for StereoNetwork {
         match self {
             StereoNetwork::Compact(net) => net.disparities(reference, target),
             StereoNetwork::RaftStereo(net) => net.disparities(reference, target),
+            StereoNetwork::Igev(net) => net.disparities(reference, target),
         }
     }
 }

@@ -71,7 +71,7 @@ pub struct Args {
     /// network's range, a multiple of 4.
     #[arg(long)]
     pub max_disparity: Option<usize>,
-    /// The network trained (network.backbone): compact or raft-stereo.
+    /// The network trained (network.backbone): compact, raft-stereo or igev.
     #[arg(long, value_name = "NAME")]
     pub backbone: Option<String>,
     /// Start a new run from these weights instead of fresh ones (student and

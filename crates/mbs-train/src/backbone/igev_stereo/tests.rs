@@ -53,3 +53,61 @@ fn matches_the_official_three_level_network() {
 fn matches_the_official_two_level_network() {
     check_parity("two_levels");
 }
+
+#[test]
+fn one_s3_step_updates_every_part_and_pads_odd_sizes() {
+    use crate::data::StepBatch;
+    use crate::losses::LossConfig;
+    use crate::schedule::OneCycleConfig;
+    use crate::step::{S3Trainer, TrainerConfig};
+    use burn::tensor::Distribution;
+    use mbs_core::geometry::Side;
+
+    let device = Device::flex();
+    let train_device = device.clone().autodiff();
+    let config = IgevStereoConfig::new()
+        .with_hidden_dim(16)
+        .with_gru_levels(2)
+        .with_max_disp(32)
+        .with_train_iters(2)
+        .with_test_iters(2);
+    let net = config.init(&train_device).expect("valid");
+    let before = export_state_dict(&net).0;
+    let trainer_config = TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(1e-3, 4));
+    let mut trainer = S3Trainer::new(net, &trainer_config).expect("valid");
+    // 40x70: not multiples of 32, so the padding and the crop run too.
+    let image = || Tensor::<4>::random([1, 3, 40, 70], Distribution::Default, &device);
+    let (reference, target) = (image(), image());
+    let batch = StepBatch {
+        augmented_reference: reference.clone(),
+        augmented_target: target.clone(),
+        reference,
+        student_target: target.clone(),
+        teacher_target: target,
+        student_sides: vec![Side::Left],
+        teacher_sides: vec![Side::Right],
+        ratios: vec![0.5],
+    };
+    let report = trainer.step(batch).expect("a step");
+    assert!(
+        report.loss.is_finite() && report.grad_norm > 0.0,
+        "{report:?}"
+    );
+    let after = export_state_dict(trainer.student()).0;
+    // Every trained part moved: the MobileNetV2 stem, the 3-D hourglass,
+    // the context encoder, the GRU and both upsampling heads.
+    for key in [
+        "feature.conv_stem.weight",
+        "cost_agg.conv1.0.conv.weight",
+        "classifier.weight",
+        "cnet.conv1.weight",
+        "update_block.gru04.convz.weight",
+        "spx.0.weight",
+        "spx_gru.0.weight",
+    ] {
+        assert_ne!(
+            before.tensors[key], after.tensors[key],
+            "{key} did not change"
+        );
+    }
+}
