@@ -1,7 +1,7 @@
-//! Times the S3 training step ([`S3Trainer::step`]) of the compact network
-//! or of RAFT-Stereo (`--backbone raft-stereo`) on the CPU (`flex` backend);
-//! called by `tools/bench/train_step_vs_torch.py` and
-//! `tools/bench/raft_step_vs_torch.py`. Run in release:
+//! Times the S3 training step ([`S3Trainer::step`]) of the compact network,
+//! RAFT-Stereo or IGEV-Stereo (`--backbone raft-stereo|igev`) on the CPU
+//! (`flex` backend); called by `tools/bench/train_step_vs_torch.py` and
+//! `tools/bench/official_step_vs_torch.py`. Run in release:
 //!
 //! ```text
 //! RAYON_NUM_THREADS=2 cargo run --release -p mbs-train --example step_time -- \
@@ -9,10 +9,11 @@
 //! ```
 //!
 //! The compact network has the default 16 feature and 32 hidden channels;
-//! RAFT-Stereo the official defaults unless `--hidden-dim`, `--gru-levels`,
-//! `--n-downsample`, `--train-iters`, `--test-iters` say otherwise (its
-//! full size at the paper's 384x512 crop: `--backbone raft-stereo --height
-//! 384 --width 512 --steps 1 --warmup 0`); the loss has the paper's defaults. The batch is random images (fixed seed) with
+//! RAFT-Stereo and IGEV-Stereo the official defaults unless `--hidden-dim`,
+//! `--gru-levels`, `--train-iters`, `--test-iters` (both) or
+//! `--n-downsample` (RAFT-Stereo) say otherwise (full size at the paper's
+//! 384x512 crop: `--backbone igev --height 384 --width 512 --steps 1
+//! --warmup 0`); the loss has the paper's defaults. The batch is random images (fixed seed) with
 //! the student's targets alternately right and left of the reference (so
 //! every other item goes through the mirroring), teacher targets on the
 //! right and baseline ratios alternately 1 and 1/2, as the ignored test
@@ -49,23 +50,24 @@ use mbs_train::clip::clip_global_norm;
 use mbs_train::ema::ema_update;
 use mbs_train::schedule::OneCycleConfig;
 use mbs_train::{
-    BackboneKind, CostVolumeNetConfig, LossConfig, LossInputs, NetworkConfig, RaftStereoConfig,
-    S3Loss, S3Trainer, StepBatch, StereoNetwork, TrainerConfig,
+    BackboneKind, CostVolumeNetConfig, IgevStereoConfig, LossConfig, LossInputs, NetworkConfig,
+    RaftStereoConfig, S3Loss, S3Trainer, StepBatch, StereoNetwork, TrainerConfig,
 };
 
 type BoxError = Box<dyn std::error::Error>;
 
-const USAGE: &str = "usage: step_time [--backbone compact|raft-stereo] [--batch B] [--height H] \
+const USAGE: &str = "usage: step_time [--backbone compact|raft-stereo|igev] [--batch B] [--height H] \
 [--width W] [--max-disparity D] [--steps N] [--warmup K] [--features F] [--hidden C] [--seed S] \
 [--breakdown] [--hidden-dim C] [--gru-levels L] [--n-downsample N] [--train-iters I] [--test-iters I]
 defaults: --backbone compact --batch 2 --height 256 --width 512 --max-disparity 128 --steps 5 \
---warmup 2 --features 16 --hidden 32 --seed 42; RAFT-Stereo's official defaults";
+--warmup 2 --features 16 --hidden 32 --seed 42; the official networks' defaults";
 
 /// What the command line sets.
 #[derive(Debug)]
 struct Args {
     backbone: BackboneKind,
     raft: RaftStereoConfig,
+    igev: IgevStereoConfig,
     batch: usize,
     height: usize,
     width: usize,
@@ -84,6 +86,7 @@ impl Args {
         let mut out = Args {
             backbone: BackboneKind::Compact,
             raft: RaftStereoConfig::new(),
+            igev: IgevStereoConfig::new(),
             batch: 2,
             height: 256,
             width: 512,
@@ -108,6 +111,21 @@ impl Args {
                 out.backbone = value.parse().map_err(|e| format!("{e}"))?;
                 continue;
             }
+            let shared = match flag.as_str() {
+                "--hidden-dim" => Some((&mut out.raft.hidden_dim, &mut out.igev.hidden_dim)),
+                "--gru-levels" => Some((&mut out.raft.gru_levels, &mut out.igev.gru_levels)),
+                "--train-iters" => Some((&mut out.raft.train_iters, &mut out.igev.train_iters)),
+                "--test-iters" => Some((&mut out.raft.test_iters, &mut out.igev.test_iters)),
+                _ => None,
+            };
+            if let Some((raft, igev)) = shared {
+                let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
+                *raft = value
+                    .parse()
+                    .map_err(|_| format!("{flag} expects an integer >= 0, got '{value}'"))?;
+                *igev = *raft;
+                continue;
+            }
             let slot: &mut usize = match flag.as_str() {
                 "--batch" => &mut out.batch,
                 "--height" => &mut out.height,
@@ -117,11 +135,7 @@ impl Args {
                 "--warmup" => &mut out.warmup,
                 "--features" => &mut out.features,
                 "--hidden" => &mut out.hidden,
-                "--hidden-dim" => &mut out.raft.hidden_dim,
-                "--gru-levels" => &mut out.raft.gru_levels,
                 "--n-downsample" => &mut out.raft.n_downsample,
-                "--train-iters" => &mut out.raft.train_iters,
-                "--test-iters" => &mut out.raft.test_iters,
                 "--seed" => {
                     let value = args.next().ok_or("--seed needs a value")?;
                     out.seed = value
@@ -278,7 +292,8 @@ fn run(args: &Args) -> Result<String, BoxError> {
                 .with_features(args.features)
                 .with_hidden(args.hidden),
         )
-        .with_raft_stereo(args.raft.clone());
+        .with_raft_stereo(args.raft.clone())
+        .with_igev(args.igev.clone());
     let total_steps = args.warmup + 2 * args.steps;
     let config = TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(2e-4, total_steps));
     let student = network.init(&train_device)?;

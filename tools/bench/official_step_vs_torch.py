@@ -1,25 +1,28 @@
 #!/usr/bin/env python3
-"""S3 training step of RAFT-Stereo in mbs-train (burn, flex CPU backend)
-against the same step with the official PyTorch RAFT-Stereo on the CPU, in
-the same run, same batch, crop and iteration counts.
+"""S3 training step of RAFT-Stereo or IGEV-Stereo in mbs-train (burn, flex
+CPU backend) against the same step with the official PyTorch network on the
+CPU, in the same run, same batch, crop and iteration counts.
 
-- burn: the release example `step_time --backbone raft-stereo`
-  (crates/mbs-train/examples/step_time.rs): `S3Trainer::step` of
-  `RaftStereo`, RAYON_NUM_THREADS=THREADS;
-- PyTorch: the official `RAFTStereo` (a checkout given with --official,
-  batch norm frozen as its training script does) in the step of
-  tools/bench/s3_torch.py: teacher forward under no_grad with the test
-  iterations, student forward with the training iterations, the S3 loss of
-  every student iteration weighted as the official sequence loss (gamma 0.9
-  adjusted to 0.9^(15/(n-1))), backward, clipping, Adam (eps 1e-8), EMA;
-  torch.set_num_threads(THREADS).
+- burn: the release example `step_time --backbone raft-stereo|igev`
+  (crates/mbs-train/examples/step_time.rs): `S3Trainer::step`,
+  RAYON_NUM_THREADS=THREADS;
+- PyTorch: the official `RAFTStereo` or `IGEVStereo` (a checkout given with
+  --official; batch norm frozen as in mbs, IGEV's feature encoder built
+  with pretrained=False) in the step of tools/bench/s3_torch.py: teacher
+  forward under no_grad with the test iterations, student forward with the
+  training iterations, the S3 loss of every student prediction (IGEV's
+  initial disparity first) weighted as the official sequence loss (gamma
+  0.9 adjusted to 0.9^(15/(n-1))), backward, clipping, Adam (eps 1e-8),
+  EMA; torch.set_num_threads(THREADS).
 
 Both take random images with a fixed seed, WARMUP untimed steps, then STEPS
 timed steps, each in its own process; peak RSS is that process's VmHWM.
 
-Needs PyTorch and the official code (never in CI):
+Needs PyTorch and the official code (never in CI; IGEV also timm 0.5.4):
     git clone https://github.com/princeton-vl/RAFT-Stereo /tmp/RAFT-Stereo
-    python3 tools/bench/raft_step_vs_torch.py --official /tmp/RAFT-Stereo
+    python3 tools/bench/official_step_vs_torch.py --network raft-stereo --official /tmp/RAFT-Stereo
+    git clone https://github.com/gangweiX/IGEV /tmp/IGEV
+    python3 tools/bench/official_step_vs_torch.py --network igev --official /tmp/IGEV/IGEV-Stereo
 """
 
 import argparse
@@ -56,30 +59,49 @@ def torch_worker(args):
     sys.path.insert(0, str(HERE))
     sys.path.insert(0, str(args.official))
     import s3_torch
-    from core.raft_stereo import RAFTStereo
 
     torch.set_num_threads(args.threads)
     torch.manual_seed(args.seed)
-    official = argparse.Namespace(
-        hidden_dims=[args.hidden_dim] * 3, n_gru_layers=args.gru_levels, corr_levels=4, corr_radius=4,
-        n_downsample=args.n_downsample, context_norm="batch", slow_fast_gru=False, shared_backbone=False,
-        corr_implementation="reg", mixed_precision=False)
-    student = RAFTStereo(official)
+    if args.network == "igev":
+        import timm
+
+        create = timm.create_model
+        timm.create_model = lambda name, pretrained=False, **kw: create(name, pretrained=False, **kw)
+        from core.igev_stereo import IGEVStereo
+
+        official = argparse.Namespace(
+            hidden_dims=[args.hidden_dim] * 3, n_gru_layers=args.gru_levels, corr_levels=2, corr_radius=4,
+            n_downsample=2, max_disp=192, mixed_precision=False, precision_dtype="float32")
+        student = IGEVStereo(official)
+    else:
+        from core.raft_stereo import RAFTStereo
+
+        official = argparse.Namespace(
+            hidden_dims=[args.hidden_dim] * 3, n_gru_layers=args.gru_levels, corr_levels=4, corr_radius=4,
+            n_downsample=args.n_downsample, context_norm="batch", slow_fast_gru=False, shared_backbone=False,
+            corr_implementation="reg", mixed_precision=False)
+        student = RAFTStereo(official)
+    # mbs freezes every batch norm (RAFT-Stereo has 2-D ones only).
     student.train()
-    student.freeze_bn()
+    for module in student.modules():
+        if isinstance(module, torch.nn.modules.batchnorm._BatchNorm):
+            module.eval()
     teacher = copy.deepcopy(student).requires_grad_(False).eval()
 
     def final(net, reference, target):
-        _, flow = net(reference * 255.0, target * 255.0, iters=args.test_iters, test_mode=True)
-        return -flow
+        out = net(reference * 255.0, target * 255.0, iters=args.test_iters, test_mode=True)
+        return out if args.network == "igev" else -out[1]
 
     def every(net, reference, target):
-        return [-f for f in net(reference * 255.0, target * 255.0, iters=args.train_iters)]
+        out = net(reference * 255.0, target * 255.0, iters=args.train_iters)
+        if args.network == "igev":
+            return [out[0]] + list(out[1])
+        return [-f for f in out]
 
     loss = s3_torch.S3Loss()
     optimizer = torch.optim.Adam(student.parameters(), lr=2e-4, betas=(0.9, 0.999), eps=1e-8)
     batch = s3_torch.make_batch(args.batch, args.height, args.width)
-    weights = sequence_weights(args.train_iters)
+    weights = sequence_weights(args.train_iters + (1 if args.network == "igev" else 0))
 
     def step(index):
         with torch.no_grad():
@@ -140,14 +162,16 @@ def run_json(command, env):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--official", type=Path, required=True, help="checkout of princeton-vl/RAFT-Stereo")
+    parser.add_argument("--network", choices=["raft-stereo", "igev"], default="raft-stereo")
+    parser.add_argument("--official", type=Path, required=True,
+                        help="checkout of princeton-vl/RAFT-Stereo, or the IGEV-Stereo folder of gangweiX/IGEV")
     parser.add_argument("--batch", type=int, default=2)
     parser.add_argument("--height", type=int, default=384)
     parser.add_argument("--width", type=int, default=512)
     parser.add_argument("--hidden-dim", type=int, default=128)
     parser.add_argument("--gru-levels", type=int, default=3)
     parser.add_argument("--n-downsample", type=int, default=2)
-    parser.add_argument("--train-iters", type=int, default=16)
+    parser.add_argument("--train-iters", type=int, help="default: 16 (RAFT-Stereo), 22 (IGEV)")
     parser.add_argument("--test-iters", type=int, default=32)
     parser.add_argument("--steps", type=int, default=2)
     parser.add_argument("--warmup", type=int, default=1)
@@ -157,6 +181,8 @@ def main():
     parser.add_argument("--no-build", metavar="EXE", help="use this step_time executable instead of building it")
     parser.add_argument("--torch-worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.train_iters is None:
+        args.train_iters = 22 if args.network == "igev" else 16
     if args.torch_worker:
         torch_worker(args)
         return
@@ -170,14 +196,15 @@ def main():
     burn, torch = [], []
     load_before = os.getloadavg()
     for _ in range(args.rounds):
-        burn.append(run_json([exe, "--backbone", "raft-stereo"] + shape + network, env))
-        torch.append(run_json([sys.executable, __file__, "--torch-worker", "--official", str(args.official),
+        burn.append(run_json([exe, "--backbone", args.network] + shape + network, env))
+        torch.append(run_json([sys.executable, __file__, "--torch-worker", "--network", args.network,
+                               "--official", str(args.official),
                                "--threads", str(args.threads), "--seed", str(args.seed)] + shape + network, env))
     burn = min(burn, key=lambda r: r["ms_per_step"])
     torch = min(torch, key=lambda r: r["ms_per_step"])
     print(f"{args.threads} threads, torch {torch['torch_version']}, load average {load_before[0]:.2f} before / "
-          f"{os.getloadavg()[0]:.2f} after; RAFT-Stereo hidden {args.hidden_dim}, {args.gru_levels} GRU levels, "
-          f"1/{2 ** args.n_downsample} resolution, {args.train_iters} train / {args.test_iters} test iterations\n")
+          f"{os.getloadavg()[0]:.2f} after; {args.network} hidden {args.hidden_dim}, {args.gru_levels} GRU levels, "
+          f"{args.train_iters} train / {args.test_iters} test iterations\n")
     print("| batch, crop | burn-flex ms/step | PyTorch ms/step | burn / PyTorch | burn peak RSS MiB | "
           "PyTorch peak RSS MiB (before 1st step) |")
     print("| --- | ---: | ---: | ---: | ---: | ---: |")
