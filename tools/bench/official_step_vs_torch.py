@@ -29,13 +29,13 @@ import argparse
 import copy
 import json
 import os
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-ROOT = HERE.parents[1]
+sys.path.insert(0, str(HERE))
+from train_step_vs_torch import build_example, run_json  # noqa: E402
 
 
 def rss_mib(field):
@@ -139,25 +139,6 @@ def torch_worker(args):
     print(json.dumps({"framework": "torch", "ms_per_step": round(ms, 1), "peak_rss_mib": round(rss_mib("VmHWM"), 1),
                       "rss_before_steps_mib": round(before, 1), "loss": value,
                       "torch_version": torch.__version__}))
-
-
-def build_example():
-    command = ["cargo", "build", "--release", "-p", "mbs-train", "--example", "step_time",
-               "--message-format=json-render-diagnostics"]
-    out = subprocess.run(command, cwd=ROOT, check=True, stdout=subprocess.PIPE, text=True)
-    for line in out.stdout.splitlines():
-        message = json.loads(line)
-        if message.get("reason") == "compiler-artifact" and message["target"]["name"] == "step_time":
-            if message.get("executable"):
-                return message["executable"]
-    sys.exit("cargo built no step_time executable")
-
-
-def run_json(command, env):
-    out = subprocess.run(command, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    if out.returncode != 0:
-        sys.exit(f"{' '.join(map(str, command))} failed:\n{out.stderr}")
-    return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 def main():

@@ -11,10 +11,16 @@ use burn::tensor::{Device, Tensor, TensorData};
 /// `align_corners = false` convention (pixel centres at `i + 0.5`, source
 /// coordinates clamped at the border).
 pub fn interpolation_matrix(n_out: usize, n_in: usize) -> Vec<f32> {
-    let mut matrix = vec![0.0f32; n_out * n_in];
     let scale = n_in as f64 / n_out as f64;
+    linear_matrix(n_out, n_in, |i| ((i as f64 + 0.5) * scale - 0.5).max(0.0))
+}
+
+/// The `[n_out, n_in]` matrix that takes output `i` linearly from the
+/// fractional input position `source(i)` (clamped to the last input).
+fn linear_matrix(n_out: usize, n_in: usize, source: impl Fn(usize) -> f64) -> Vec<f32> {
+    let mut matrix = vec![0.0f32; n_out * n_in];
     for i in 0..n_out {
-        let source = ((i as f64 + 0.5) * scale - 0.5).max(0.0);
+        let source = source(i);
         let left = (source.floor() as usize).min(n_in - 1);
         let right = (left + 1).min(n_in - 1);
         let weight = (source - left as f64) as f32;
@@ -28,21 +34,12 @@ pub fn interpolation_matrix(n_out: usize, n_in: usize) -> Vec<f32> {
 /// `align_corners = true` convention (the first and last samples of both
 /// grids coincide).
 pub fn aligned_interpolation_matrix(n_out: usize, n_in: usize) -> Vec<f32> {
-    let mut matrix = vec![0.0f32; n_out * n_in];
     let scale = if n_out > 1 {
         (n_in - 1) as f64 / (n_out - 1) as f64
     } else {
         0.0
     };
-    for i in 0..n_out {
-        let source = i as f64 * scale;
-        let left = (source.floor() as usize).min(n_in - 1);
-        let right = (left + 1).min(n_in - 1);
-        let weight = (source - left as f64) as f32;
-        matrix[i * n_in + left] += 1.0 - weight;
-        matrix[i * n_in + right] += weight;
-    }
-    matrix
+    linear_matrix(n_out, n_in, |i| i as f64 * scale)
 }
 
 /// Bilinear resize of `maps` (`[B, C, h, w]`) to `[B, C, height, width]`

@@ -7,7 +7,7 @@ use burn::tensor::activation::softmax;
 use burn::tensor::ops::PadMode;
 use burn::tensor::{Int, Tensor};
 
-use crate::backbone::raft_stereo::correlation::sample_linear;
+use crate::backbone::raft_stereo::correlation::{lookup_offsets, sample_linear};
 
 /// Group-wise correlation `[B, groups, D, H, W]` of left and right
 /// features (`[B, C, H, W]`): for each candidate `d`, the mean over each
@@ -132,10 +132,7 @@ impl GeoEncoding {
         let c = self.channels;
         let points = 2 * self.radius + 1;
         let device = disparity.device();
-        let offsets = Tensor::<1, Int>::arange(0..points as i64, &device)
-            .float()
-            .sub_scalar(self.radius as f64)
-            .reshape([1, points]);
+        let offsets = lookup_offsets(self.radius, &device);
         let disparity = disparity.detach().reshape([b * h * w, 1]);
         let columns = Tensor::<1, Int>::arange(0..w as i64, &device)
             .float()

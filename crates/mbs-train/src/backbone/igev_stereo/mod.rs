@@ -22,7 +22,7 @@ use burn::config::Config;
 use burn::module::Module;
 use burn::nn::PaddingConfig3d;
 use burn::nn::conv::{Conv2d, Conv3d, Conv3dConfig, ConvTranspose2d, ConvTranspose2dConfig};
-use burn::tensor::activation::{relu, softmax, tanh};
+use burn::tensor::activation::{relu, softmax};
 use burn::tensor::{Device, Tensor};
 
 use self::blocks::{BasicConv2d, BasicConv3d, Conv2x, ConvSpec, FeatureAtt, Hourglass};
@@ -267,25 +267,10 @@ impl IgevStereo {
         });
 
         let image1 = images.narrow(0, 0, batch);
-        let mut state = GruState {
-            hidden: Vec::with_capacity(self.gru_levels),
-            context: Vec::with_capacity(self.gru_levels),
-        };
-        for ([hidden, context], zqr) in self
-            .cnet
-            .forward(image1, self.gru_levels)
-            .into_iter()
-            .zip(&self.context_zqr_convs)
-        {
-            state.hidden.push(tanh(hidden));
-            let terms = zqr.forward(relu(context));
-            let third = terms.dims()[1] / 3;
-            state.context.push([
-                terms.clone().narrow(1, 0, third),
-                terms.clone().narrow(1, third, third),
-                terms.narrow(1, 2 * third, third),
-            ]);
-        }
+        let mut state = GruState::from_context(
+            self.cnet.forward(image1, self.gru_levels),
+            &self.context_zqr_convs,
+        );
         let encoding = GeoEncoding::new(
             matching_left,
             matching_right,

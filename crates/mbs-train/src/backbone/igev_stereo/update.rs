@@ -9,7 +9,7 @@ use burn::tensor::activation::relu;
 use burn::tensor::{Device, Tensor};
 
 use crate::backbone::layers::conv;
-use crate::backbone::raft_stereo::update::{ConvGru, GruState, LevelsToUpdate, interp, pool2x};
+use crate::backbone::raft_stereo::update::{ConvGru, GruState, LevelsToUpdate};
 
 /// Channels of the motion features.
 const MOTION_CHANNELS: usize = 128;
@@ -90,25 +90,10 @@ impl UpdateBlock {
         disparity: Tensor<4>,
         lookup: Tensor<4>,
     ) -> (Tensor<4>, Tensor<4>) {
-        let h = &mut state.hidden;
-        let c = &state.context;
-        if which.coarsest && self.levels == 3 {
-            h[2] = self
-                .gru16
-                .forward(h[2].clone(), &c[2], vec![pool2x(h[1].clone())]);
-        }
-        if which.middle && self.levels >= 2 {
-            let mut inputs = vec![pool2x(h[0].clone())];
-            if self.levels > 2 {
-                inputs.push(interp(h[2].clone(), &h[1]));
-            }
-            h[1] = self.gru08.forward(h[1].clone(), &c[1], inputs);
-        }
-        let mut inputs = vec![self.encoder.forward(disparity, lookup)];
-        if self.levels > 1 {
-            inputs.push(interp(h[1].clone(), &h[0]));
-        }
-        h[0] = self.gru04.forward(h[0].clone(), &c[0], inputs);
+        state.update_coarse(which, self.levels, &self.gru16, &self.gru08);
+        let motion = self.encoder.forward(disparity, lookup);
+        state.update_finest(self.levels, &self.gru04, motion);
+        let h = &state.hidden;
         let delta = self
             .disp_head
             .conv2

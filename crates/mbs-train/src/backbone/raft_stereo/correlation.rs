@@ -4,7 +4,7 @@
 //! image's width per level, and looked up at `2 radius + 1` points around
 //! the current match with linear interpolation (zero outside the row).
 
-use burn::tensor::{Int, Tensor};
+use burn::tensor::{Device, Int, Tensor};
 
 /// All-pairs correlation rows and their pooled copies.
 pub struct CorrelationPyramid {
@@ -55,10 +55,7 @@ impl CorrelationPyramid {
         let [batch, height, width] = self.shape;
         let points = 2 * self.radius + 1;
         let device = x.device();
-        let offsets = Tensor::<1, Int>::arange(0..points as i64, &device)
-            .float()
-            .sub_scalar(self.radius as f64)
-            .reshape([1, points]);
+        let offsets = lookup_offsets(self.radius, &device);
         let centres = x.detach().reshape([batch * height * width, 1]);
         let samples = self
             .levels
@@ -71,6 +68,15 @@ impl CorrelationPyramid {
             .collect();
         Tensor::cat(samples, 3).permute([0, 3, 1, 2])
     }
+}
+
+/// The lookup offsets `[-radius, ..., radius]` as a `[1, 2 radius + 1]` row.
+pub(crate) fn lookup_offsets(radius: usize, device: &Device) -> Tensor<2> {
+    let points = 2 * radius + 1;
+    Tensor::<1, Int>::arange(0..points as i64, device)
+        .float()
+        .sub_scalar(radius as f64)
+        .reshape([1, points])
 }
 
 /// `rows[n]` sampled at the fractional columns `positions[n, k]`, linearly

@@ -17,7 +17,6 @@ pub(crate) mod update;
 use burn::config::Config;
 use burn::module::Module;
 use burn::nn::conv::Conv2d;
-use burn::tensor::activation::{relu, tanh};
 use burn::tensor::{Device, Int, Tensor};
 
 use self::correlation::CorrelationPyramid;
@@ -154,25 +153,10 @@ impl RaftStereo {
         let batch = reference.dims()[0];
         let reference = reference * 2.0 - 1.0;
         let target = target * 2.0 - 1.0;
-        let mut state = GruState {
-            hidden: Vec::with_capacity(self.gru_levels),
-            context: Vec::with_capacity(self.gru_levels),
-        };
-        for ([hidden, context], zqr) in self
-            .cnet
-            .forward(reference.clone(), self.gru_levels)
-            .into_iter()
-            .zip(&self.context_zqr_convs)
-        {
-            state.hidden.push(tanh(hidden));
-            let terms = zqr.forward(relu(context));
-            let third = terms.dims()[1] / 3;
-            state.context.push([
-                terms.clone().narrow(1, 0, third),
-                terms.clone().narrow(1, third, third),
-                terms.narrow(1, 2 * third, third),
-            ]);
-        }
+        let mut state = GruState::from_context(
+            self.cnet.forward(reference.clone(), self.gru_levels),
+            &self.context_zqr_convs,
+        );
         let features = self.fnet.forward(Tensor::cat(vec![reference, target], 0));
         let pyramid = CorrelationPyramid::new(
             features.clone().narrow(0, 0, batch),

@@ -132,6 +132,64 @@ pub struct GruState {
     pub context: Vec<[Tensor<4>; 3]>,
 }
 
+impl GruState {
+    /// The initial state from the context encoder's `[hidden, context]`
+    /// pre-activations per level: `tanh` of the first, and the three gate
+    /// terms of `zqr_convs[level](relu(context))` (computed once, as the
+    /// official code does).
+    pub fn from_context(outputs: Vec<[Tensor<4>; 2]>, zqr_convs: &[Conv2d]) -> Self {
+        let mut state = GruState {
+            hidden: Vec::with_capacity(outputs.len()),
+            context: Vec::with_capacity(outputs.len()),
+        };
+        for ([hidden, context], zqr) in outputs.into_iter().zip(zqr_convs) {
+            state.hidden.push(tanh(hidden));
+            let terms = zqr.forward(relu(context));
+            let third = terms.dims()[1] / 3;
+            state.context.push([
+                terms.clone().narrow(1, 0, third),
+                terms.clone().narrow(1, third, third),
+                terms.narrow(1, 2 * third, third),
+            ]);
+        }
+        state
+    }
+
+    /// Updates the coarse levels chosen by `which` with their GRUs (the
+    /// official third and second GRUs of `levels`): each takes the pooled
+    /// finer state and, below the coarsest, the resized coarser one.
+    pub fn update_coarse(
+        &mut self,
+        which: LevelsToUpdate,
+        levels: usize,
+        coarsest: &ConvGru,
+        middle: &ConvGru,
+    ) {
+        let (h, c) = (&mut self.hidden, &self.context);
+        if which.coarsest && levels == 3 {
+            h[2] = coarsest.forward(h[2].clone(), &c[2], vec![pool2x(h[1].clone())]);
+        }
+        if which.middle && levels >= 2 {
+            let mut inputs = vec![pool2x(h[0].clone())];
+            if levels > 2 {
+                inputs.push(interp(h[2].clone(), &h[1]));
+            }
+            h[1] = middle.forward(h[1].clone(), &c[1], inputs);
+        }
+    }
+
+    /// Updates the finest level with `gru` from the motion features and,
+    /// with more than one level, the resized middle state.
+    pub fn update_finest(&mut self, levels: usize, gru: &ConvGru, motion: Tensor<4>) {
+        let (h, c) = (&mut self.hidden, &self.context);
+        let mut inputs = vec![motion];
+        if levels > 1 {
+            inputs.push(interp(h[1].clone(), &h[0]));
+        }
+        h[0] = gru.forward(h[0].clone(), &c[0], inputs);
+    }
+}
+
 /// `avg_pool2d(x, 3, stride=2, padding=1)`, counting the padding.
 pub(crate) fn pool2x(x: Tensor<4>) -> Tensor<4> {
     avg_pool2d(
@@ -185,26 +243,10 @@ impl UpdateBlock {
         which: LevelsToUpdate,
         motion: Option<(Tensor<4>, Tensor<4>)>,
     ) {
-        let h = &mut state.hidden;
-        let c = &state.context;
-        if which.coarsest && self.levels == 3 {
-            h[2] = self
-                .gru32
-                .forward(h[2].clone(), &c[2], vec![pool2x(h[1].clone())]);
-        }
-        if which.middle && self.levels >= 2 {
-            let mut inputs = vec![pool2x(h[0].clone())];
-            if self.levels > 2 {
-                inputs.push(interp(h[2].clone(), &h[1]));
-            }
-            h[1] = self.gru16.forward(h[1].clone(), &c[1], inputs);
-        }
+        state.update_coarse(which, self.levels, &self.gru32, &self.gru16);
         if let (true, Some((flow, correlation))) = (which.finest, motion) {
-            let mut inputs = vec![self.encoder.forward(flow, correlation)];
-            if self.levels > 1 {
-                inputs.push(interp(h[1].clone(), &h[0]));
-            }
-            h[0] = self.gru08.forward(h[0].clone(), &c[0], inputs);
+            let motion = self.encoder.forward(flow, correlation);
+            state.update_finest(self.levels, &self.gru08, motion);
         }
     }
 
