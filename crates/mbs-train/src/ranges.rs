@@ -74,3 +74,10 @@ mod tests {
         assert_eq!(err, "invalid setting `workers` = 0: at least 1");
     }
 }
+
+/// Every named count is at least 1.
+pub(crate) fn counts(named: &[(&'static str, usize)]) -> Result<(), TrainError> {
+    named
+        .iter()
+        .try_for_each(|&(name, value)| at_least_one(name, value))
+}

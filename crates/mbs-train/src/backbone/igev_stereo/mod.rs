@@ -83,15 +83,12 @@ impl IgevStereoConfig {
             self.max_disp,
             "a positive multiple of 32",
         )?;
-        for (name, value) in [
+        ranges::counts(&[
             ("hidden_dim", self.hidden_dim),
             ("corr_levels", self.corr_levels),
             ("train_iters", self.train_iters),
             ("test_iters", self.test_iters),
-        ] {
-            ranges::require(value >= 1, name, value, "at least 1")?;
-        }
-        Ok(())
+        ])
     }
 
     /// Builds the network with fresh weights on `device`.
