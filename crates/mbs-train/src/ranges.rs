@@ -57,6 +57,13 @@ pub(crate) fn at_least_one(name: &'static str, value: usize) -> Result<(), Train
     require(value >= 1, name, value, "at least 1")
 }
 
+/// Every named count is at least 1.
+pub(crate) fn counts(named: &[(&'static str, usize)]) -> Result<(), TrainError> {
+    named
+        .iter()
+        .try_for_each(|&(name, value)| at_least_one(name, value))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -73,11 +80,4 @@ mod tests {
         let err = at_least_one("workers", 0).unwrap_err().to_string();
         assert_eq!(err, "invalid setting `workers` = 0: at least 1");
     }
-}
-
-/// Every named count is at least 1.
-pub(crate) fn counts(named: &[(&'static str, usize)]) -> Result<(), TrainError> {
-    named
-        .iter()
-        .try_for_each(|&(name, value)| at_least_one(name, value))
 }
