@@ -120,9 +120,9 @@ def torch_worker(args):
         total.backward()
         torch.nn.utils.clip_grad_norm_(student.parameters(), 1.0)
         for group in optimizer.param_groups:
-            group["lr"] = s3_torch.one_cycle_lr(index, 2e-4, args.warmup + args.steps)
+            group["lr"] = s3_torch.one_cycle_lr(index, 2e-4, args.warmup + args.steps + 100)
         optimizer.step()
-        momentum = s3_torch.cosine_momentum(index, 0.996, args.warmup + args.steps)
+        momentum = s3_torch.cosine_momentum(index, 0.996, args.warmup + args.steps + 100)
         with torch.no_grad():
             for t, s in zip(teacher.parameters(), student.parameters()):
                 t.mul_(momentum).add_(s, alpha=1.0 - momentum)
