@@ -23,7 +23,7 @@ use self::correlation::CorrelationPyramid;
 use self::encoder::{ContextEncoder, FeatureEncoder};
 use self::update::{GruState, LevelsToUpdate, UpdateBlock};
 use super::Backbone;
-use super::layers::conv;
+use super::layers::{conv, pad_to_multiple};
 use super::norm::NormKind;
 use super::official::OfficialLayout;
 use super::upsample::convex_upsample;
@@ -203,15 +203,24 @@ impl RaftStereo {
 }
 
 impl Backbone for RaftStereo {
+    /// Sides that are not multiples of 32 are padded by edge replication,
+    /// as the official `InputPadder`, and the output cropped back.
     fn disparity(&self, reference: Tensor<4>, target: Tensor<4>) -> Tensor<4> {
+        let (reference, target, crop) = pad_to_multiple(reference, target, 32);
         let mut predictions = self.iterate(reference, target, self.test_iters);
-        predictions
-            .pop()
-            .expect("at least one iteration (validated)")
+        crop(
+            predictions
+                .pop()
+                .expect("at least one iteration (validated)"),
+        )
     }
 
     fn disparities(&self, reference: Tensor<4>, target: Tensor<4>) -> Vec<Tensor<4>> {
+        let (reference, target, crop) = pad_to_multiple(reference, target, 32);
         self.iterate(reference, target, self.train_iters)
+            .into_iter()
+            .map(crop)
+            .collect()
     }
 }
 

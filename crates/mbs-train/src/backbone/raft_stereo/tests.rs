@@ -169,3 +169,20 @@ fn weights_of_another_configuration_are_refused_with_the_keys() {
     );
     assert!(message.contains(" more"), "{message}");
 }
+
+#[test]
+fn odd_sizes_are_padded_and_cropped_back() {
+    use burn::tensor::{Distribution, Tensor};
+    let device = Device::flex();
+    let net = RaftStereoConfig::new()
+        .with_hidden_dim(16)
+        .with_gru_levels(2)
+        .with_test_iters(1)
+        .init(&device)
+        .expect("valid");
+    // KITTI-like odd sides: 4 x ceil(h / 4) would not give the input back.
+    let image = || Tensor::<4>::random([1, 3, 43, 75], Distribution::Default, &device);
+    let disparity = net.disparity(image(), image());
+    assert_eq!(disparity.dims(), [1, 1, 43, 75]);
+    assert!(values(disparity).iter().all(|d| d.is_finite()));
+}
