@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from raft_stereo_fixtures import input_pair, read_pfm  # noqa: E402
+from raft_stereo_fixtures import add_check_export_arguments, input_pair, read_rgb, report_export  # noqa: E402
 from seeded_weights import seed_module  # noqa: E402
 
 CONFIGS = {
@@ -61,7 +61,6 @@ def build(official, config):
 
 
 def check_export(args):
-    import cv2
     import torch
     from safetensors.torch import load_file
 
@@ -72,28 +71,16 @@ def check_export(args):
     model = build(args.official, config)
     model.load_state_dict(load_file(str(args.check_export)), strict=True)
 
-    def image(path):
-        rgb = cv2.imread(str(path), cv2.IMREAD_COLOR)[:, :, ::-1].astype(np.float32)
-        return torch.from_numpy(rgb.copy()).permute(2, 0, 1)[None]
-
     with torch.no_grad():
-        official = model(image(args.left), image(args.right), iters=settings["test_iters"], test_mode=True)
-    official = official[0, 0].numpy()
-    worst = float(np.abs(official - read_pfm(args.mbs_disparity)).max())
-    print(f"{args.check_export}: loads strictly into the official IGEVStereo; largest difference to mbs's "
-          f"prediction {worst:.2e} px (disparities {official.min():.1f} to {official.max():.1f} px)")
-    sys.exit(0 if worst < 1e-3 else 1)
+        official = model(read_rgb(args.left), read_rgb(args.right), iters=settings["test_iters"], test_mode=True)
+    report_export(args, "IGEVStereo", official[0, 0].numpy())
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--official", required=True, type=Path, help="the IGEV-Stereo folder of gangweiX/IGEV")
     parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[2] / "testdata" / "parity")
-    parser.add_argument("--check-export", type=Path, help="safetensors exported by mbs")
-    parser.add_argument("--run-config", type=Path, help="the exported run's config.json")
-    parser.add_argument("--left", type=Path, help="left image of the checked pair")
-    parser.add_argument("--right", type=Path, help="right image of the checked pair")
-    parser.add_argument("--mbs-disparity", type=Path, help="mbs's prediction of the pair (PFM)")
+    add_check_export_arguments(parser)
     args = parser.parse_args()
     if args.check_export:
         check_export(args)

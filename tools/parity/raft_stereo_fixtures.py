@@ -98,8 +98,33 @@ def read_pfm(path):
     return np.flipud(data.reshape(height, width)).astype(np.float32)
 
 
-def check_export(args):
+def add_check_export_arguments(parser):
+    """The flags of `--check-export`, shared by both fixture scripts."""
+    parser.add_argument("--check-export", type=Path, help="safetensors exported by mbs")
+    parser.add_argument("--run-config", type=Path, help="the exported run's config.json")
+    parser.add_argument("--left", type=Path, help="left image of the checked pair")
+    parser.add_argument("--right", type=Path, help="right image of the checked pair")
+    parser.add_argument("--mbs-disparity", type=Path, help="mbs's prediction of the pair (PFM)")
+
+
+def read_rgb(path):
+    """An image as a [1, 3, H, W] float tensor in [0, 255], RGB order."""
     import cv2
+    import torch
+
+    rgb = cv2.imread(str(path), cv2.IMREAD_COLOR)[:, :, ::-1].astype(np.float32)
+    return torch.from_numpy(rgb.copy()).permute(2, 0, 1)[None]
+
+
+def report_export(args, network, official):
+    """Compares the official prediction with mbs's PFM and exits 0 within 1e-3 px."""
+    worst = float(np.abs(official - read_pfm(args.mbs_disparity)).max())
+    print(f"{args.check_export}: loads strictly into the official {network}; largest difference to mbs's "
+          f"prediction {worst:.2e} px (disparities {official.min():.1f} to {official.max():.1f} px)")
+    sys.exit(0 if worst < 1e-3 else 1)
+
+
+def check_export(args):
     import torch
     from safetensors.torch import load_file
 
@@ -114,29 +139,16 @@ def check_export(args):
     model = RAFTStereo(args_for(config)).eval()
     model.load_state_dict(load_file(str(args.check_export)), strict=True)
 
-    def image(path):
-        rgb = cv2.imread(str(path), cv2.IMREAD_COLOR)[:, :, ::-1].astype(np.float32)
-        return torch.from_numpy(rgb.copy()).permute(2, 0, 1)[None]
-
     with torch.no_grad():
-        flow = model(image(args.left), image(args.right), iters=settings["test_iters"])[-1]
-    official = (-flow)[0, 0].numpy()
-    ours = read_pfm(args.mbs_disparity)
-    worst = float(np.abs(official - ours).max())
-    print(f"{args.check_export}: loads strictly into the official RAFTStereo; "
-          f"largest difference to mbs's prediction {worst:.2e} px (disparities up to {official.max():.1f} px)")
-    sys.exit(0 if worst < 1e-3 else 1)
+        flow = model(read_rgb(args.left), read_rgb(args.right), iters=settings["test_iters"])[-1]
+    report_export(args, "RAFTStereo", (-flow)[0, 0].numpy())
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--official", required=True, type=Path, help="checkout of princeton-vl/RAFT-Stereo")
     parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[2] / "testdata" / "parity")
-    parser.add_argument("--check-export", type=Path, help="safetensors exported by mbs")
-    parser.add_argument("--run-config", type=Path, help="the exported run's config.json")
-    parser.add_argument("--left", type=Path, help="left image of the checked pair")
-    parser.add_argument("--right", type=Path, help="right image of the checked pair")
-    parser.add_argument("--mbs-disparity", type=Path, help="mbs's prediction of the pair (PFM)")
+    add_check_export_arguments(parser)
     args = parser.parse_args()
 
     import torch
