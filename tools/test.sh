@@ -7,4 +7,16 @@ cd "$(dirname "$0")/.."
 # tests load it and fail, never skip, when it is missing.
 ORT_DYLIB_PATH="$(bash tools/setup-ort.sh | tail -n 1)"
 export ORT_DYLIB_PATH
+# A Vulkan driver for the `--device vulkan` tests: Mesa's lavapipe runs
+# Vulkan on the CPU (skipped when a Vulkan loader and a driver are already
+# installed). Those tests fail, never skip, without one.
+exists() { for pattern in "$@"; do compgen -G "$pattern" > /dev/null && return 0; done; return 1; }
+if ! exists '/usr/lib/*/libvulkan.so.1' '/usr/lib/libvulkan.so.1' ||
+    ! exists '/usr/share/vulkan/icd.d/*.json' '/etc/vulkan/icd.d/*.json'; then
+    sudo=""
+    [ "$(id -u)" -eq 0 ] || sudo="sudo"
+    $sudo apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends \
+        mesa-vulkan-drivers libvulkan1 > /dev/null
+fi
 cargo test --workspace --locked

@@ -5,62 +5,12 @@
 
 mod common;
 
-use std::path::Path;
 use std::process::Stdio;
 use std::time::{Duration, Instant};
 
-use common::{mbs_tool, run, text};
+use common::{SMALL, lines, mbs_tool, run, synth, text};
 use mbs_train::tensorboard::EventValue;
 use serde_json::Value;
-
-/// A small synthetic set: Town01 for training, Town10 held out.
-fn synth(root: &Path) -> String {
-    let out = root.display().to_string();
-    let output = run(&[
-        "synth",
-        "--out",
-        &out,
-        "--frames",
-        "2",
-        "--towns",
-        "Town01,Town10",
-        "--weathers",
-        "ClearNoon",
-        "--width",
-        "128",
-        "--height",
-        "64",
-        "--focal",
-        "64",
-        "--no-checksums",
-    ]);
-    assert!(output.status.success(), "{}", text(&output));
-    root.join("manifest.json").display().to_string()
-}
-
-/// Small, fast settings.
-const SMALL: [&str; 12] = [
-    "--batch-size",
-    "2",
-    "--crop",
-    "48x96",
-    "--max-disparity",
-    "32",
-    "--set",
-    "network.compact.features=8",
-    "--set",
-    "augment.occlusion_max_side=20",
-    "--set",
-    "augment.occlusion_min_side=5",
-];
-
-fn lines(path: &Path) -> Vec<Value> {
-    std::fs::read_to_string(path)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect()
-}
 
 #[test]
 fn trains_logs_draws_checkpoints_and_serves_the_teacher() {

@@ -1,41 +1,189 @@
-//! Where training runs: burn's `flex` CPU backend always, NVIDIA GPUs when
-//! the crate is built with the `cuda` feature (burn's CubeCL CUDA backend).
+//! Where training and inference run: `cpu` (burn's flex backend), `vulkan`
+//! (any Vulkan GPU through burn's wgpu backend, the default `vulkan`
+//! feature), `cuda` (an NVIDIA GPU through CubeCL's CUDA runtime, the `cuda`
+//! feature). A comma-separated list names the devices of a data-parallel
+//! run (see [`crate::S3Trainer::step_parallel`]).
+//!
+//! Opening a device runs a small kernel on it, so a missing driver, NVRTC or
+//! CUDA headers are reported here as an error naming the device, instead of
+//! as a panic in one of the runtime's threads at the first training step.
 
-use burn::tensor::Device;
+use std::fmt;
+use std::panic::{self, AssertUnwindSafe};
+use std::str::FromStr;
+use std::sync::{Arc, Mutex, PoisonError};
+
+use burn::tensor::{Device, Tensor};
 
 use crate::error::TrainError;
 
-/// The device named `cpu`, `cuda` or `cuda:N`.
-pub fn parse_device(name: &str) -> Result<Device, TrainError> {
-    let unavailable = |feature: &str| {
-        Err(TrainError::Config(format!(
-            "device `{name}` needs a build with the `{feature}` feature (cargo build --release -p mbs-tool --features {feature})"
-        )))
-    };
-    match name {
-        "cpu" => Ok(Device::flex()),
-        _ => {
-            let Some(index) = cuda_index(name) else {
-                return Err(TrainError::Config(format!(
-                    "unknown device `{name}`: use cpu, cuda or cuda:N"
-                )));
-            };
-            #[cfg(feature = "cuda")]
-            return Ok(Device::cuda(index));
-            #[cfg(not(feature = "cuda"))]
-            {
-                let _ = index;
-                unavailable("cuda")
-            }
+/// A device as named on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DeviceName {
+    /// burn's flex CPU backend (`cpu`).
+    Cpu,
+    /// A Vulkan adapter: the best one (`vulkan`) or the Nth discrete GPU
+    /// (`vulkan:N`).
+    Vulkan(Option<usize>),
+    /// CUDA device N (`cuda` is `cuda:0`).
+    Cuda(usize),
+}
+
+impl FromStr for DeviceName {
+    type Err = TrainError;
+
+    fn from_str(name: &str) -> Result<Self, TrainError> {
+        let unknown = || TrainError::Device {
+            name: name.to_string(),
+            reason: "unknown device: use cpu, vulkan, vulkan:N, cuda or cuda:N, or a \
+                     comma-separated list of them (cuda:0,cuda:1)"
+                .into(),
+        };
+        let (kind, index) = match name.split_once(':') {
+            Some((kind, index)) => (kind, Some(index.parse().map_err(|_| unknown())?)),
+            None => (name, None),
+        };
+        match (kind, index) {
+            ("cpu", None) => Ok(Self::Cpu),
+            ("vulkan", index) => Ok(Self::Vulkan(index)),
+            ("cuda", index) => Ok(Self::Cuda(index.unwrap_or(0))),
+            _ => Err(unknown()),
         }
     }
 }
 
-/// `N` of `cuda` (0) or `cuda:N`.
-fn cuda_index(name: &str) -> Option<usize> {
-    match name.strip_prefix("cuda")? {
-        "" => Some(0),
-        rest => rest.strip_prefix(':')?.parse().ok(),
+impl fmt::Display for DeviceName {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Cpu => write!(f, "cpu"),
+            Self::Vulkan(None) => write!(f, "vulkan"),
+            Self::Vulkan(Some(index)) => write!(f, "vulkan:{index}"),
+            Self::Cuda(index) => write!(f, "cuda:{index}"),
+        }
+    }
+}
+
+impl DeviceName {
+    /// Opens the device and runs a small kernel on it. An error names the
+    /// device and says what is missing: the build feature, the driver, or
+    /// (for CUDA) NVRTC and the CUDA headers.
+    pub fn open(self) -> Result<Device, TrainError> {
+        let failed = |reason: String| TrainError::Device {
+            name: self.to_string(),
+            reason,
+        };
+        match self {
+            Self::Cpu => Ok(Device::flex()),
+            Self::Vulkan(index) => open_vulkan(index).map_err(failed),
+            Self::Cuda(index) => open_cuda(index).map_err(failed),
+        }
+    }
+}
+
+/// Opens the one device `name` names (see [`DeviceName`]).
+pub fn open_device(name: &str) -> Result<Device, TrainError> {
+    name.trim().parse::<DeviceName>()?.open()
+}
+
+/// Opens each device of the comma-separated `list`, in order. The same
+/// device may appear twice (its shards then run one after the other).
+pub fn open_devices(list: &str) -> Result<Vec<Device>, TrainError> {
+    list.split(',').map(open_device).collect()
+}
+
+#[cfg(feature = "vulkan")]
+fn open_vulkan(index: Option<usize>) -> Result<Device, String> {
+    use burn::tensor::DeviceKind;
+    use burn::tensor::wgpu::WgpuBackend;
+
+    // A wgpu runtime is initialised once per process; later opens reuse it.
+    static OPENED: Mutex<Vec<(Option<usize>, Device)>> = Mutex::new(Vec::new());
+    let mut opened = OPENED.lock().unwrap_or_else(PoisonError::into_inner);
+    if let Some((_, device)) = opened.iter().find(|(i, _)| *i == index) {
+        return Ok(device.clone());
+    }
+    let kind = index.map_or(DeviceKind::DefaultDevice, DeviceKind::DiscreteGpu);
+    let device = Device::wgpu_options()
+        .graphics_api(WgpuBackend::Vulkan)
+        .device_kind(kind)
+        .init()
+        .map_err(|e| {
+            format!(
+                "no usable Vulkan device ({e}); install the GPU's Vulkan driver, or Mesa's \
+                 lavapipe to run on the CPU (Debian: apt-get install mesa-vulkan-drivers)"
+            )
+        })?;
+    run_probe(&device)?;
+    opened.push((index, device.clone()));
+    Ok(device)
+}
+
+#[cfg(not(feature = "vulkan"))]
+fn open_vulkan(_index: Option<usize>) -> Result<Device, String> {
+    Err(missing_feature("vulkan"))
+}
+
+#[cfg(feature = "cuda")]
+fn open_cuda(index: usize) -> Result<Device, String> {
+    let device = Device::cuda(index);
+    run_probe(&device).map_err(|reason| {
+        format!(
+            "CUDA is not usable ({reason}); it needs the NVIDIA driver (libcuda), NVRTC \
+             (libnvrtc) and the CUDA headers at run time"
+        )
+    })?;
+    Ok(device)
+}
+
+#[cfg(not(feature = "cuda"))]
+fn open_cuda(_index: usize) -> Result<Device, String> {
+    Err(missing_feature("cuda"))
+}
+
+#[cfg(not(all(feature = "vulkan", feature = "cuda")))]
+fn missing_feature(feature: &str) -> String {
+    format!(
+        "this build has no {feature} support: build with `cargo build --release -p mbs-tool \
+         --features {feature}`"
+    )
+}
+
+/// Runs a reduction on `device` and reads it back. GPU runtimes open their
+/// device and compile kernels lazily, in threads of their own, and report a
+/// failure there by panicking; the probe turns the first such panic into the
+/// error's text and keeps it off the terminal.
+#[cfg_attr(not(any(feature = "vulkan", feature = "cuda")), allow(dead_code))]
+fn run_probe(device: &Device) -> Result<(), String> {
+    let first_panic = Arc::new(Mutex::new(None::<String>));
+    let recorded = Arc::clone(&first_panic);
+    let previous_hook = panic::take_hook();
+    panic::set_hook(Box::new(move |info| {
+        let mut first = recorded.lock().unwrap_or_else(PoisonError::into_inner);
+        if first.is_none() {
+            let message = info
+                .payload()
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| info.payload().downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_else(|| "the runtime failed".into());
+            *first = Some(message);
+        }
+    }));
+    let result = panic::catch_unwind(AssertUnwindSafe(|| {
+        Tensor::<1>::from_floats([1.0, 2.0, 3.0], device)
+            .sum()
+            .into_scalar::<f32>()
+    }));
+    panic::set_hook(previous_hook);
+    let panicked = first_panic
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .take();
+    match (result, panicked) {
+        (Ok(6.0), None) => Ok(()),
+        (Ok(sum), None) => Err(format!("a test reduction gave {sum} instead of 6")),
+        (_, Some(message)) => Err(message.lines().next().unwrap_or_default().to_string()),
+        (Err(_), None) => Err("the runtime failed".into()),
     }
 }
 
@@ -44,18 +192,29 @@ mod tests {
     use super::*;
 
     #[test]
-    fn names_are_parsed_and_unknown_ones_refused() {
-        assert!(parse_device("cpu").is_ok());
-        assert_eq!(cuda_index("cuda"), Some(0));
-        assert_eq!(cuda_index("cuda:3"), Some(3));
-        assert_eq!(cuda_index("cuda3"), None);
-        let message = parse_device("tpu").expect_err("unknown").to_string();
-        assert!(message.contains("unknown device `tpu`"), "{message}");
+    fn names_are_parsed_printed_and_unknown_ones_refused() {
+        for (text, name) in [
+            ("cpu", DeviceName::Cpu),
+            ("vulkan", DeviceName::Vulkan(None)),
+            ("vulkan:1", DeviceName::Vulkan(Some(1))),
+            ("cuda", DeviceName::Cuda(0)),
+            ("cuda:3", DeviceName::Cuda(3)),
+        ] {
+            assert_eq!(text.parse::<DeviceName>().ok(), Some(name), "{text}");
+        }
+        assert_eq!(DeviceName::Cuda(0).to_string(), "cuda:0");
+        assert_eq!(DeviceName::Vulkan(Some(2)).to_string(), "vulkan:2");
+        for bad in ["tpu", "cuda3", "cuda:x", "cpu:1", ""] {
+            let message = open_device(bad).expect_err(bad).to_string();
+            assert!(message.contains("unknown device"), "{bad}: {message}");
+        }
+        assert_eq!(open_devices("cpu, cpu").map(|d| d.len()).ok(), Some(2));
         #[cfg(not(feature = "cuda"))]
         {
-            let message = parse_device("cuda:1")
+            let message = open_device("cuda:1")
                 .expect_err("no CUDA build")
                 .to_string();
+            assert!(message.starts_with("device `cuda:1`"), "{message}");
             assert!(message.contains("--features cuda"), "{message}");
         }
     }

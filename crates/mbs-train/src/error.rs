@@ -49,6 +49,14 @@ pub enum TrainError {
         /// What went wrong.
         reason: String,
     },
+    /// A device could not be opened or failed while training on it.
+    #[error("device `{name}`: {reason}")]
+    Device {
+        /// The device as named (`cuda:0`, `vulkan`).
+        name: String,
+        /// What is missing or went wrong.
+        reason: String,
+    },
     /// A weights file (an official checkpoint, an export) could not be
     /// read, written or matched to the network.
     #[error("weights {path}: {reason}")]

@@ -45,7 +45,7 @@ pub fn predict_image<B: Backbone>(
         .ok_or_else(|| TrainError::Shape("the network returned a map of the wrong size".into()))
 }
 
-/// A trained network as a [`StereoMatcher`], on the CPU: what `predict`
+/// A trained network as a [`StereoMatcher`] on a device: what `predict`
 /// and `eval` run with `--checkpoint` or `--weights`.
 pub struct NetworkMatcher {
     net: StereoNetwork,
@@ -55,9 +55,12 @@ pub struct NetworkMatcher {
 
 impl NetworkMatcher {
     /// The network of `config` with the weights of `path` (an official
-    /// `.pth`/`.safetensors` state dict or an `mbs-tool export`).
-    pub fn with_weights(config: &NetworkConfig, path: &Path) -> Result<Self, TrainError> {
-        let device = Device::flex();
+    /// `.pth`/`.safetensors` state dict or an `mbs-tool export`), on `device`.
+    pub fn with_weights(
+        config: &NetworkConfig,
+        path: &Path,
+        device: Device,
+    ) -> Result<Self, TrainError> {
         let net = config.init(&device)?.with_weights(path)?;
         Ok(Self {
             net,
@@ -67,10 +70,9 @@ impl NetworkMatcher {
     }
 
     /// Loads the teacher of a checkpoint folder, or of the newest
-    /// checkpoint of a training run folder.
-    pub fn open(path: &Path) -> Result<Self, TrainError> {
+    /// checkpoint of a training run folder, on `device`.
+    pub fn open(path: &Path, device: Device) -> Result<Self, TrainError> {
         let checkpoint = Checkpoint::open(path)?;
-        let device = Device::flex();
         let net = checkpoint.teacher(&device)?;
         Ok(Self {
             net,

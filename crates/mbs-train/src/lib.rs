@@ -1,7 +1,9 @@
 //! S3 self-supervised multi-baseline stereo training on burn: losses, masks and weight map, EMA teacher, schedules, triplet sampling, data pipeline, backbones, checkpoints, and training runs with their logs, pictures and TensorBoard events.
 //!
 //! Everything runs on burn's run-time selected device (`Device::flex()` on
-//! CPU, `.autodiff()` for training); see `DESIGN.md` for the choice of burn.
+//! CPU, Vulkan or CUDA through [`device::open_device`], `.autodiff()` for
+//! training; [`step::S3Trainer::step_parallel`] shares a step among
+//! several); see `DESIGN.md` for the choice of burn.
 //!
 //! One step, as [`step::S3Trainer::step`] runs it:
 //!

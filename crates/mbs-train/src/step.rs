@@ -1,10 +1,11 @@
 //! One S3 training step: teacher forward (no gradient) on the clean pair,
 //! student forward on the augmented pair, loss on clean images, Adam step
-//! with gradient clipping, EMA update of the teacher.
+//! with gradient clipping, EMA update of the teacher; on one device, or
+//! data parallel on several.
 
 use burn::config::Config;
-use burn::optim::{GradientsParams, ModuleOptimizer};
-use burn::tensor::Tensor;
+use burn::optim::{GradientsAccumulator, GradientsParams, ModuleOptimizer};
+use burn::tensor::{Device, Tensor};
 
 use crate::backbone::{Backbone, predict, predict_sequence};
 use crate::clip::clip_global_norm;
@@ -110,14 +111,29 @@ pub struct S3Trainer<B: Backbone> {
     student: B,
     teacher: B,
     optimizer: ModuleOptimizer,
-    loss: S3Loss,
+    objective: Objective,
     lr: OneCycle,
     momentum: CosineMomentum,
     ema: bool,
-    sequence_gamma: f64,
-    final_prediction_only: bool,
     grad_clip_norm: f64,
     step: usize,
+}
+
+/// What the student minimises: the S3 loss of its final prediction plus
+/// the weighted losses of its earlier ones. Plain settings, shared by the
+/// threads of a data-parallel step.
+#[derive(Debug, Clone)]
+struct Objective {
+    loss: S3Loss,
+    sequence_gamma: f64,
+    final_prediction_only: bool,
+}
+
+/// The loss values of a batch (or of a share of one), read back.
+#[derive(Debug, Clone, Copy, Default)]
+struct LossValues {
+    total: f32,
+    terms: LossTerms,
 }
 
 impl TrainerConfig {
@@ -132,64 +148,15 @@ impl TrainerConfig {
     }
 }
 
-impl<B: Backbone> S3Trainer<B> {
-    /// A trainer for `student` (on an autodiff device); the teacher starts
-    /// as a copy of it without autodiff (`student.valid()`).
-    pub fn new(student: B, config: &TrainerConfig) -> Result<Self, TrainError> {
-        config.validate()?;
-        let loss = S3Loss::new(config.loss.clone())?;
-        let lr = config.lr.init()?;
-        let optimizer = config.optimizer.init();
-        Ok(Self {
-            teacher: student.valid(),
-            student,
-            optimizer,
-            loss,
-            lr,
-            momentum: CosineMomentum {
-                base: config.ema_base,
-                total_steps: config.lr.total_steps,
-            },
-            ema: config.ema,
-            sequence_gamma: config.sequence_gamma,
-            final_prediction_only: config.final_prediction_only,
-            grad_clip_norm: config.grad_clip_norm,
-            step: 0,
-        })
-    }
-
-    /// The student network.
-    pub fn student(&self) -> &B {
-        &self.student
-    }
-
-    /// The teacher network (the one used for inference).
-    pub fn teacher(&self) -> &B {
-        &self.teacher
-    }
-
-    /// Steps taken so far (the index of the next step).
-    pub fn steps_taken(&self) -> usize {
-        self.step
-    }
-
-    /// The optimiser (for checkpoints).
-    pub fn optimizer(&self) -> &ModuleOptimizer {
-        &self.optimizer
-    }
-
-    /// Puts back the state of a checkpoint: both networks, the optimiser
-    /// state and the number of steps taken.
-    pub fn restore(&mut self, student: B, teacher: B, optimizer: ModuleOptimizer, steps: usize) {
-        self.student = student;
-        self.teacher = teacher;
-        self.optimizer = optimizer;
-        self.step = steps;
-    }
-
+impl Objective {
     /// Teacher and student predictions and the loss on `batch`, on the
     /// student's device (the student's own gradient path when it has one).
-    fn forward(&self, student: &B, batch: StepBatch) -> Result<LossOutput, TrainError> {
+    fn forward<B: Backbone>(
+        &self,
+        teacher: &B,
+        student: &B,
+        batch: StepBatch,
+    ) -> Result<LossOutput, TrainError> {
         let StepBatch {
             reference,
             student_target,
@@ -203,7 +170,7 @@ impl<B: Backbone> S3Trainer<B> {
         // Only the geometry term reads the teacher (Table 3 (A) runs without it).
         let teacher_disparity = if self.loss.config().geometry {
             predict(
-                &self.teacher,
+                teacher,
                 reference.clone(),
                 teacher_target.clone(),
                 &teacher_sides,
@@ -246,10 +213,121 @@ impl<B: Backbone> S3Trainer<B> {
         self.loss.compute_sequence(inputs, earlier)
     }
 
+    /// The gradients of `weight` times the loss of `batch` for `student`
+    /// (on an autodiff device, with `teacher` and `batch` on the same
+    /// device), and the unweighted loss values.
+    fn gradients<B: Backbone>(
+        &self,
+        teacher: &B,
+        student: &B,
+        batch: StepBatch,
+        weight: f64,
+    ) -> Result<(GradientsParams, LossValues), TrainError> {
+        let out = self.forward(teacher, student, batch)?;
+        let read = |term: Option<Tensor<1>>, what| term.map(|t| read_scalar(t, what)).transpose();
+        let values = LossValues {
+            total: read_scalar(out.total.clone(), "the loss")?,
+            terms: LossTerms {
+                geometry: read(out.geometry, "the geometry term")?,
+                photometric: read(out.photometric, "the photometric term")?,
+                smoothness: read(out.smoothness, "the smoothness term")?,
+            },
+        };
+        let total = if weight == 1.0 {
+            out.total
+        } else {
+            out.total.mul_scalar(weight)
+        };
+        Ok((
+            GradientsParams::from_grads(total.backward(), student),
+            values,
+        ))
+    }
+}
+
+impl LossValues {
+    /// The sum of each share's values times its weight.
+    fn weighted_sum(shares: &[(LossValues, f64)]) -> Self {
+        let sum = |value: fn(&LossValues) -> Option<f32>| {
+            shares
+                .iter()
+                .map(|(values, weight)| value(values).map(|v| v * *weight as f32))
+                .sum::<Option<f32>>()
+        };
+        Self {
+            total: sum(|v| Some(v.total)).unwrap_or_default(),
+            terms: LossTerms {
+                geometry: sum(|v| v.terms.geometry),
+                photometric: sum(|v| v.terms.photometric),
+                smoothness: sum(|v| v.terms.smoothness),
+            },
+        }
+    }
+}
+
+impl<B: Backbone> S3Trainer<B> {
+    /// A trainer for `student` (on an autodiff device); the teacher starts
+    /// as a copy of it without autodiff (`student.valid()`).
+    pub fn new(student: B, config: &TrainerConfig) -> Result<Self, TrainError> {
+        config.validate()?;
+        let loss = S3Loss::new(config.loss.clone())?;
+        let lr = config.lr.init()?;
+        let optimizer = config.optimizer.init();
+        Ok(Self {
+            teacher: student.valid(),
+            student,
+            optimizer,
+            objective: Objective {
+                loss,
+                sequence_gamma: config.sequence_gamma,
+                final_prediction_only: config.final_prediction_only,
+            },
+            lr,
+            momentum: CosineMomentum {
+                base: config.ema_base,
+                total_steps: config.lr.total_steps,
+            },
+            ema: config.ema,
+            grad_clip_norm: config.grad_clip_norm,
+            step: 0,
+        })
+    }
+
+    /// The student network.
+    pub fn student(&self) -> &B {
+        &self.student
+    }
+
+    /// The teacher network (the one used for inference).
+    pub fn teacher(&self) -> &B {
+        &self.teacher
+    }
+
+    /// Steps taken so far (the index of the next step).
+    pub fn steps_taken(&self) -> usize {
+        self.step
+    }
+
+    /// The optimiser (for checkpoints).
+    pub fn optimizer(&self) -> &ModuleOptimizer {
+        &self.optimizer
+    }
+
+    /// Puts back the state of a checkpoint: both networks, the optimiser
+    /// state and the number of steps taken.
+    pub fn restore(&mut self, student: B, teacher: B, optimizer: ModuleOptimizer, steps: usize) {
+        self.student = student;
+        self.teacher = teacher;
+        self.optimizer = optimizer;
+        self.step = steps;
+    }
+
     /// The maps of `batch` (predictions and masks) without a gradient step.
     pub fn diagnose(&self, batch: StepBatch) -> Result<Diagnosis, TrainError> {
         let student = self.student.valid();
-        let out = self.forward(&student, batch.clone())?;
+        let out = self
+            .objective
+            .forward(&self.teacher, &student, batch.clone())?;
         let teacher = predict(
             &self.teacher,
             batch.reference.clone(),
@@ -276,27 +354,88 @@ impl<B: Backbone> S3Trainer<B> {
         })
     }
 
-    /// Takes one optimisation step on `batch`.
+    /// Takes one optimisation step on `batch` (on the student's device).
     pub fn step(&mut self, batch: StepBatch) -> Result<StepReport, TrainError> {
-        let student = self.student.clone();
-        let out = self.forward(&student, batch)?;
-        let terms = LossTerms {
-            geometry: out
-                .geometry
-                .map(|t| read_scalar(t, "the geometry term"))
-                .transpose()?,
-            photometric: out
-                .photometric
-                .map(|t| read_scalar(t, "the photometric term"))
-                .transpose()?,
-            smoothness: out
-                .smoothness
-                .map(|t| read_scalar(t, "the smoothness term"))
-                .transpose()?,
-        };
-        let loss = read_scalar(out.total.clone(), "the loss")?;
+        let (grads, values) = self
+            .objective
+            .gradients(&self.teacher, &self.student, batch, 1.0)?;
+        self.apply(grads, values)
+    }
+
+    /// Takes one optimisation step on `batch` split across `devices`, data
+    /// parallel: each device gets a share of the items (in order, sizes
+    /// differing by at most one), a copy of both networks, and computes the
+    /// gradient of its share's loss in a thread of its own. The gradients,
+    /// each weighted by its share of the items, are summed on the student's
+    /// device, where clipping, the optimiser and the EMA teacher update
+    /// once, as in [`Self::step`]; the next step copies the updated weights
+    /// out again, so every device starts each step from the same weights.
+    /// Each share's loss is normalised over its own items, as in PyTorch's
+    /// DistributedDataParallel. With one device this is [`Self::step`].
+    pub fn step_parallel(
+        &mut self,
+        batch: StepBatch,
+        devices: &[Device],
+    ) -> Result<StepReport, TrainError> {
+        if devices.len() <= 1 {
+            return self.step(batch);
+        }
+        let items = batch.reference.dims()[0];
+        if items < devices.len() {
+            return Err(TrainError::Config(format!(
+                "a batch of {items} cannot be shared by {} devices: use a batch size of at least \
+                 the number of devices",
+                devices.len()
+            )));
+        }
+        let shares = batch.split(devices.len());
+        let objective = &self.objective;
+        let results = std::thread::scope(|scope| {
+            let workers: Vec<_> = shares
+                .into_iter()
+                .zip(devices)
+                .map(|(share, device)| {
+                    let weight = share.reference.dims()[0] as f64 / items as f64;
+                    let student = self.student.clone().fork(&device.clone().autodiff());
+                    let teacher = self.teacher.clone().to_device(device);
+                    let share = share.to_device(device);
+                    scope.spawn(move || {
+                        objective
+                            .gradients(&teacher, &student, share, weight)
+                            .map(|(grads, values)| (grads, values, weight, student))
+                    })
+                })
+                .collect();
+            workers
+                .into_iter()
+                .zip(devices)
+                .map(|(worker, device)| {
+                    worker.join().unwrap_or_else(|_| {
+                        Err(TrainError::Device {
+                            name: format!("{device:?}"),
+                            reason: "its share of the step failed (the runtime panicked)".into(),
+                        })
+                    })
+                })
+                .collect::<Result<Vec<_>, _>>()
+        })?;
+        let home = devices[0].clone();
+        let mut sum = GradientsAccumulator::<B>::new();
+        let mut shares = Vec::with_capacity(results.len());
+        for (grads, values, weight, replica) in results {
+            sum.accumulate(&self.student, grads.to_device(&home, &replica));
+            shares.push((values, weight));
+        }
+        self.apply(sum.grads(), LossValues::weighted_sum(&shares))
+    }
+
+    /// Clips `grads`, steps the optimiser and updates the teacher.
+    fn apply(
+        &mut self,
+        mut grads: GradientsParams,
+        values: LossValues,
+    ) -> Result<StepReport, TrainError> {
         let lr = self.lr.lr(self.step);
-        let mut grads = GradientsParams::from_grads(out.total.backward(), &self.student);
         let grad_norm = clip_global_norm(&self.student, &mut grads, self.grad_clip_norm)?;
         self.student = self.optimizer.step(lr, self.student.clone(), grads);
         let momentum = if self.ema {
@@ -309,8 +448,8 @@ impl<B: Backbone> S3Trainer<B> {
         }
         let report = StepReport {
             step: self.step,
-            loss,
-            terms,
+            loss: values.total,
+            terms: values.terms,
             grad_norm,
             lr,
             momentum,

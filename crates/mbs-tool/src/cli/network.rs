@@ -30,10 +30,15 @@ pub struct NetworkArgs {
 }
 
 impl NetworkArgs {
-    /// The chosen network, if any.
-    pub fn matcher(&self) -> anyhow::Result<Option<NetworkMatcher>> {
+    /// The chosen network, if any, on `device` (see
+    /// [`mbs_train::device::open_device`]).
+    pub fn matcher(&self, device: &str) -> anyhow::Result<Option<NetworkMatcher>> {
+        if self.checkpoint.is_none() && self.weights.is_none() {
+            return Ok(None);
+        }
+        let device = mbs_train::device::open_device(device)?;
         if let Some(path) = &self.checkpoint {
-            return Ok(Some(NetworkMatcher::open(path)?));
+            return Ok(Some(NetworkMatcher::open(path, device)?));
         }
         let (Some(weights), Some(backbone)) = (&self.weights, &self.backbone) else {
             return Ok(None);
@@ -47,6 +52,7 @@ impl NetworkArgs {
         Ok(Some(NetworkMatcher::with_weights(
             &config.network,
             weights,
+            device,
         )?))
     }
 }

@@ -7,11 +7,12 @@ use mbs_infer::onnx::{Device, RuntimeOptions};
 /// Where and with which library ONNX models run.
 #[derive(clap::Args, Debug, Clone)]
 pub struct OnnxArgs {
-    /// Execution device of ONNX models: cpu, cuda (GPU 0) or cuda:N. CUDA
-    /// needs a build with `--features cuda` and the onnxruntime-gpu library
-    /// (tools/setup-ort.sh --gpu).
-    #[arg(long, default_value = "cpu", value_parser = parse_device)]
-    pub device: Device,
+    /// Where networks run: cpu, cuda (GPU 0) or cuda:N for ONNX models and
+    /// trained networks, vulkan[:N] for trained networks (--checkpoint,
+    /// --weights). CUDA needs a build with `--features cuda`, and for ONNX
+    /// models the onnxruntime-gpu library (tools/setup-ort.sh --gpu).
+    #[arg(long, default_value = "cpu")]
+    pub device: String,
     /// The ONNX Runtime library [default: $ORT_DYLIB_PATH, then
     /// .ort/onnxruntime/capi/libonnxruntime.so.* above the current folder or
     /// the executable, installed by tools/setup-ort.sh].
@@ -22,24 +23,29 @@ pub struct OnnxArgs {
     pub allow_cpu_fallback: bool,
 }
 
-fn parse_device(s: &str) -> Result<Device, String> {
-    s.parse()
-}
-
 impl OnnxArgs {
+    /// The device of ONNX models.
+    fn onnx_device(&self) -> anyhow::Result<Device> {
+        self.device.parse().map_err(|e| {
+            anyhow::anyhow!(
+                "--device: {e} (ONNX models run on cpu or cuda; vulkan is for trained networks)"
+            )
+        })
+    }
+
     /// The runtime options these flags ask for.
-    pub fn options(&self) -> RuntimeOptions {
-        RuntimeOptions {
+    pub fn options(&self) -> anyhow::Result<RuntimeOptions> {
+        Ok(RuntimeOptions {
             library: self.ort_lib.clone(),
-            device: self.device,
+            device: self.onnx_device()?,
             allow_cpu_fallback: self.allow_cpu_fallback,
             intra_threads: 0,
-        }
+        })
     }
 
     /// Says on stderr when a model fell back to the CPU.
     pub fn report_fallback(&self, what: &str, used: Device) {
-        if used != self.device {
+        if self.onnx_device().is_ok_and(|asked| asked != used) {
             eprintln!(
                 "warning: {what}: device {} is not available, running on {used} (--allow-cpu-fallback)",
                 self.device

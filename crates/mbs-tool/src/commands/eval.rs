@@ -79,6 +79,10 @@ pub struct Args {
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// Where --checkpoint/--weights networks run: cpu, vulkan[:N], or
+    /// cuda[:N] in a build with `--features cuda`.
+    #[arg(long, default_value = "cpu")]
+    pub device: String,
     /// Worker threads (0 = one per core).
     #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
     pub jobs: usize,
@@ -139,7 +143,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         bail!("no ground truth: give --kitti DIR, --gt FILE or --manifest FILE");
     };
-    let network = args.network.matcher()?;
+    let network = args.network.matcher(&args.device)?;
     let results: Vec<anyhow::Result<RegionSums>> = items
         .par_iter()
         .map(|item| {

@@ -286,7 +286,7 @@ fn inpainter(args: &Args) -> anyhow::Result<Box<dyn Inpainter>> {
                 .inpaint_card
                 .as_deref()
                 .context("--inpaint onnx:MODEL needs --inpaint-card NAME|FILE.json")?;
-            let net = OnnxInpainter::open(model, ModelCard::load(card)?, &args.onnx.options())?;
+            let net = OnnxInpainter::open(model, ModelCard::load(card)?, &args.onnx.options()?)?;
             args.onnx
                 .report_fallback(&model.display().to_string(), net.device());
             Box::new(net)
@@ -305,7 +305,7 @@ fn disparity_source(args: &Args) -> anyhow::Result<DisparitySource> {
                 .card
                 .as_deref()
                 .context("--disparity onnx:MODEL needs --card NAME|FILE.json")?;
-            let net = OnnxStereo::open(model, ModelCard::load(card)?, &args.onnx.options())?;
+            let net = OnnxStereo::open(model, ModelCard::load(card)?, &args.onnx.options()?)?;
             args.onnx
                 .report_fallback(&model.display().to_string(), net.device());
             DisparitySource::Matcher(Box::new(net))

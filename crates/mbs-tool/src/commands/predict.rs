@@ -165,12 +165,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let network: Option<Box<dyn StereoMatcher>> = match (&args.model, &args.card) {
         (Some(model), Some(card)) => {
-            let stereo = OnnxStereo::open(model, ModelCard::load(card)?, &args.onnx.options())?;
+            let stereo = OnnxStereo::open(model, ModelCard::load(card)?, &args.onnx.options()?)?;
             args.onnx
                 .report_fallback(&model.display().to_string(), stereo.device());
             Some(Box::new(stereo))
         }
-        _ => match args.network.matcher()? {
+        _ => match args.network.matcher(&args.onnx.device)? {
             Some(matcher) => Some(Box::new(matcher)),
             None => None,
         },

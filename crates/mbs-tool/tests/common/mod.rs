@@ -76,3 +76,53 @@ pub fn tree(root: &Path) -> Vec<(PathBuf, Vec<u8>)> {
     files.sort();
     files
 }
+
+/// A small synthetic training set (its manifest is returned): Town01 for training, Town10 held out.
+pub fn synth(root: &Path) -> String {
+    let out = root.display().to_string();
+    let output = run(&[
+        "synth",
+        "--out",
+        &out,
+        "--frames",
+        "2",
+        "--towns",
+        "Town01,Town10",
+        "--weathers",
+        "ClearNoon",
+        "--width",
+        "128",
+        "--height",
+        "64",
+        "--focal",
+        "64",
+        "--no-checksums",
+    ]);
+    assert!(output.status.success(), "{}", text(&output));
+    root.join("manifest.json").display().to_string()
+}
+
+/// Small, fast training settings.
+pub const SMALL: [&str; 12] = [
+    "--batch-size",
+    "2",
+    "--crop",
+    "48x96",
+    "--max-disparity",
+    "32",
+    "--set",
+    "network.compact.features=8",
+    "--set",
+    "augment.occlusion_max_side=20",
+    "--set",
+    "augment.occlusion_min_side=5",
+];
+
+/// The JSON lines of a log.
+pub fn lines(path: &Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(path)
+        .expect("the log is readable")
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("a JSON line"))
+        .collect()
+}

@@ -175,3 +175,83 @@ pub struct StepBatch {
     /// Baseline ratio `r = B_s / B_t` of each item.
     pub ratios: Vec<f64>,
 }
+
+impl StepBatch {
+    /// Splits the items into `parts` consecutive shares whose sizes differ
+    /// by at most one (the first ones are the larger); `parts` is at most
+    /// the number of items.
+    pub fn split(self, parts: usize) -> Vec<StepBatch> {
+        let items = self.reference.dims()[0];
+        let parts = parts.clamp(1, items.max(1));
+        let mut start = 0;
+        (0..parts)
+            .map(|part| {
+                let size = items / parts + usize::from(part < items % parts);
+                let range = start..start + size;
+                start += size;
+                let take = |tensor: &Tensor<4>| tensor.clone().narrow(0, range.start, size);
+                StepBatch {
+                    reference: take(&self.reference),
+                    student_target: take(&self.student_target),
+                    teacher_target: take(&self.teacher_target),
+                    augmented_reference: take(&self.augmented_reference),
+                    augmented_target: take(&self.augmented_target),
+                    student_sides: self.student_sides[range.clone()].to_vec(),
+                    teacher_sides: self.teacher_sides[range.clone()].to_vec(),
+                    ratios: self.ratios[range].to_vec(),
+                }
+            })
+            .collect()
+    }
+
+    /// The same batch on `device`.
+    pub fn to_device(self, device: &Device) -> StepBatch {
+        StepBatch {
+            reference: self.reference.to_device(device),
+            student_target: self.student_target.to_device(device),
+            teacher_target: self.teacher_target.to_device(device),
+            augmented_reference: self.augmented_reference.to_device(device),
+            augmented_target: self.augmented_target.to_device(device),
+            ..self
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn split_shares_are_consecutive_and_differ_by_at_most_one_item() {
+        let device = Device::flex();
+        let items = 5;
+        let values: Vec<f32> = (0..items * 12).map(|i| (i / 12) as f32).collect();
+        let numbered = crate::test_util::tensor4(&values, [items, 3, 2, 2], &device);
+        let batch = StepBatch {
+            reference: numbered.clone(),
+            student_target: numbered.clone(),
+            teacher_target: numbered.clone(),
+            augmented_reference: numbered.clone(),
+            augmented_target: numbered,
+            student_sides: vec![Side::Right; items],
+            teacher_sides: vec![Side::Left; items],
+            ratios: (0..items).map(|i| i as f64).collect(),
+        };
+        let shares = batch.split(3);
+        let firsts: Vec<Vec<f32>> = shares
+            .iter()
+            .map(|share| {
+                let values = crate::test_util::values(share.augmented_target.clone());
+                values.iter().step_by(12).copied().collect()
+            })
+            .collect();
+        assert_eq!(firsts, [vec![0.0, 1.0], vec![2.0, 3.0], vec![4.0]]);
+        let ratios: Vec<Vec<f64>> = shares.iter().map(|s| s.ratios.clone()).collect();
+        assert_eq!(ratios, [vec![0.0, 1.0], vec![2.0, 3.0], vec![4.0]]);
+        assert!(
+            shares
+                .iter()
+                .all(|s| s.teacher_sides.iter().all(|&side| side == Side::Left))
+        );
+    }
+}

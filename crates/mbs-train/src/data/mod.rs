@@ -37,8 +37,10 @@ pub struct DataConfig {
     /// Width of the random crops (512 in the paper).
     #[config(default = 512)]
     pub crop_width: usize,
-    /// Threads that decode and crop batches ahead of the step.
-    #[config(default = 2)]
+    /// Threads that decode and crop batches ahead of the step; 0 takes one
+    /// per core, so a GPU machine decodes on all its cores. The batches do
+    /// not depend on it.
+    #[config(default = 0)]
     pub workers: usize,
     /// Camera pairs `[reference, target]` scored by validation, when the
     /// held-out samples have ground truth for them.
@@ -55,10 +57,17 @@ pub struct DataConfig {
 }
 
 impl DataConfig {
+    /// The number of loading threads: `workers`, or one per core for 0.
+    pub fn loading_threads(&self) -> usize {
+        match self.workers {
+            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+            n => n,
+        }
+    }
+
     /// Checks the ranges.
     pub fn validate(&self) -> Result<(), TrainError> {
         ranges::at_least_one("batch_size", self.batch_size)?;
-        ranges::at_least_one("workers", self.workers)?;
         for (name, value) in [
             ("crop_height", self.crop_height),
             ("crop_width", self.crop_width),

@@ -22,6 +22,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
+use burn::module::Module;
 use burn::tensor::Device;
 use mbs_core::atomic::write_bytes_atomic;
 use mbs_core::{FloatImage, RgbImage};
@@ -138,7 +139,8 @@ pub struct TrainingRun {
     samples: Arc<TrainingSamples>,
     validation: ValidationSet,
     trainer: S3Trainer<StereoNetwork>,
-    device: Device,
+    /// The first device holds the weights; all share each step's batch.
+    devices: Vec<Device>,
     report: RunReport,
 }
 
@@ -150,11 +152,13 @@ impl TrainingRun {
         out: &Path,
         config: RunConfig,
     ) -> Result<(Self, Start), TrainError> {
-        Self::open_on(manifest, out, config, Device::flex(), None)
+        Self::open_on(manifest, out, config, vec![Device::flex()], None)
     }
 
     /// Opens the run in `out` on the training data of `manifest`, training on
-    /// `device`: resumes from the newest checkpoint there, or starts fresh,
+    /// `devices` (data parallel when there are several, see
+    /// [`S3Trainer::step_parallel`]; the weights live on the first, and a
+    /// checkpoint resumes on any number of devices): resumes from the newest checkpoint there, or starts fresh,
     /// from the weights of `init` when given (see [`initial_weights`]; a
     /// resumed run ignores it). Resuming with a configuration that changes
     /// what is computed is refused.
@@ -162,10 +166,20 @@ impl TrainingRun {
         manifest: &Path,
         out: &Path,
         config: RunConfig,
-        device: Device,
+        devices: Vec<Device>,
         init: Option<&Path>,
     ) -> Result<(Self, Start), TrainError> {
         config.validate()?;
+        let Some(device) = devices.first().cloned() else {
+            return Err(TrainError::Config("no device to train on".into()));
+        };
+        if config.data.batch_size < devices.len() {
+            return Err(TrainError::Config(format!(
+                "data.batch_size {} is smaller than the {} devices that share it",
+                config.data.batch_size,
+                devices.len()
+            )));
+        }
         let parsed = Manifest::load(manifest)?;
         let crop = (config.data.crop_height, config.data.crop_width);
         let samples = TrainingSamples::from_manifest(manifest, &parsed, crop)?;
@@ -179,11 +193,18 @@ impl TrainingRun {
         )?;
         let train_device = device.clone().autodiff();
         let latest = Checkpoint::latest(out)?;
+        // Fresh weights are drawn on the CPU and moved, so a seed gives the
+        // same network on every device. Only they need the seed; a
+        // checkpoint has its own.
+        let init_device = Device::flex().autodiff();
         if latest.is_none() {
-            // Only fresh weights need the seed; a checkpoint has its own.
-            train_device.seed(config.seed);
+            init_device.seed(config.seed);
         }
-        let mut student = config.network.init(&train_device)?;
+        let fresh = config.network.init(&init_device)?;
+        // Forking while `fresh` still shares the (lazy) parameters makes
+        // burn initialise them where they are and copy them over.
+        let mut student = fresh.clone().fork(&train_device);
+        drop(fresh);
         if let (None, Some(init)) = (&latest, init) {
             student = student.with_state_dict(&initial_weights(init)?, init)?;
         }
@@ -225,7 +246,7 @@ impl TrainingRun {
                 samples: Arc::new(samples),
                 validation,
                 trainer,
-                device,
+                devices,
             },
             start,
         ))
@@ -288,7 +309,7 @@ impl TrainingRun {
             (data.crop_height, data.crop_width),
             self.config.seed,
             (first, total),
-            data.workers,
+            data.loading_threads(),
         );
         let mut log = open_log(&self.out.join(TRAIN_LOG))?;
         let mut interval = Interval::new();
@@ -303,8 +324,8 @@ impl TrainingRun {
             };
             interval.add_data_wait(asked.elapsed());
             let batch =
-                batch?.into_step_batch(&self.device, &self.config.augment, self.config.seed);
-            let report = self.trainer.step(batch)?;
+                batch?.into_step_batch(&self.devices[0], &self.config.augment, self.config.seed);
+            let report = self.trainer.step_parallel(batch, &self.devices)?;
             let taken = report.step + 1;
             interval.add(&report);
             observer.on_step(&report, interval.samples_per_second(data.batch_size));
@@ -359,7 +380,7 @@ impl TrainingRun {
         let steps = self.trainer.steps_taken();
         let metrics = self
             .validation
-            .evaluate(self.trainer.teacher(), &self.device)?;
+            .evaluate(self.trainer.teacher(), &self.devices[0])?;
         let path = self.out.join(VAL_LOG);
         let mut log = open_log(&path)?;
         let line = validation_json(steps, &metrics);
@@ -385,7 +406,7 @@ impl TrainingRun {
         let (wide_path, ratio) = &pair.wide_target;
         let wide = mbs_core::formats::rgb::read_rgb(wide_path)?;
         let (width, height) = loaded.reference.dimensions();
-        let tensor = |image: &RgbImage| image_tensor(image, &self.device);
+        let tensor = |image: &RgbImage| image_tensor(image, &self.devices[0]);
         let reference = tensor(&loaded.reference);
         let wide_target = tensor(&wide);
         let diagnosis = self.trainer.diagnose(StepBatch {

@@ -323,3 +323,67 @@ fn sequence_weights_follow_the_official_adjusted_gamma() {
     assert_eq!(sequence_weights(3, 0.9, true), [0.0, 0.0, 1.0]);
     assert_eq!(sequence_weights(1, 0.9, false), [1.0]);
 }
+
+/// A batch of one item twice shared by two devices: each share is that
+/// item, so the data-parallel step must report the whole batch's loss and
+/// gradient norm (the shares weigh one half each) and move the weights as
+/// the one-device step. Clipping is off so a wrong weighting shows in the
+/// gradient norm (Adam's update hides a scale).
+#[test]
+fn data_parallel_step_of_twins_matches_the_one_device_step() {
+    let device = Device::flex();
+    let train_device = device.clone().autodiff();
+    train_device.seed(11);
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let scene = scene(&mut rng);
+    let triplet = Triplet {
+        reference: 0,
+        student: 1,
+        teacher: 2,
+    };
+    let twins = batch(
+        &[scene.clone(), scene],
+        &[triplet, triplet],
+        &rig(),
+        &device,
+    );
+    let net = CostVolumeNetConfig::new()
+        .with_features(4)
+        .with_hidden(8)
+        .init(32, &train_device)
+        .expect("valid");
+    let config = TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(1e-2, 10))
+        .with_grad_clip_norm(1e9);
+    let mut single = S3Trainer::new(net.clone(), &config).expect("valid");
+    let mut parallel = S3Trainer::new(net, &config).expect("valid");
+    let pair = [device.clone(), device.clone()];
+    for _ in 0..3 {
+        let one = single.step(twins.clone()).expect("step runs");
+        let two = parallel
+            .step_parallel(twins.clone(), &pair)
+            .expect("parallel step runs");
+        assert!(
+            (one.loss - two.loss).abs() <= 1e-5 * one.loss.abs(),
+            "{one:?} {two:?}"
+        );
+        assert!(
+            (one.grad_norm - two.grad_norm).abs() <= 1e-4 * one.grad_norm,
+            "{one:?} {two:?}"
+        );
+    }
+    let weights = |trainer: &S3Trainer<crate::backbone::CostVolumeNet>| {
+        let mut reader = crate::test_util::FlatParams::default();
+        trainer.student().visit(&mut reader);
+        reader.0
+    };
+    crate::test_util::assert_close(&weights(&parallel), &weights(&single), 1e-5);
+    let message = parallel
+        .step_parallel(twins.split(2).remove(0), &pair)
+        .map(|_| ())
+        .expect_err("one item cannot be shared")
+        .to_string();
+    assert!(
+        message.contains("cannot be shared by 2 devices"),
+        "{message}"
+    );
+}

@@ -27,6 +27,8 @@ use report::Report;
   mbs-tool train --print-config > my.json            # every setting, with defaults
   mbs-tool train mbs20k.json --out runs/raft --backbone raft-stereo --crop 384x512
   mbs-tool train kitti-mb.json --out runs/ft --backbone raft-stereo --init runs/raft --lr 5e-5
+  mbs-tool train mbs20k.json --out runs/vk --device vulkan          # any Vulkan GPU
+  mbs-tool train mbs20k.json --out runs/dp --device cuda:0,cuda:1   # data parallel (--features cuda)
 
 Training uses the manifest's `train` samples; validation scores the
 teacher on the `val` samples (or `test` when there is no `val`) that have
@@ -89,7 +91,10 @@ pub struct Args {
     /// Save a checkpoint every N steps (checkpoint_every).
     #[arg(long)]
     pub checkpoint_every: Option<usize>,
-    /// Where to train: cpu, or cuda[:N] in a build with `--features cuda`.
+    /// Where to train: cpu, vulkan[:N] (any Vulkan GPU; N counts discrete
+    /// GPUs), or cuda[:N] in a build with `--features cuda`. A comma-separated
+    /// list (cuda:0,cuda:1) trains data parallel: each device takes a share of
+    /// every batch and the gradients are summed on the first one.
     #[arg(long, default_value = "cpu")]
     pub device: String,
     /// Discard the checkpoints in --out and start from fresh weights.
@@ -170,7 +175,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     crate::cli::set_threads(args.jobs)?;
     // Before anything is removed or written: a bad device name is an input error.
-    let device = mbs_train::device::parse_device(&args.device)?;
+    let devices = mbs_train::device::open_devices(&args.device)?;
     if args.restart {
         let checkpoints = out.join(CHECKPOINTS_DIR);
         if checkpoints.exists() {
@@ -186,7 +191,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("--init {}: no such file or folder", init.display());
     }
     let (mut training, start) =
-        TrainingRun::open_on(manifest, out, config, device, args.init.as_deref())?;
+        TrainingRun::open_on(manifest, out, config, devices, args.init.as_deref())?;
     let total = training.config().steps();
     match start {
         Start::Fresh => match &args.init {
