@@ -154,7 +154,7 @@ fn raft_stereo_trains_on_vulkan_as_on_the_cpu() {
     // The first step starts from the same weights: its loss agrees within
     // 2e-7 (when written). Its gradient norm does not agree as closely: 0.3100
     // on Vulkan against 0.3038 on the CPU (2 %), while the compact network's
-    // agree within 1e-6. Which backward kernel differs is not found yet
+    // first ones agree within 1e-6. Which backward kernel differs is not found yet
     // (the correlation lookup's gather and the bilinear sampling are the
     // suspects); the bound below is set to what was measured. Adam's first
     // updates move every weight by about the learning rate whatever its
