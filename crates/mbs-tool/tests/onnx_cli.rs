@@ -96,7 +96,10 @@ fn predict_explains_onnx_setup_problems() {
         &["--card", &card, "--device", "cuda"],
         "device cuda:0: this build of mbs has no CUDA support",
     );
-    fails_with(&["--card", &card, "--device", "gpu"], "invalid device");
+    fails_with(
+        &["--card", &card, "--device", "gpu"],
+        "device `gpu`: unknown device",
+    );
     // With the fallback allowed, the run goes on on the CPU and says so.
     let output = run(&[
         &base[..],
