@@ -10,6 +10,8 @@ pub mod official;
 pub mod raft_stereo;
 pub mod seeded;
 pub mod upsample;
+#[cfg(all(test, feature = "vulkan"))]
+mod vulkan_tests;
 
 use burn::module::Module;
 use burn::tensor::Tensor;

@@ -88,10 +88,12 @@ pub fn convex_upsample(map: Tensor<4>, mask: Tensor<4>, factor: usize) -> Tensor
         .map(|(dy, dx)| padded.clone().narrow(2, dy, h).narrow(3, dx, w))
         .collect();
     let neighbours: Tensor<6> = Tensor::cat(taps, 1).reshape([batch, 9, 1, 1, h, w]);
+    // Interleaving before the sum (`[B, 9, h, f, w, f]`) gives the same
+    // values as summing first; summing first made burn's wgpu backend
+    // return wrong gradients for batches of more than one item.
     (weights * neighbours)
+        .permute([0, 1, 4, 2, 5, 3])
         .sum_dim(1)
-        .reshape([batch, factor, factor, h, w])
-        .permute([0, 3, 1, 4, 2])
         .reshape([batch, 1, h * factor, w * factor])
 }
 
