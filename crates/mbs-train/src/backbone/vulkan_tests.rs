@@ -4,7 +4,7 @@
 //! parameter. This runs every forward and backward kernel the networks use
 //! on the GPU backend, at sizes small enough for a CPU Vulkan driver.
 
-use burn::module::{Module, ModuleVisitor, Param};
+use burn::module::{ModuleVisitor, Param};
 use burn::tensor::{Device, Distribution, Gradients, Tensor};
 use mbs_core::geometry::Side;
 
