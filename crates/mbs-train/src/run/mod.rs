@@ -18,8 +18,8 @@
 
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Instant;
 
 use burn::module::Module;
@@ -48,6 +48,11 @@ pub use logs::{TRAIN_LOG, VAL_LOG, read_log, validation_json};
 use report::RunReport;
 pub use report::{LOSS_PLOT, TENSORBOARD_DIR, VAL_PLOT, VISUALS_DIR};
 use resume::check_resumable;
+
+/// burn's CPU random generator is one per process: seeding it and drawing
+/// a run's fresh weights under this lock keeps a seed's network the same
+/// when several runs open at once in one process (as tests do).
+static WEIGHT_DRAWING: Mutex<()> = Mutex::new(());
 
 /// File of the run's configuration.
 pub const CONFIG_FILE: &str = "config.json";
@@ -197,6 +202,9 @@ impl TrainingRun {
         // same network on every device. Only they need the seed; a
         // checkpoint has its own.
         let init_device = Device::flex().autodiff();
+        let drawing = WEIGHT_DRAWING
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
         if latest.is_none() {
             init_device.seed(config.seed);
         }
@@ -205,6 +213,7 @@ impl TrainingRun {
         // burn initialise them where they are and copy them over.
         let mut student = fresh.clone().fork(&train_device);
         drop(fresh);
+        drop(drawing);
         if let (None, Some(init)) = (&latest, init) {
             student = student.with_state_dict(&initial_weights(init)?, init)?;
         }
