@@ -127,6 +127,8 @@ fn open_vulkan(_index: Option<usize>) -> Result<Device, String> {
 fn open_cuda(index: usize) -> Result<Device, String> {
     let device = Device::cuda(index);
     run_probe(&device).map_err(|reason| {
+        // cudarc follows a missing library with every file name it tried.
+        let reason = reason.split(" - searched for").next().unwrap_or_default();
         format!(
             "CUDA is not usable ({reason}); it needs the NVIDIA driver (libcuda), NVRTC \
              (libnvrtc) and the CUDA headers at run time"
