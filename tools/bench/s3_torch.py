@@ -263,8 +263,13 @@ def cosine_momentum(step, base, total_steps):
 
 
 class S3Trainer:
-    def __init__(self, student, max_lr=2e-4, total_steps=100, ema_base=0.996, grad_clip_norm=1.0, loss=None):
+    def __init__(self, student, max_lr=2e-4, total_steps=100, ema_base=0.996, grad_clip_norm=1.0, loss=None,
+                 precision="f32"):
         self.student = student
+        # Mixed precision as mbs's trainer.precision: the networks under
+        # autocast, the loss in f32, f16 with a GradScaler.
+        self.autocast_dtype = {"f32": None, "bf16": torch.bfloat16, "f16": torch.float16}[precision]
+        self.scaler = torch.amp.GradScaler("cpu") if precision == "f16" else None
         self.teacher = copy.deepcopy(student).requires_grad_(False)
         self.loss = loss or S3Loss()
         self.optimizer = torch.optim.Adam(student.parameters(), lr=max_lr, betas=(0.9, 0.999), eps=1e-5)
@@ -282,10 +287,14 @@ class S3Trainer:
 
     def step(self, batch):
         t = time.perf_counter()
-        with torch.no_grad():
+        autocast = torch.autocast("cpu", dtype=self.autocast_dtype, enabled=self.autocast_dtype is not None)
+        with torch.no_grad(), autocast:
             d_t = predict(self.teacher, batch["reference"], batch["teacher_target"], batch["teacher_sides"])
+        d_t = d_t.float()
         t = self._mark("teacher_forward", t)
-        d_s = predict(self.student, batch["augmented_reference"], batch["augmented_target"], batch["student_sides"])
+        with autocast:
+            d_s = predict(self.student, batch["augmented_reference"], batch["augmented_target"], batch["student_sides"])
+        d_s = d_s.float()
         t = self._mark("student_forward", t)
         total = self.loss(
             batch["reference"], batch["student_target"], batch["teacher_target"], d_s, d_t,
@@ -294,12 +303,18 @@ class S3Trainer:
         loss = total.item()
         t = self._mark("loss", t)
         self.optimizer.zero_grad(set_to_none=True)
-        total.backward()
+        (total if self.scaler is None else self.scaler.scale(total)).backward()
         t = self._mark("backward", t)
+        if self.scaler is not None:
+            self.scaler.unscale_(self.optimizer)
         grad_norm = torch.nn.utils.clip_grad_norm_(self.student.parameters(), self.grad_clip_norm).item()
         for group in self.optimizer.param_groups:
             group["lr"] = one_cycle_lr(self.step_index, self.max_lr, self.total_steps)
-        self.optimizer.step()
+        if self.scaler is None:
+            self.optimizer.step()
+        else:
+            self.scaler.step(self.optimizer)
+            self.scaler.update()
         momentum = cosine_momentum(self.step_index, self.ema_base, self.total_steps)
         with torch.no_grad():
             for teacher, student in zip(self.teacher.parameters(), self.student.parameters()):
@@ -350,6 +365,8 @@ def main():
     parser.add_argument("--threads", type=int, default=2, help="torch.set_num_threads")
     parser.add_argument("--ssim-pool", choices=["cumsum", "avgpool"], default="cumsum")
     parser.add_argument("--breakdown", action="store_true", help="also time each phase over --steps more steps")
+    parser.add_argument("--precision", choices=["f32", "bf16", "f16"], default="f32",
+                        help="the networks under torch.autocast in this format (f16 with a GradScaler)")
     args = parser.parse_args()
     if min(args.batch, args.height, args.width, args.steps) < 1 or args.warmup < 0:
         parser.error("batch, height, width and steps must be at least 1, warmup at least 0")
@@ -358,7 +375,7 @@ def main():
     torch.manual_seed(args.seed)
     net = CostVolumeNet(args.max_disparity, args.features, args.hidden)
     total_steps = args.warmup + 2 * args.steps
-    trainer = S3Trainer(net, total_steps=total_steps, loss=S3Loss(pool=args.ssim_pool))
+    trainer = S3Trainer(net, total_steps=total_steps, loss=S3Loss(pool=args.ssim_pool), precision=args.precision)
     batch = make_batch(args.batch, args.height, args.width)
     rss_setup = rss_mib("VmRSS")
     for _ in range(args.warmup):
@@ -374,6 +391,7 @@ def main():
         "height": args.height,
         "width": args.width,
         "max_disparity": args.max_disparity,
+        "precision": args.precision,
         "ms_per_step": round(ms_per_step, 2),
         "peak_rss_mib": None,
         "steps": args.steps,

@@ -16,9 +16,13 @@ alone). Rounds alternate burn and PyTorch; the fastest round of each
 counts. Configurations: batch 2 at 256x512 with 128 px (the finetuning crop
 of SPEC §5) and batch 4 at 64x128 with 32 px.
 
+`--precision bf16|f16` runs both in mixed precision: mbs's
+`trainer.precision`, and PyTorch's autocast (f16 with a GradScaler).
+
 Needs PyTorch (`pip install torch`; not part of CI or tools/test.sh). From
 the repository root:
     python3 tools/bench/train_step_vs_torch.py --rounds 3
+    python3 tools/bench/train_step_vs_torch.py --rounds 1 --precision bf16
 """
 
 import argparse
@@ -63,11 +67,11 @@ def config_args(batch, height, width, disparity, steps, warmup):
             "--max-disparity", str(disparity), "--steps", str(steps), "--warmup", str(warmup)]
 
 
-def measure(exe, config, threads, rounds, tunables, breakdown=False):
+def measure(exe, config, threads, rounds, tunables, breakdown=False, precision="f32"):
     env = dict(os.environ, RAYON_NUM_THREADS=str(threads))
     if tunables:
         env["GLIBC_TUNABLES"] = TUNABLES
-    args = config_args(*config) + (["--breakdown"] if breakdown else [])
+    args = config_args(*config) + (["--breakdown"] if breakdown else []) + ["--precision", precision]
     burn, torch = [], []
     for _ in range(rounds):
         burn.append(run_json([exe] + args, env))
@@ -86,6 +90,8 @@ def main():
     parser.add_argument("--glibc-tunables", action="store_true",
                         help="also run both with GLIBC_TUNABLES keeping freed memory in the heap")
     parser.add_argument("--no-build", metavar="EXE", help="use this step_time executable instead of building it")
+    parser.add_argument("--precision", choices=["f32", "bf16", "f16"], default="f32",
+                        help="mixed precision in both (trainer.precision; torch.autocast)")
     args = parser.parse_args()
     if importlib.util.find_spec("torch") is None:
         sys.exit("PyTorch is not installed; this benchmark needs it: pip install torch "
@@ -98,7 +104,7 @@ def main():
     variants = [False, True] if args.glibc_tunables else [False]
     for tunables in variants:
         for config in configs:
-            burn, torch = measure(exe, config, args.threads, args.rounds, tunables)
+            burn, torch = measure(exe, config, args.threads, args.rounds, tunables, precision=args.precision)
             rows.append((config, tunables, burn, torch))
     if args.breakdown:
         for config in configs:
@@ -106,7 +112,7 @@ def main():
     load_after = os.getloadavg()
 
     torch_version = rows[0][3].get("torch_version", "?")
-    print(f"{args.threads} threads, {args.rounds} rounds (fastest counts), torch {torch_version}, "
+    print(f"{args.precision}, {args.threads} threads, {args.rounds} rounds (fastest counts), torch {torch_version}, "
           f"load average {load_before[0]:.2f} before / {load_after[0]:.2f} after\n")
     print("| batch, crop, max disparity | malloc | burn-flex ms/step | PyTorch ms/step | burn / PyTorch "
           "| burn peak RSS MiB | PyTorch peak RSS MiB (before 1st step) |")

@@ -11,7 +11,8 @@
 //! The compact network has the default 16 feature and 32 hidden channels;
 //! RAFT-Stereo and IGEV-Stereo the official defaults unless `--hidden-dim`,
 //! `--gru-levels`, `--train-iters`, `--test-iters` (both) or
-//! `--n-downsample` (RAFT-Stereo) say otherwise (full size at the paper's
+//! `--n-downsample` (RAFT-Stereo) say otherwise; `--precision bf16|f16`
+//! computes the networks in mixed precision (`trainer.precision`) (full size at the paper's
 //! 384x512 crop: `--backbone igev --height 384 --width 512 --steps 1
 //! --warmup 0`); the loss has the paper's defaults. The batch is random images (fixed seed) with
 //! the student's targets alternately right and left of the reference (so
@@ -48,6 +49,7 @@ use mbs_core::geometry::Side;
 use mbs_train::backbone::predict;
 use mbs_train::clip::clip_global_norm;
 use mbs_train::ema::ema_update;
+use mbs_train::precision::Precision;
 use mbs_train::schedule::OneCycleConfig;
 use mbs_train::{
     BackboneKind, CostVolumeNetConfig, IgevStereoConfig, LossConfig, LossInputs, NetworkConfig,
@@ -58,9 +60,9 @@ type BoxError = Box<dyn std::error::Error>;
 
 const USAGE: &str = "usage: step_time [--backbone compact|raft-stereo|igev] [--batch B] [--height H] \
 [--width W] [--max-disparity D] [--steps N] [--warmup K] [--features F] [--hidden C] [--seed S] \
-[--breakdown] [--hidden-dim C] [--gru-levels L] [--n-downsample N] [--train-iters I] [--test-iters I]
+[--breakdown] [--precision f32|bf16|f16] [--hidden-dim C] [--gru-levels L] [--n-downsample N] [--train-iters I] [--test-iters I]
 defaults: --backbone compact --batch 2 --height 256 --width 512 --max-disparity 128 --steps 5 \
---warmup 2 --features 16 --hidden 32 --seed 42; the official networks' defaults";
+--warmup 2 --features 16 --hidden 32 --seed 42 --precision f32; the official networks' defaults";
 
 /// What the command line sets.
 #[derive(Debug)]
@@ -78,6 +80,7 @@ struct Args {
     hidden: usize,
     seed: u64,
     breakdown: bool,
+    precision: Precision,
 }
 
 impl Args {
@@ -97,6 +100,7 @@ impl Args {
             hidden: 32,
             seed: 42,
             breakdown: false,
+            precision: Precision::F32,
         };
         while let Some(flag) = args.next() {
             if flag == "--help" || flag == "-h" {
@@ -104,6 +108,12 @@ impl Args {
             }
             if flag == "--breakdown" {
                 out.breakdown = true;
+                continue;
+            }
+            if flag == "--precision" {
+                let value = args.next().ok_or("--precision needs a value")?;
+                out.precision = serde_json::from_value(serde_json::Value::String(value.clone()))
+                    .map_err(|_| format!("--precision expects f32, bf16 or f16, got '{value}'"))?;
                 continue;
             }
             if flag == "--backbone" {
@@ -284,6 +294,9 @@ fn run(args: &Args) -> Result<String, BoxError> {
     if args.breakdown && args.backbone != BackboneKind::Compact {
         return Err("--breakdown times the compact network only".into());
     }
+    if args.breakdown && args.precision != Precision::F32 {
+        return Err("--breakdown times f32 steps only".into());
+    }
     let network = NetworkConfig::new()
         .with_backbone(args.backbone)
         .with_max_disparity(args.max_disparity)
@@ -295,7 +308,8 @@ fn run(args: &Args) -> Result<String, BoxError> {
         .with_raft_stereo(args.raft.clone())
         .with_igev(args.igev.clone());
     let total_steps = args.warmup + 2 * args.steps;
-    let config = TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(2e-4, total_steps));
+    let config = TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(2e-4, total_steps))
+        .with_precision(args.precision);
     let student = network.init(&train_device)?;
     let mut trainer = S3Trainer::new(student.clone(), &config)?;
     let batch = batch(args, &device);
@@ -322,13 +336,14 @@ fn run(args: &Args) -> Result<String, BoxError> {
     };
     let mut line = format!(
         "{{\"framework\":\"burn-flex\",\"backbone\":\"{}\",\"batch\":{},\"height\":{},\"width\":{},\"max_disparity\":{},\
-         \"ms_per_step\":{ms_per_step:.2},\"peak_rss_mib\":{rss},\"steps\":{},\"warmup\":{},\
+         \"precision\":\"{}\",\"ms_per_step\":{ms_per_step:.2},\"peak_rss_mib\":{rss},\"steps\":{},\"warmup\":{},\
          \"rayon_threads\":\"{threads}\",\"loss\":{loss}",
         args.backbone,
         args.batch,
         args.height,
         args.width,
         args.max_disparity,
+        args.precision,
         args.steps,
         args.warmup,
     );

@@ -1,7 +1,8 @@
 //! Checkpoints of a run: `<run>/checkpoints/step-NNNNNNN/` holds the
 //! student, the teacher and the optimiser state (burnpack files, which keep
 //! the parameter ids the optimiser state is keyed by) and `state.json`
-//! (format, steps taken, the full configuration and the random state).
+//! (format, steps taken, the full configuration, the random state and an
+//! f16 run's loss scale).
 //!
 //! A checkpoint is written into a temporary `step-NNNNNNN.PID-N.partial/`
 //! and renamed when complete, so a crash never leaves a folder that looks
@@ -22,9 +23,11 @@ use mbs_core::atomic::partial_path;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-use crate::backbone::StereoNetwork;
+use crate::backbone::{Backbone, StereoNetwork};
 use crate::config::RunConfig;
 use crate::error::TrainError;
+use crate::precision::LossScale;
+use crate::step::S3Trainer;
 
 /// `format` of `state.json`.
 pub const FORMAT: &str = "mbs-checkpoint/1";
@@ -46,6 +49,9 @@ pub struct CheckpointState {
     pub config: Value,
     /// The random state.
     pub rng: RngState,
+    /// The loss scale of an f16 run (absent otherwise).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub loss_scale: Option<LossScale>,
 }
 
 /// Everything the run's random choices depend on.
@@ -63,25 +69,24 @@ fn folder_name(steps: usize) -> String {
     format!("step-{steps:07}")
 }
 
-/// Writes a checkpoint of a run into `run/checkpoints/` and keeps the
-/// newest `keep` of them; returns its folder.
-pub fn save<M: Module>(
+/// Writes a checkpoint of a run's `trainer` into `run/checkpoints/` and
+/// keeps the newest `keep` of them; returns its folder.
+pub fn save<B: Backbone>(
     run: &Path,
-    student: &M,
-    teacher: &M,
-    optimizer: &ModuleOptimizer,
+    trainer: &S3Trainer<B>,
     config: &RunConfig,
-    steps: usize,
     keep: usize,
 ) -> Result<PathBuf, TrainError> {
+    let steps = trainer.steps_taken();
     let root = run.join(CHECKPOINTS_DIR);
     let done = root.join(folder_name(steps));
     let partial = partial_path(&done);
     let io = |path: &Path, e: std::io::Error| TrainError::checkpoint(path, e);
     fs::create_dir_all(&partial).map_err(|e| io(&partial, e))?;
-    write_module(&partial.join(STUDENT_FILE), student)?;
-    write_module(&partial.join(TEACHER_FILE), teacher)?;
-    let optimizer_bytes = optimizer
+    write_module(&partial.join(STUDENT_FILE), trainer.student())?;
+    write_module(&partial.join(TEACHER_FILE), trainer.teacher())?;
+    let optimizer_bytes = trainer
+        .optimizer()
         .into_bytes()
         .map_err(|e| TrainError::checkpoint(&partial, format!("optimizer state: {e}")))?;
     write_file(&partial.join(OPTIMIZER_FILE), &optimizer_bytes)?;
@@ -93,6 +98,7 @@ pub fn save<M: Module>(
             seed: config.seed,
             next_step: steps,
         },
+        loss_scale: trainer.loss_scale(),
     };
     let json = serde_json::to_vec_pretty(&state).map_err(|e| io(&partial, e.into()))?;
     write_file(&partial.join(STATE_FILE), &json)?;

@@ -49,15 +49,32 @@ pub fn clip_global_norm<M: Module>(
     grads: &mut GradientsParams,
     max_norm: f64,
 ) -> Result<f64, TrainError> {
+    unscale_and_clip(module, grads, max_norm, 1.0)
+}
+
+/// Divides `grads`, the gradients of a loss multiplied by `loss_scale`
+/// (see [`crate::precision::LossScale`]), by that scale and clips them as
+/// [`clip_global_norm`]; returns the unscaled norm before clipping, which
+/// is not finite when a gradient overflowed (the gradients are then left
+/// as they are).
+pub fn unscale_and_clip<M: Module>(
+    module: &M,
+    grads: &mut GradientsParams,
+    max_norm: f64,
+    loss_scale: f64,
+) -> Result<f64, TrainError> {
     let mut norm = SquaredNorm { grads, total: None };
     module.visit(&mut norm);
     let Some(squares) = norm.total else {
         return Ok(0.0);
     };
     let squares = read_scalar(squares, "the gradient norm")?;
-    let total = f64::from(squares).sqrt();
-    let factor = max_norm / (total + 1e-6);
-    if factor < 1.0 {
+    let total = f64::from(squares).sqrt() / loss_scale;
+    if !total.is_finite() {
+        return Ok(total);
+    }
+    let factor = (max_norm / (total + 1e-6)).min(1.0) / loss_scale;
+    if factor != 1.0 {
         module.visit(&mut Scale { grads, factor });
     }
     Ok(total)
@@ -104,6 +121,40 @@ mod tests {
         let (layer, mut grads) = setup();
         let norm = clip_global_norm(&layer, &mut grads, 10.0).expect("readable");
         assert!((norm - 5.0).abs() < 1e-6);
+        let weight = grads.get::<2>(layer.weight.id).expect("kept");
+        assert_close(&values(weight), &[1.0, 2.0, 2.0, 0.0], 0.0);
+    }
+
+    #[test]
+    fn unscales_before_measuring_and_clipping() {
+        let (layer, mut grads) = setup();
+        // The gradients of a loss scaled by 4: the true norm is 5 / 4.
+        let norm = unscale_and_clip(&layer, &mut grads, 10.0, 4.0).expect("readable");
+        assert!((norm - 1.25).abs() < 1e-6);
+        let weight = grads.get::<2>(layer.weight.id).expect("kept");
+        assert_close(&values(weight), &[0.25, 0.5, 0.5, 0.0], 1e-6);
+
+        let (layer, mut grads) = setup();
+        let norm = unscale_and_clip(&layer, &mut grads, 0.5, 4.0).expect("readable");
+        assert!((norm - 1.25).abs() < 1e-6);
+        let bias = grads
+            .get::<1>(layer.bias.expect("bias on").id)
+            .expect("kept");
+        // Unscaled [0, 1], then clipped from 1.25 to 0.5.
+        assert_close(&values(bias), &[0.0, 0.4], 1e-6);
+    }
+
+    #[test]
+    fn reports_an_overflow_as_a_norm_that_is_not_finite() {
+        let (layer, mut grads) = setup();
+        let device = Device::flex();
+        let overflow =
+            Tensor::<1>::from_data(TensorData::new(vec![f32::INFINITY, 4.0], [2]), &device);
+        let bias_id = layer.bias.as_ref().expect("bias on").id;
+        grads.remove::<1>(bias_id);
+        grads.register(bias_id, overflow);
+        let norm = unscale_and_clip(&layer, &mut grads, 1.0, 1024.0).expect("readable");
+        assert!(norm.is_infinite());
         let weight = grads.get::<2>(layer.weight.id).expect("kept");
         assert_close(&values(weight), &[1.0, 2.0, 2.0, 0.0], 0.0);
     }

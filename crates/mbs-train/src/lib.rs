@@ -33,6 +33,7 @@ pub mod losses;
 pub mod mask;
 pub mod mirror;
 pub mod optimizer;
+pub mod precision;
 mod ranges;
 pub mod run;
 pub mod sampling;

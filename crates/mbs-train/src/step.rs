@@ -5,16 +5,17 @@
 
 use burn::config::Config;
 use burn::optim::{GradientsAccumulator, GradientsParams, ModuleOptimizer};
-use burn::tensor::{Device, Tensor};
+use burn::tensor::{DType, Device, FloatDType, Tensor};
 
 use crate::backbone::{Backbone, predict, predict_sequence};
-use crate::clip::clip_global_norm;
+use crate::clip::unscale_and_clip;
 use crate::data::StepBatch;
 use crate::ema::ema_update;
 use crate::error::TrainError;
 use crate::host::{read_all, read_scalar};
 use crate::losses::{LossConfig, LossInputs, LossOutput, S3Loss};
 use crate::optimizer::OptimizerConfig;
+use crate::precision::{LossScale, Precision, cast_network};
 use crate::ranges;
 use crate::schedule::{CosineMomentum, OneCycle, OneCycleConfig};
 
@@ -45,6 +46,15 @@ pub struct TrainerConfig {
     /// Supervise only an iterative student's final prediction.
     #[config(default = false)]
     pub final_prediction_only: bool,
+    /// The format the networks compute in: `f32`, or mixed precision with
+    /// `bf16` or `f16` (f32 weights, optimiser and losses; see
+    /// [`crate::precision`]).
+    #[config(default = "Precision::F32")]
+    pub precision: Precision,
+    /// The loss scale an f16 run starts at (PyTorch's `GradScaler`
+    /// default); steps whose gradients overflow halve it.
+    #[config(default = "LossScale::PYTORCH_INITIAL")]
+    pub initial_loss_scale: f64,
 }
 
 /// The loss weight of each of `n` predictions of an iterative network,
@@ -73,8 +83,11 @@ pub struct StepReport {
     pub loss: f32,
     /// The loss terms before their weights (`None` when switched off).
     pub terms: LossTerms,
-    /// Global gradient norm before clipping.
+    /// Global gradient norm before clipping; not finite when an f16 step's
+    /// gradients overflowed and the step was skipped.
     pub grad_norm: f64,
+    /// The loss scale the step used (f16 runs only).
+    pub loss_scale: Option<f64>,
     /// Learning rate used.
     pub lr: f64,
     /// EMA momentum used (1 when EMA is off).
@@ -116,6 +129,8 @@ pub struct S3Trainer<B: Backbone> {
     momentum: CosineMomentum,
     ema: bool,
     grad_clip_norm: f64,
+    /// The loss scale of an f16 run (`None` otherwise).
+    loss_scale: Option<LossScale>,
     step: usize,
 }
 
@@ -127,6 +142,7 @@ struct Objective {
     loss: S3Loss,
     sequence_gamma: f64,
     final_prediction_only: bool,
+    precision: Precision,
 }
 
 /// The loss values of a batch (or of a share of one), read back.
@@ -144,19 +160,46 @@ impl TrainerConfig {
         ranges::unit("ema_base", self.ema_base)?;
         ranges::unit("sequence_gamma", self.sequence_gamma)?;
         self.optimizer.validate()?;
+        ranges::positive("initial_loss_scale", self.initial_loss_scale)?;
         ranges::positive("grad_clip_norm", self.grad_clip_norm)
     }
 }
 
 impl Objective {
     /// Teacher and student predictions and the loss on `batch`, on the
-    /// student's device (the student's own gradient path when it has one).
+    /// student's device (the student's own gradient path when it has one),
+    /// the networks in the run's precision and the loss in f32.
     fn forward<B: Backbone>(
         &self,
         teacher: &B,
         student: &B,
         batch: StepBatch,
     ) -> Result<LossOutput, TrainError> {
+        match self.precision.compute_dtype() {
+            None => self.forward_in(teacher, student, batch, None),
+            Some(dtype) => self.forward_in(
+                &cast_network(teacher.clone(), dtype),
+                &cast_network(student.clone(), dtype),
+                batch,
+                Some(dtype),
+            ),
+        }
+    }
+
+    /// [`Self::forward`] with networks whose parameters are in `dtype`
+    /// (`None`: f32): their inputs are cast to it and their predictions
+    /// back to f32.
+    fn forward_in<B: Backbone>(
+        &self,
+        teacher: &B,
+        student: &B,
+        batch: StepBatch,
+        dtype: Option<FloatDType>,
+    ) -> Result<LossOutput, TrainError> {
+        let input = |image: Tensor<4>| match dtype {
+            Some(dtype) => image.cast(dtype),
+            None => image,
+        };
         let StepBatch {
             reference,
             student_target,
@@ -169,22 +212,25 @@ impl Objective {
         } = batch;
         // Only the geometry term reads the teacher (Table 3 (A) runs without it).
         let teacher_disparity = if self.loss.config().geometry {
-            predict(
+            in_f32(predict(
                 teacher,
-                reference.clone(),
-                teacher_target.clone(),
+                input(reference.clone()),
+                input(teacher_target.clone()),
                 &teacher_sides,
-            )
+            ))
         } else {
             let [batch, _, height, width] = reference.dims();
             Tensor::zeros([batch, 1, height, width], &reference.device())
         };
-        let mut predictions = predict_sequence(
+        let mut predictions: Vec<_> = predict_sequence(
             student,
-            augmented_reference,
-            augmented_target,
+            input(augmented_reference),
+            input(augmented_target),
             &student_sides,
-        );
+        )
+        .into_iter()
+        .map(in_f32)
+        .collect();
         let weights = sequence_weights(
             predictions.len(),
             self.sequence_gamma,
@@ -215,7 +261,8 @@ impl Objective {
 
     /// The gradients of `weight` times the loss of `batch` for `student`
     /// (on an autodiff device, with `teacher` and `batch` on the same
-    /// device), and the unweighted loss values.
+    /// device), and the unweighted loss values. An f16 run passes its loss
+    /// scale in `weight`.
     fn gradients<B: Backbone>(
         &self,
         teacher: &B,
@@ -281,6 +328,7 @@ impl<B: Backbone> S3Trainer<B> {
                 loss,
                 sequence_gamma: config.sequence_gamma,
                 final_prediction_only: config.final_prediction_only,
+                precision: config.precision,
             },
             lr,
             momentum: CosineMomentum {
@@ -289,6 +337,8 @@ impl<B: Backbone> S3Trainer<B> {
             },
             ema: config.ema,
             grad_clip_norm: config.grad_clip_norm,
+            loss_scale: (config.precision == Precision::F16)
+                .then(|| LossScale::starting_at(config.initial_loss_scale)),
             step: 0,
         })
     }
@@ -314,12 +364,23 @@ impl<B: Backbone> S3Trainer<B> {
     }
 
     /// Puts back the state of a checkpoint: both networks, the optimiser
-    /// state and the number of steps taken.
-    pub fn restore(&mut self, student: B, teacher: B, optimizer: ModuleOptimizer, steps: usize) {
+    /// state, the number of steps taken and an f16 run's loss scale (a
+    /// checkpoint without one leaves the trainer's).
+    pub fn restore(
+        &mut self,
+        student: B,
+        teacher: B,
+        optimizer: ModuleOptimizer,
+        steps: usize,
+        loss_scale: Option<LossScale>,
+    ) {
         self.student = student;
         self.teacher = teacher;
         self.optimizer = optimizer;
         self.step = steps;
+        if let (Some(scale), Some(saved)) = (&mut self.loss_scale, loss_scale) {
+            *scale = saved;
+        }
     }
 
     /// The maps of `batch` (predictions and masks) without a gradient step.
@@ -356,9 +417,9 @@ impl<B: Backbone> S3Trainer<B> {
 
     /// Takes one optimisation step on `batch` (on the student's device).
     pub fn step(&mut self, batch: StepBatch) -> Result<StepReport, TrainError> {
-        let (grads, values) = self
-            .objective
-            .gradients(&self.teacher, &self.student, batch, 1.0)?;
+        let (grads, values) =
+            self.objective
+                .gradients(&self.teacher, &self.student, batch, self.scale())?;
         self.apply(grads, values)
     }
 
@@ -396,12 +457,13 @@ impl<B: Backbone> S3Trainer<B> {
                 .zip(devices)
                 .map(|(share, device)| {
                     let weight = share.reference.dims()[0] as f64 / items as f64;
+                    let scaled = weight * self.scale();
                     let student = self.student.clone().fork(&device.clone().autodiff());
                     let teacher = self.teacher.clone().to_device(device);
                     let share = share.to_device(device);
                     scope.spawn(move || {
                         objective
-                            .gradients(&teacher, &student, share, weight)
+                            .gradients(&teacher, &student, share, scaled)
                             .map(|(grads, values)| (grads, values, weight, student))
                     })
                 })
@@ -429,21 +491,44 @@ impl<B: Backbone> S3Trainer<B> {
         self.apply(sum.grads(), LossValues::weighted_sum(&shares))
     }
 
-    /// Clips `grads`, steps the optimiser and updates the teacher.
+    /// The loss scale of an f16 run; 1 otherwise.
+    fn scale(&self) -> f64 {
+        self.loss_scale.map_or(1.0, |s| s.scale)
+    }
+
+    /// The loss scale of an f16 run (`None` for f32 and bf16).
+    pub fn loss_scale(&self) -> Option<LossScale> {
+        self.loss_scale
+    }
+
+    /// Clips `grads`, steps the optimiser and updates the teacher. An f16
+    /// step whose gradients overflowed changes neither network; it only
+    /// lowers the loss scale (its report's `grad_norm` is not finite).
     fn apply(
         &mut self,
         mut grads: GradientsParams,
         values: LossValues,
     ) -> Result<StepReport, TrainError> {
         let lr = self.lr.lr(self.step);
-        let grad_norm = clip_global_norm(&self.student, &mut grads, self.grad_clip_norm)?;
-        self.student = self.optimizer.step(lr, self.student.clone(), grads);
+        let loss_scale = self.loss_scale.map(|s| s.scale);
+        let grad_norm =
+            unscale_and_clip(&self.student, &mut grads, self.grad_clip_norm, self.scale())?;
+        let skipped = match &mut self.loss_scale {
+            Some(scale) => {
+                scale.update(grad_norm.is_finite());
+                !grad_norm.is_finite()
+            }
+            None => false,
+        };
+        if !skipped {
+            self.student = self.optimizer.step(lr, self.student.clone(), grads);
+        }
         let momentum = if self.ema {
             self.momentum.at(self.step)
         } else {
             1.0
         };
-        if self.ema {
+        if self.ema && !skipped {
             self.teacher = ema_update(self.teacher.clone(), &self.student.valid(), momentum)?;
         }
         let report = StepReport {
@@ -451,11 +536,21 @@ impl<B: Backbone> S3Trainer<B> {
             loss: values.total,
             terms: values.terms,
             grad_norm,
+            loss_scale,
             lr,
             momentum,
         };
         self.step += 1;
         Ok(report)
+    }
+}
+
+/// A network's prediction in f32, for the losses.
+fn in_f32(prediction: Tensor<4>) -> Tensor<4> {
+    if prediction.dtype() == DType::F32 {
+        prediction
+    } else {
+        prediction.cast(FloatDType::F32)
     }
 }
 

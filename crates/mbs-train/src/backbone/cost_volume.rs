@@ -10,9 +10,10 @@ use burn::nn::PaddingConfig2d;
 use burn::nn::conv::{Conv2d, Conv2dConfig};
 use burn::tensor::activation::{relu, softmax};
 use burn::tensor::ops::PadMode;
-use burn::tensor::{Device, Int, Tensor};
+use burn::tensor::{Device, Tensor};
 
 use super::Backbone;
+use super::layers::counting;
 use super::upsample::upsample_bilinear;
 use crate::error::TrainError;
 use crate::ranges;
@@ -130,10 +131,8 @@ impl Backbone for CostVolumeNet {
         let x = relu(self.aggregate_mid.forward(x));
         let logits = self.logits.forward(x) + volume * self.correlation_weight;
         let probabilities = softmax(logits, 1);
-        let device = probabilities.device();
-        let candidates = Tensor::<1, Int>::arange(0..self.candidates as i64, &device)
-            .float()
-            .reshape([1, self.candidates, 1, 1]);
+        let candidates =
+            counting(self.candidates, &probabilities).reshape([1, self.candidates, 1, 1]);
         // Soft-argmin at 1/4 resolution, in full-resolution pixels.
         let quarter = (probabilities * candidates).sum_dim(1) * 4.0;
         upsample_bilinear(quarter, height, width)

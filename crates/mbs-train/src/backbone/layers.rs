@@ -3,7 +3,7 @@
 use burn::nn::PaddingConfig2d;
 use burn::nn::conv::{Conv2d, Conv2dConfig};
 use burn::tensor::ops::PadMode;
-use burn::tensor::{Device, Tensor};
+use burn::tensor::{Device, FloatDType, Int, Tensor};
 
 /// A square `kernel` x `kernel` convolution with bias, as PyTorch's
 /// `nn.Conv2d(from, to, kernel, stride, padding)`.
@@ -46,4 +46,10 @@ pub fn pad_to_multiple(
     };
     let crop = move |x: Tensor<4>| x.narrow(2, top, height).narrow(3, left, width);
     (pad(reference), pad(target), crop)
+}
+
+/// `0, 1, ..., count - 1` as floats on `like`'s device and in its format
+/// (f32, or bf16/f16 under mixed precision; see [`crate::precision`]).
+pub fn counting<const D: usize>(count: usize, like: &Tensor<D>) -> Tensor<1> {
+    Tensor::<1, Int>::arange(0..count as i64, &like.device()).cast(FloatDType::from(like.dtype()))
 }

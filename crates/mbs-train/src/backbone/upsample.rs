@@ -62,8 +62,11 @@ fn resize(
 ) -> Tensor<4> {
     let [batch, channels, h, w] = maps.dims();
     let device: Device = maps.device();
-    let rows = Tensor::<2>::from_data(TensorData::new(matrix(height, h), [height, h]), &device);
-    let cols = Tensor::<2>::from_data(TensorData::new(matrix(width, w), [width, w]), &device);
+    let dtype = maps.dtype();
+    let rows = Tensor::<2>::from_data(TensorData::new(matrix(height, h), [height, h]), &device)
+        .cast(dtype);
+    let cols =
+        Tensor::<2>::from_data(TensorData::new(matrix(width, w), [width, w]), &device).cast(dtype);
     let rows = rows
         .reshape([1, 1, height, h])
         .expand([batch, channels, height, h]);

@@ -129,11 +129,12 @@ impl Interval {
             loss: 0.0,
             terms: Default::default(),
             grad_norm: 0.0,
+            loss_scale: None,
             lr: 0.0,
             momentum: 0.0,
         });
         let term = |on: Option<f32>, sum: f64| on.map(|_| sum / n);
-        json!({
+        let mut line = json!({
             "step": steps,
             "loss": self.loss / n,
             "geometry": term(last.terms.geometry, self.geometry),
@@ -144,7 +145,11 @@ impl Interval {
             "grad_norm": last.grad_norm,
             "samples_per_s": self.samples_per_second(batch_size),
             "data_wait_ms": 1e3 * self.data_wait.as_secs_f64() / n,
-        })
+        });
+        if let Some(scale) = last.loss_scale {
+            line["loss_scale"] = json!(scale);
+        }
+        line
     }
 }
 

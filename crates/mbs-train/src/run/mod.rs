@@ -37,6 +37,7 @@ use crate::data::validation::{ValidationMetrics, ValidationPair};
 use crate::data::{BatchLoader, TrainingSamples, ValidationSet};
 use crate::error::TrainError;
 use crate::host::image_tensor;
+use crate::precision::check_support;
 use crate::step::{S3Trainer, StepReport};
 
 mod logs;
@@ -52,7 +53,7 @@ use resume::check_resumable;
 /// burn's CPU random generator is one per process: seeding it and drawing
 /// a run's fresh weights under this lock keeps a seed's network the same
 /// when several runs open at once in one process (as tests do).
-static WEIGHT_DRAWING: Mutex<()> = Mutex::new(());
+pub(crate) static WEIGHT_DRAWING: Mutex<()> = Mutex::new(());
 
 /// File of the run's configuration.
 pub const CONFIG_FILE: &str = "config.json";
@@ -185,6 +186,8 @@ impl TrainingRun {
                 devices.len()
             )));
         }
+        let named = devices.iter().map(|device| (format!("{device:?}"), device));
+        check_support(config.trainer.precision, named)?;
         let parsed = Manifest::load(manifest)?;
         let crop = (config.data.crop_height, config.data.crop_width);
         let samples = TrainingSamples::from_manifest(manifest, &parsed, crop)?;
@@ -227,6 +230,7 @@ impl TrainingRun {
                     checkpoint.teacher(&device)?,
                     checkpoint.optimizer()?,
                     steps,
+                    checkpoint.state.loss_scale,
                 );
                 truncate_log(&out.join(TRAIN_LOG), steps)?;
                 truncate_log(&out.join(VAL_LOG), steps)?;
@@ -366,11 +370,8 @@ impl TrainingRun {
         let steps = self.trainer.steps_taken();
         let dir = checkpoint::save(
             &self.out,
-            self.trainer.student(),
-            self.trainer.teacher(),
-            self.trainer.optimizer(),
+            &self.trainer,
             &self.config,
-            steps,
             self.config.keep_checkpoints,
         )?;
         observer.on_checkpoint(steps, &dir);

@@ -41,7 +41,9 @@ pub(crate) fn check_resumable(
         }
         value
     };
-    let saved = strip(checkpoint.state.config.clone());
+    // Through the settings type, so a key added since the checkpoint was
+    // written takes its default (the value older runs were trained with).
+    let saved = strip(checkpoint.config()?.to_json()?);
     let wanted = strip(config.to_json()?);
     if saved != wanted {
         let mut differing = Vec::new();

@@ -29,6 +29,7 @@ use report::Report;
   mbs-tool train kitti-mb.json --out runs/ft --backbone raft-stereo --init runs/raft --lr 5e-5
   mbs-tool train mbs20k.json --out runs/vk --device vulkan          # any Vulkan GPU
   mbs-tool train mbs20k.json --out runs/dp --device cuda:0,cuda:1   # data parallel (--features cuda)
+  mbs-tool train mbs20k.json --out runs/amp --device cuda --precision bf16  # mixed precision
 
 Training uses the manifest's `train` samples; validation scores the
 teacher on the `val` samples (or `test` when there is no `val`) that have
@@ -97,6 +98,13 @@ pub struct Args {
     /// every batch and the gradients are summed on the first one.
     #[arg(long, default_value = "cpu")]
     pub device: String,
+    /// The format the networks compute in (trainer.precision): f32, or mixed
+    /// precision with bf16 or f16 (weights, optimiser state and losses stay
+    /// f32; f16 scales its loss dynamically). bf16 needs CUDA or the CPU; f16
+    /// runs on CUDA, on Vulkan GPUs with 16-bit float shaders, and on the CPU
+    /// (slower there than f32: only GPUs gain from it).
+    #[arg(long, value_name = "FORMAT")]
+    pub precision: Option<String>,
     /// Discard the checkpoints in --out and start from fresh weights.
     #[arg(long)]
     pub restart: bool,
@@ -139,6 +147,7 @@ impl Args {
             self.max_disparity.map(|v| v.to_string()),
         );
         push("network.backbone", self.backbone.clone());
+        push("trainer.precision", self.precision.clone());
         push("seed", self.seed.map(|v| v.to_string()));
         push("val_every", self.val_every.map(|v| v.to_string()));
         push(
@@ -176,6 +185,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
     // Before anything is removed or written: a bad device name is an input error.
     let devices = mbs_train::device::open_devices(&args.device)?;
+    let names = args.device.split(',').map(|name| name.trim().to_string());
+    mbs_train::precision::check_support(config.trainer.precision, names.zip(&devices))?;
     if args.restart {
         let checkpoints = out.join(CHECKPOINTS_DIR);
         if checkpoints.exists() {

@@ -3,10 +3,11 @@
 //! disparity, the combined geometry encoding volume looked up around the
 //! current disparity, and the context upsampling of a 1/4-resolution map.
 
+use burn::tensor::Tensor;
 use burn::tensor::activation::softmax;
 use burn::tensor::ops::PadMode;
-use burn::tensor::{Int, Tensor};
 
+use crate::backbone::layers::counting;
 use crate::backbone::raft_stereo::correlation::{lookup_offsets, sample_linear};
 
 /// Group-wise correlation `[B, groups, D, H, W]` of left and right
@@ -36,9 +37,7 @@ pub fn group_correlation_volume(
 /// Soft-argmin over the candidates of `[B, D, H, W]` logits: `[B, 1, H, W]`.
 pub fn regress_disparity(logits: Tensor<4>) -> Tensor<4> {
     let [_, candidates, _, _] = logits.dims();
-    let values = Tensor::<1, Int>::arange(0..candidates as i64, &logits.device())
-        .float()
-        .reshape([1, candidates, 1, 1]);
+    let values = counting(candidates, &logits).reshape([1, candidates, 1, 1]);
     (softmax(logits, 1) * values).sum_dim(1)
 }
 
@@ -131,11 +130,9 @@ impl GeoEncoding {
         let [b, h, w] = self.shape;
         let c = self.channels;
         let points = 2 * self.radius + 1;
-        let device = disparity.device();
-        let offsets = lookup_offsets(self.radius, &device);
+        let offsets = lookup_offsets(self.radius, &disparity);
         let disparity = disparity.detach().reshape([b * h * w, 1]);
-        let columns = Tensor::<1, Int>::arange(0..w as i64, &device)
-            .float()
+        let columns = counting(w, &disparity)
             .reshape([1, 1, w])
             .expand([b, h, w])
             .reshape([b * h * w, 1]);

@@ -4,7 +4,9 @@
 //! image's width per level, and looked up at `2 radius + 1` points around
 //! the current match with linear interpolation (zero outside the row).
 
-use burn::tensor::{Device, Int, Tensor};
+use burn::tensor::{FloatDType, Tensor};
+
+use crate::backbone::layers::counting;
 
 /// All-pairs correlation rows and their pooled copies.
 pub struct CorrelationPyramid {
@@ -54,8 +56,7 @@ impl CorrelationPyramid {
     pub fn lookup(&self, x: Tensor<4>) -> Tensor<4> {
         let [batch, height, width] = self.shape;
         let points = 2 * self.radius + 1;
-        let device = x.device();
-        let offsets = lookup_offsets(self.radius, &device);
+        let offsets = lookup_offsets(self.radius, &x);
         let centres = x.detach().reshape([batch * height * width, 1]);
         let samples = self
             .levels
@@ -70,11 +71,11 @@ impl CorrelationPyramid {
     }
 }
 
-/// The lookup offsets `[-radius, ..., radius]` as a `[1, 2 radius + 1]` row.
-pub(crate) fn lookup_offsets(radius: usize, device: &Device) -> Tensor<2> {
+/// The lookup offsets `[-radius, ..., radius]` as a `[1, 2 radius + 1]` row
+/// on `like`'s device and in its format.
+pub(crate) fn lookup_offsets(radius: usize, like: &Tensor<4>) -> Tensor<2> {
     let points = 2 * radius + 1;
-    Tensor::<1, Int>::arange(0..points as i64, device)
-        .float()
+    counting(points, like)
         .sub_scalar(radius as f64)
         .reshape([1, points])
 }
@@ -91,7 +92,7 @@ pub(crate) fn sample_linear(rows: &Tensor<2>, positions: Tensor<2>) -> Tensor<2>
             .clone()
             .greater_equal_elem(0.0)
             .bool_and(column.clone().lower_equal_elem(width - 1.0))
-            .float();
+            .cast(FloatDType::from(rows.dtype()));
         let index = column.clamp(0.0, width - 1.0).int();
         rows.clone().gather(1, index) * inside
     };

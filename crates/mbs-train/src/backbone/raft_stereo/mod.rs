@@ -17,13 +17,13 @@ pub(crate) mod update;
 use burn::config::Config;
 use burn::module::Module;
 use burn::nn::conv::Conv2d;
-use burn::tensor::{Device, Int, Tensor};
+use burn::tensor::{Device, Tensor};
 
 use self::correlation::CorrelationPyramid;
 use self::encoder::{ContextEncoder, FeatureEncoder};
 use self::update::{GruState, LevelsToUpdate, UpdateBlock};
 use super::Backbone;
-use super::layers::{conv, pad_to_multiple};
+use super::layers::{conv, counting, pad_to_multiple};
 use super::norm::NormKind;
 use super::official::OfficialLayout;
 use super::upsample::convex_upsample;
@@ -162,12 +162,10 @@ impl RaftStereo {
             self.corr_radius,
         );
         let [_, _, height, width] = state.hidden[0].dims();
-        let device = state.hidden[0].device();
-        let columns = Tensor::<1, Int>::arange(0..width as i64, &device)
-            .float()
+        let columns = counting(width, &state.hidden[0])
             .reshape([1, 1, 1, width])
             .expand([batch, 1, height, width]);
-        let zeros = Tensor::<4>::zeros([batch, 1, height, width], &device);
+        let zeros = columns.zeros_like();
         // The official flow is `coords1 - coords0`: x only, negative disparity.
         let mut flow = zeros.clone();
         let mut predictions = Vec::with_capacity(iterations);
