@@ -49,8 +49,7 @@ def cargo_executable(package, kind, name):
     sys.exit(f"cargo built no {name} executable")
 
 
-def render(root, frames):
-    tool = cargo_executable("mbs-tool", "bin", "mbs-tool")
+def render(root, frames, tool):
     subprocess.run([tool, "synth", "--out", str(root), "--frames", str(frames),
                     "--towns", "Town01,Town10", "--weathers", "ClearNoon", "--test-towns", "Town10",
                     "--supersample", "1", "--no-checksums", "--seed", "7"],
@@ -118,6 +117,7 @@ def main():
     parser.add_argument("--workers", default="1,2", help="comma-separated loading thread/process counts")
     parser.add_argument("--steps", type=int, default=12, help="timed batches per worker count")
     parser.add_argument("--batch", type=int, default=16)
+    parser.add_argument("--mbs-tool", metavar="EXE", help="render with this mbs-tool instead of building it")
     args = parser.parse_args()
     try:
         import cv2  # noqa: F401
@@ -127,7 +127,11 @@ def main():
     workers = [int(w) for w in args.workers.split(",")]
     crop = (384, 512)
     with tempfile.TemporaryDirectory() as scratch:
-        manifest = Path(args.manifest) if args.manifest else render(Path(scratch), 6)
+        if args.manifest:
+            manifest = Path(args.manifest)
+        else:
+            tool = args.mbs_tool or cargo_executable("mbs-tool", "bin", "mbs-tool")
+            manifest = render(Path(scratch), 6, tool)
         example = cargo_executable("mbs-train", "example", "loader_throughput")
         load_before = os.getloadavg()
         out = subprocess.run([example, "--manifest", str(manifest), "--workers", args.workers,
