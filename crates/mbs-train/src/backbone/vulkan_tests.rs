@@ -3,6 +3,13 @@
 //! mirrored, give the same predictions and the same gradient for every
 //! parameter. This runs every forward and backward kernel the networks use
 //! on the GPU backend, at sizes small enough for a CPU Vulkan driver.
+//!
+//! Some gradients are ill-conditioned: where a leaky ReLU follows an
+//! instance norm (IGEV-Stereo's `conv`), many values sit near the kink, and
+//! float rounding that moves a few across it changes the gradient of every
+//! parameter upstream by up to 4e-3 of its size. The CPU does the same when
+//! its input images are scaled by `1 + 1e-6`, so the tolerance of each
+//! parameter includes that sensitivity, measured on the CPU.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -20,15 +27,14 @@ use crate::test_util::values;
 
 /// Largest difference of a prediction between the devices (pixels).
 const PREDICTION_TOLERANCE_PX: f32 = 1e-3;
-/// Largest `|g_vulkan - g_cpu|` of a RAFT-Stereo parameter, relative to
-/// `|g_cpu|` (measured below 4e-6 for every parameter with random weights).
-const RAFT_STEREO_GRADIENT_TOLERANCE: f32 = 1e-4;
-/// The same for IGEV-Stereo. Measured: about 1e-5 for most parameters,
-/// but 1e-3 to 3.4e-3 for those of the feature extractor (MobileNetV2 and
-/// its up-convolutions) and of `conv`. The cause is not found yet: the
-/// group-wise correlation, the feature attention, the context upsampling
-/// and depthwise convolutions each agree within 3e-7 alone.
-const IGEV_STEREO_GRADIENT_TOLERANCE: f32 = 1e-2;
+/// Largest `|g_vulkan - g_cpu|` of a parameter, relative to `|g_cpu|`,
+/// beyond twice the CPU's own change under a `1 + 1e-6` scaling of the
+/// images (measured: below 4e-6 for RAFT-Stereo, below 2e-5 for IGEV-Stereo
+/// apart from the ill-conditioned parameters, whose Vulkan difference, up
+/// to 3.4e-3, matches the CPU's change).
+const GRADIENT_TOLERANCE: f32 = 1e-4;
+/// The relative scaling of the images that measures the sensitivity.
+const SENSITIVITY_SCALE: f32 = 1e-6;
 
 /// The gradient of every float parameter, in visiting order.
 struct ParameterGradients<'a> {
@@ -58,12 +64,14 @@ fn seeded_input(key: &str, channels: usize, low: f32, high: f32, device: &Device
 }
 
 /// Predictions and parameter gradients of `sum_k <prediction_k, weights>`
-/// for a right-side and a left-side (mirrored) pair of seeded images.
-fn run<B: Backbone>(net: &B, device: &Device) -> (Vec<Vec<f32>>, Vec<Vec<f32>>) {
+/// for a right-side and a left-side (mirrored) pair of seeded images,
+/// multiplied by `scale`.
+fn run<B: Backbone>(net: &B, device: &Device, scale: f32) -> (Vec<Vec<f32>>, Vec<Vec<f32>>) {
+    let image = |key| seeded_input(key, 3, 0.0, 1.0, device) * scale;
     let predictions = predict_sequence(
         net,
-        seeded_input("reference", 3, 0.0, 1.0, device),
-        seeded_input("target", 3, 0.0, 1.0, device),
+        image("reference"),
+        image("target"),
         &[Side::Right, Side::Left],
     );
     let weights = seeded_input("weights", 1, -1.0, 1.0, device);
@@ -86,8 +94,8 @@ fn run<B: Backbone>(net: &B, device: &Device) -> (Vec<Vec<f32>>, Vec<Vec<f32>>) 
 }
 
 /// Runs `net` with the parity fixtures' seeded weights on both devices and
-/// compares, allowing each parameter's gradient `gradient_tolerance`.
-fn assert_vulkan_matches_cpu<B: Backbone + OfficialLayout>(net: B, gradient_tolerance: f32) {
+/// compares (see [`GRADIENT_TOLERANCE`]).
+fn assert_vulkan_matches_cpu<B: Backbone + OfficialLayout>(net: B) {
     let shapes: BTreeMap<String, Vec<usize>> = export_state_dict(&net)
         .0
         .tensors
@@ -100,8 +108,9 @@ fn assert_vulkan_matches_cpu<B: Backbone + OfficialLayout>(net: B, gradient_tole
     let vulkan = open_device("vulkan")
         .expect("a Vulkan driver (tools/test.sh installs Mesa's lavapipe)")
         .autodiff();
-    let (cpu_predictions, cpu_grads) = run(&net.clone().fork(&cpu), &cpu);
-    let (vulkan_predictions, vulkan_grads) = run(&net.fork(&vulkan), &vulkan);
+    let (cpu_predictions, cpu_grads) = run(&net.clone().fork(&cpu), &cpu, 1.0);
+    let (_, nudged_grads) = run(&net.clone().fork(&cpu), &cpu, 1.0 + SENSITIVITY_SCALE);
+    let (vulkan_predictions, vulkan_grads) = run(&net.fork(&vulkan), &vulkan, 1.0);
 
     for (k, (want, got)) in cpu_predictions.iter().zip(&vulkan_predictions).enumerate() {
         let worst = want
@@ -118,15 +127,33 @@ fn assert_vulkan_matches_cpu<B: Backbone + OfficialLayout>(net: B, gradient_tole
     // Biases just before a normalisation have a zero gradient, computed as
     // rounding noise on both devices: compare those to the whole gradient.
     let total = l2(cpu_grads.iter().flatten().copied());
-    for (i, (want, got)) in cpu_grads.iter().zip(&vulkan_grads).enumerate() {
+    let mut ill_conditioned = 0;
+    for (i, ((want, got), nudged)) in cpu_grads
+        .iter()
+        .zip(&vulkan_grads)
+        .zip(&nudged_grads)
+        .enumerate()
+    {
         assert_eq!(want.len(), got.len(), "parameter {i}: gradient missing");
         let norm = l2(want.iter().copied());
         let difference = l2(want.iter().zip(got).map(|(a, b)| a - b));
+        let sensitivity = l2(want.iter().zip(nudged).map(|(a, b)| a - b));
+        let allowed = GRADIENT_TOLERANCE * norm.max(1e-3 * total);
+        if sensitivity > allowed {
+            ill_conditioned += 1;
+        }
         assert!(
-            difference <= gradient_tolerance * norm.max(1e-3 * total),
-            "parameter {i}: gradient differs by {difference} (norm {norm}, all parameters {total})"
+            difference <= allowed + 2.0 * sensitivity,
+            "parameter {i}: gradient differs by {difference} (norm {norm}, all parameters \
+             {total}; on the CPU, scaling the images by 1 + {SENSITIVITY_SCALE} changes it by \
+             {sensitivity})"
         );
     }
+    println!(
+        "{ill_conditioned} of {} parameters' gradients change beyond the tolerance when the \
+         images are scaled by 1 + {SENSITIVITY_SCALE} on the CPU",
+        cpu_grads.len()
+    );
 }
 
 #[test]
@@ -139,7 +166,7 @@ fn raft_stereo_on_vulkan_matches_the_cpu() {
         .with_train_iters(2)
         .init(&Device::flex().autodiff())
         .expect("valid config");
-    assert_vulkan_matches_cpu(net, RAFT_STEREO_GRADIENT_TOLERANCE);
+    assert_vulkan_matches_cpu(net);
 }
 
 #[test]
@@ -151,5 +178,5 @@ fn igev_stereo_on_vulkan_matches_the_cpu() {
         .with_train_iters(2)
         .init(&Device::flex().autodiff())
         .expect("valid config");
-    assert_vulkan_matches_cpu(net, IGEV_STEREO_GRADIENT_TOLERANCE);
+    assert_vulkan_matches_cpu(net);
 }
