@@ -100,6 +100,24 @@ fn rig() -> Rig {
     }
 }
 
+/// A batch of the first two scenes: a right-right item with r = 1/2 and a
+/// left-left item with r = 2, which goes through the mirroring.
+fn two_item_batch(scenes: &[Vec<Vec<f32>>], device: &Device) -> StepBatch {
+    let triplets = [
+        Triplet {
+            reference: 0,
+            student: 1,
+            teacher: 2,
+        },
+        Triplet {
+            reference: 2,
+            student: 0,
+            teacher: 1,
+        },
+    ];
+    batch(&scenes[..2], &triplets, &rig(), device)
+}
+
 #[test]
 fn loss_decreases_over_twenty_steps() {
     let device = Device::flex();
@@ -116,21 +134,8 @@ fn loss_decreases_over_twenty_steps() {
     let mut trainer = S3Trainer::new(net.init(32, &train_device).expect("valid net"), &config)
         .expect("valid config");
     // One fixed batch (the loss of random triplets varies more than it
-    // falls in 20 steps): a right-right item with r = 1/2 and a left-left
-    // item with r = 2, which goes through the mirroring.
-    let triplets = [
-        Triplet {
-            reference: 0,
-            student: 1,
-            teacher: 2,
-        },
-        Triplet {
-            reference: 2,
-            student: 0,
-            teacher: 1,
-        },
-    ];
-    let fixed = batch(&scenes, &triplets, &rig(), &device);
+    // falls in 20 steps).
+    let fixed = two_item_batch(&scenes, &device);
     // Mean |d_s - truth| of the student on the clean pairs (truth 8 and 16 px).
     let error = |trainer: &S3Trainer<crate::backbone::CostVolumeNet>| {
         let d = crate::test_util::values(crate::backbone::predict(
@@ -499,19 +504,7 @@ impl MixedPrecisionSetup {
             .expect("valid net");
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         let scenes: Vec<_> = (0..2).map(|_| scene(&mut rng)).collect();
-        let triplets = [
-            Triplet {
-                reference: 0,
-                student: 1,
-                teacher: 2,
-            },
-            Triplet {
-                reference: 2,
-                student: 0,
-                teacher: 1,
-            },
-        ];
-        let fixed = batch(&scenes, &triplets, &rig(), &Device::flex());
+        let fixed = two_item_batch(&scenes, &Device::flex());
         Self { net, fixed }
     }
 
