@@ -201,8 +201,8 @@ fn unusable_devices_are_one_clear_error_and_write_nothing() {
 /// `--precision f16` (mixed precision) on Vulkan: the same 4 steps as on
 /// the CPU in f16 and close to the f32 run's (from a loss scale the compact
 /// network's gradients fit, so no step is skipped), with the scale in
-/// `train.jsonl`; bf16, which lavapipe cannot compute in, is one clear
-/// error before anything is written.
+/// `train.jsonl` and in the checkpoint; bf16, which lavapipe cannot compute
+/// in, is one clear error before anything is written.
 #[test]
 fn mixed_precision_trains_on_vulkan_as_on_the_cpu() {
     let dir = tempfile::tempdir().unwrap();
@@ -222,6 +222,16 @@ fn mixed_precision_trains_on_vulkan_as_on_the_cpu() {
             .map(|l| l["loss_scale"].as_f64().unwrap())
             .collect();
         assert_eq!(scales, [32.0; 4], "{device}");
+        // The checkpoint keeps the scale for a resumed run.
+        let state: Value = serde_json::from_str(
+            &std::fs::read_to_string(out.join("checkpoints/step-0000004/state.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(
+            state["loss_scale"],
+            serde_json::json!({"scale": 32.0, "good_steps": 4}),
+            "{device}"
+        );
         logged
     };
     let exact = train(&manifest, &dir.path().join("f32"), "cpu", &steps);
