@@ -100,9 +100,9 @@ pub struct Args {
     pub device: String,
     /// The format the networks compute in (trainer.precision): f32, or mixed
     /// precision with bf16 or f16 (weights, optimiser state and losses stay
-    /// f32; f16 scales its loss dynamically). bf16 needs CUDA or the CPU; f16
-    /// runs on CUDA, on Vulkan GPUs with 16-bit float shaders, and on the CPU
-    /// (slower there than f32: only GPUs gain from it).
+    /// f32; f16 scales its loss dynamically). A device that cannot compute in
+    /// the format is refused at start (most Vulkan drivers lack bf16). The
+    /// CPU has both but runs them slower than f32: only GPUs gain.
     #[arg(long, value_name = "FORMAT")]
     pub precision: Option<String>,
     /// Discard the checkpoints in --out and start from fresh weights.
