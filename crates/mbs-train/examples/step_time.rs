@@ -11,10 +11,10 @@
 //! The compact network has the default 16 feature and 32 hidden channels;
 //! RAFT-Stereo and IGEV-Stereo the official defaults unless `--hidden-dim`,
 //! `--gru-levels`, `--train-iters`, `--test-iters` (both) or
-//! `--n-downsample` (RAFT-Stereo) say otherwise; `--precision bf16|f16`
-//! computes the networks in mixed precision (`trainer.precision`) (full size at the paper's
+//! `--n-downsample` (RAFT-Stereo) say otherwise (full size at the paper's
 //! 384x512 crop: `--backbone igev --height 384 --width 512 --steps 1
-//! --warmup 0`); the loss has the paper's defaults. The batch is random images (fixed seed) with
+//! --warmup 0`); `--precision bf16|f16` computes the networks in mixed
+//! precision (`trainer.precision`); the loss has the paper's defaults. The batch is random images (fixed seed) with
 //! the student's targets alternately right and left of the reference (so
 //! every other item goes through the mirroring), teacher targets on the
 //! right and baseline ratios alternately 1 and 1/2, as the ignored test

@@ -5,7 +5,7 @@
 
 use burn::config::Config;
 use burn::optim::{GradientsAccumulator, GradientsParams, ModuleOptimizer};
-use burn::tensor::{DType, Device, FloatDType, Tensor};
+use burn::tensor::{Device, FloatDType, Tensor};
 
 use crate::backbone::{Backbone, predict, predict_sequence};
 use crate::clip::unscale_and_clip;
@@ -212,12 +212,13 @@ impl Objective {
         } = batch;
         // Only the geometry term reads the teacher (Table 3 (A) runs without it).
         let teacher_disparity = if self.loss.config().geometry {
-            in_f32(predict(
+            predict(
                 teacher,
                 input(reference.clone()),
                 input(teacher_target.clone()),
                 &teacher_sides,
-            ))
+            )
+            .cast(FloatDType::F32)
         } else {
             let [batch, _, height, width] = reference.dims();
             Tensor::zeros([batch, 1, height, width], &reference.device())
@@ -229,7 +230,7 @@ impl Objective {
             &student_sides,
         )
         .into_iter()
-        .map(in_f32)
+        .map(|prediction| prediction.cast(FloatDType::F32))
         .collect();
         let weights = sequence_weights(
             predictions.len(),
@@ -542,15 +543,6 @@ impl<B: Backbone> S3Trainer<B> {
         };
         self.step += 1;
         Ok(report)
-    }
-}
-
-/// A network's prediction in f32, for the losses.
-fn in_f32(prediction: Tensor<4>) -> Tensor<4> {
-    if prediction.dtype() == DType::F32 {
-        prediction
-    } else {
-        prediction.cast(FloatDType::F32)
     }
 }
 
