@@ -14,7 +14,7 @@ timed steps; each runs in its own process (peak RSS is that process's
 VmHWM, PyTorch's includes the ~0.7 GB of the imported library, also shown
 alone). Rounds alternate burn and PyTorch; the fastest round of each
 counts. Configurations: batch 2 at 256x512 with 128 px (the finetuning crop
-of SPEC §5) and batch 4 at 64x128 with 32 px.
+of docs/conventions.md §5) and batch 4 at 64x128 with 32 px.
 
 `--precision bf16|f16` runs both in mixed precision: mbs's
 `trainer.precision`, and PyTorch's autocast (f16 with a GradScaler).

@@ -1,4 +1,4 @@
-//! Rig geometry (SPEC §2): N rectified pinhole cameras on one horizontal line,
+//! Rig geometry (conventions §2): N rectified pinhole cameras on one horizontal line,
 //! camera `k` at `x = k * B`, one focal length and principal point for all.
 
 use rayon::prelude::*;

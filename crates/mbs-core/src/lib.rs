@@ -2,7 +2,7 @@
 //! metrics and their reports, image-quality measures and the background-side
 //! fill, shared by every mbs crate.
 //!
-//! Conventions (see `SPEC.md` §2): cameras sit on one horizontal line, camera
+//! Conventions (see `docs/conventions.md` §2): cameras sit on one horizontal line, camera
 //! `k` at `x = k * B`; disparity is a non-negative magnitude on the reference
 //! grid; invalid depth or disparity is `+inf` in memory and in float files,
 //! and `0` in integer files.
@@ -13,6 +13,7 @@ pub mod error;
 pub mod fill;
 pub mod formats;
 pub mod geometry;
+pub mod layered;
 pub mod limits;
 pub mod median;
 pub mod metrics;

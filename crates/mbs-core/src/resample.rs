@@ -1,5 +1,5 @@
 //! Backward warping: rebuild the reference view from a target view and the
-//! reference disparity by sampling the target at `x -/+ d` (SPEC §2) with
+//! reference disparity by sampling the target at `x -/+ d` (conventions §2) with
 //! linear interpolation along the row.
 
 use rayon::prelude::*;

@@ -1,4 +1,4 @@
-//! KITTI stereo folders (SPEC §3): 2015 (`image_2`, `image_3`, `disp_occ_0`,
+//! KITTI stereo folders (conventions §3): 2015 (`image_2`, `image_3`, `disp_occ_0`,
 //! `disp_noc_0`) and 2012 (`colored_0`, `colored_1`, `disp_occ`,
 //! `disp_noc`), training or testing.
 

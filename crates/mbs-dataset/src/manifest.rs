@@ -1,4 +1,4 @@
-//! The dataset manifest (SPEC §3): the rig, the samples with one path per
+//! The dataset manifest (conventions §3): the rig, the samples with one path per
 //! view and optional depth, ground truth and masks, and the provenance of
 //! synthesised data. Paths are relative to the manifest's folder. The JSON
 //! Schema in `schemas/manifest.schema.json` describes the same model.
@@ -38,7 +38,7 @@ pub struct Manifest {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DepthInfo {
-    /// The encoding; only `carla-rgb` (SPEC §3) for now.
+    /// The encoding; only `carla-rgb` (conventions §3) for now.
     pub encoding: DepthEncoding,
     /// The camera whose depth is given.
     pub camera: usize,

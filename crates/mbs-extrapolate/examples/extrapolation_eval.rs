@@ -13,14 +13,12 @@
 
 use std::path::Path;
 
-use mbs_core::RgbImage;
-use mbs_extrapolate::disparity::MAX_ESTIMATED_DISPARITY;
 use mbs_extrapolate::evaluation::{
     ExtrapolatedView, Scene, ViewScore, extrapolate_scene, mask_union, mean_score, score_table,
 };
 use mbs_extrapolate::{DisparitySource, ExtrapolateError, Extrapolator};
 use mbs_infer::inpaint::{BackgroundFill, Inpainter, IsotropicFill};
-use mbs_infer::{Disparity, InferError, Sgm, SgmConfig, StereoMatcher, estimate_max_disparity};
+use mbs_infer::{Sgm, SgmConfig};
 use mbs_warp::Dilation;
 
 /// Disparity offset (px per view step) that makes the HCI scene's
@@ -29,31 +27,6 @@ const HCI_OFFSET: u32 = 4;
 
 /// Makes a fresh inpainter for one setting.
 type NewInpainter = fn() -> Box<dyn Inpainter>;
-
-/// The built-in matcher with its matching defaults and no median filter:
-/// the disparity source of `extrapolate` before it was tuned for warping.
-struct MatchingDefaults;
-
-impl MatchingDefaults {
-    fn sgm(left: &RgbImage, right: &RgbImage) -> Result<Sgm, InferError> {
-        let max = estimate_max_disparity(left, right, MAX_ESTIMATED_DISPARITY)?;
-        Ok(Sgm::new(SgmConfig::with_max_disparity(max)))
-    }
-}
-
-impl StereoMatcher for MatchingDefaults {
-    fn name(&self) -> &str {
-        "sgm-matching-defaults"
-    }
-
-    fn predict(&self, left: &RgbImage, right: &RgbImage) -> Result<Disparity, InferError> {
-        Self::sgm(left, right)?.predict(left, right)
-    }
-
-    fn predict_right(&self, left: &RgbImage, right: &RgbImage) -> Result<Disparity, InferError> {
-        Self::sgm(left, right)?.predict_right(left, right)
-    }
-}
 
 /// One setting: its name, whether it uses the matching defaults, the
 /// dilation and the inpainter.
@@ -97,9 +70,12 @@ const SETTINGS: [Setting; 6] = [
 
 fn source(matching_defaults: bool) -> DisparitySource {
     if matching_defaults {
-        DisparitySource::Matcher(Box::new(MatchingDefaults))
+        // The built-in matcher with its matching defaults (range estimated
+        // per pair) and no median filter: the disparity source of
+        // `extrapolate` before it was tuned for warping.
+        DisparitySource::Matcher(Box::new(Sgm::new(SgmConfig::with_max_disparity(0))))
     } else {
-        DisparitySource::Sgm { max_disparity: 0 }
+        DisparitySource::builtin(0)
     }
 }
 

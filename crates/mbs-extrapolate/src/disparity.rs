@@ -7,13 +7,10 @@ use std::path::Path;
 use mbs_core::formats::read_float_map;
 use mbs_core::median::median_filter;
 use mbs_core::{FloatImage, RgbImage, Side};
-use mbs_infer::{Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max_disparity};
+use mbs_infer::{Sgm, SgmConfig, SgmPaths, StereoMatcher};
 use mbs_warp::{fill_disparity_background, forward_warp};
 
 use crate::ExtrapolateError;
-
-/// The largest disparity range the built-in matcher estimates per pair.
-pub const MAX_ESTIMATED_DISPARITY: u32 = 256;
 
 /// Radius of the median filter applied to the built-in matcher's
 /// disparities before warping (a 5x5 square).
@@ -47,18 +44,21 @@ pub struct Disparities {
 
 /// Where disparities come from for a pair without disparity files.
 pub enum DisparitySource {
-    /// The built-in semi-global matcher searching `max_disparity`
-    /// disparities (0 = estimate per pair, up to 256), with the settings
-    /// of [`warping_sgm_config`] and a median filter on its output.
-    Sgm {
-        /// Number of disparities searched (0 = estimate).
-        max_disparity: u32,
-    },
+    /// The built-in semi-global matcher with these settings, and a median
+    /// filter on its output ([`SGM_MEDIAN_RADIUS`]).
+    BuiltIn(SgmConfig),
     /// Any other matcher, e.g. an ONNX network or a trained teacher.
     Matcher(Box<dyn StereoMatcher>),
 }
 
 impl DisparitySource {
+    /// The built-in matcher tuned for warping ([`warping_sgm_config`]),
+    /// searching `max_disparity` disparities (0 = estimate per pair, see
+    /// [`SgmConfig::max_disparity`]).
+    pub fn builtin(max_disparity: u32) -> Self {
+        DisparitySource::BuiltIn(warping_sgm_config(max_disparity))
+    }
+
     /// Estimates both views' disparities of the pair.
     pub fn disparities(
         &self,
@@ -68,12 +68,8 @@ impl DisparitySource {
         let sgm;
         let (matcher, median_radius): (&dyn StereoMatcher, u32) = match self {
             DisparitySource::Matcher(matcher) => (matcher.as_ref(), 0),
-            DisparitySource::Sgm { max_disparity } => {
-                let max_disparity = match *max_disparity {
-                    0 => estimate_max_disparity(left, right, MAX_ESTIMATED_DISPARITY)?,
-                    n => n,
-                };
-                sgm = Sgm::new(warping_sgm_config(max_disparity));
+            DisparitySource::BuiltIn(config) => {
+                sgm = Sgm::new(*config);
                 (&sgm, SGM_MEDIAN_RADIUS)
             }
         };

@@ -1,4 +1,4 @@
-//! Two views into four (SPEC §4): a rectified pair is extrapolated to a
+//! Two views into four (conventions §4): a rectified pair is extrapolated to a
 //! view one baseline left of its left view and one right of its right view
 //! by forward warping each view by its own disparity, masking what no pixel
 //! reached, and inpainting it. The result is a four-camera multi-baseline
@@ -13,7 +13,7 @@
 //! let left = mbs_core::formats::rgb::read_rgb("left.png".as_ref())?;
 //! let right = mbs_core::formats::rgb::read_rgb("right.png".as_ref())?;
 //! let extrapolator = Extrapolator::new(Dilation::None, Box::new(BackgroundFill::default()));
-//! let source = DisparitySource::Sgm { max_disparity: 0 };
+//! let source = DisparitySource::builtin(0);
 //! let disparities = source.disparities(&left, &right)?;
 //! let views = extrapolator.extrapolate(&left, &right, &disparities)?;
 //! # let _ = views.image_1;

@@ -26,7 +26,7 @@ fn a_frame_is_written_whole_and_described_by_its_manifest() {
     assert!(!frame.is_done(false));
     assert!(!out.exists());
 
-    let source = DisparitySource::Sgm { max_disparity: 16 };
+    let source = DisparitySource::builtin(16);
     frame.process(&extrapolator, Some(&source), true).unwrap();
     assert!(frame.is_done(true));
     let image_1 = mbs_core::formats::rgb::read_rgb(&frame.image_1).unwrap();

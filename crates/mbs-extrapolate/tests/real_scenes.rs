@@ -22,7 +22,7 @@ fn shipped_scenes() -> Vec<Scene> {
 /// `step` views apart.
 fn default_scores(scene: &Scene, step: usize) -> Vec<ViewScore> {
     let extrapolator = Extrapolator::new(Dilation::None, Box::new(BackgroundFill::default()));
-    let source = DisparitySource::Sgm { max_disparity: 0 };
+    let source = DisparitySource::builtin(0);
     evaluate_scene(scene, &extrapolator, &source, step).unwrap()
 }
 

@@ -5,7 +5,7 @@
 //! networks through ONNX Runtime ([`onnx::OnnxStereo`],
 //! [`onnx::OnnxInpainter`]).
 //!
-//! Matchers follow SPEC §2: they take a rectified pair whose target (right)
+//! Matchers follow conventions §2: they take a rectified pair whose target (right)
 //! camera lies right of the reference (left) one and return a non-negative
 //! disparity on the reference grid, `+inf` where there is none. The
 //! right-view disparity comes from mirroring
@@ -23,4 +23,4 @@ pub mod sgm;
 pub use block::BlockMatcher;
 pub use error::InferError;
 pub use matcher::{Disparity, StereoMatcher};
-pub use sgm::{Sgm, SgmConfig, SgmPaths, estimate_max_disparity};
+pub use sgm::{MAX_ESTIMATED_DISPARITY, Sgm, SgmConfig, SgmPaths, estimate_max_disparity};

@@ -2,7 +2,7 @@
 //! reference grid out.
 
 use image::imageops;
-use mbs_core::{FloatImage, MaskImage, RgbImage};
+use mbs_core::{FloatImage, MaskImage, RgbImage, Side};
 
 use crate::error::{InferError, Result};
 
@@ -33,19 +33,44 @@ pub trait StereoMatcher: Send + Sync {
     fn name(&self) -> &str;
 
     /// Disparity of the `left` view, with `right` as target: a left pixel at
-    /// column `x` is seen in `right` at `x - d` (SPEC §2). The views must
+    /// column `x` is seen in `right` at `x - d` (conventions §2). The views must
     /// have the same size.
     fn predict(&self, left: &RgbImage, right: &RgbImage) -> Result<Disparity>;
 
     /// Disparity of the `right` view, with `left` as target (a right pixel
     /// at `x` is seen in `left` at `x + d`): both views are mirrored, their
-    /// roles swapped, and the result mirrored back (SPEC §2).
+    /// roles swapped, and the result mirrored back (conventions §2).
     fn predict_right(&self, left: &RgbImage, right: &RgbImage) -> Result<Disparity> {
-        check_same_size(left, right)?;
-        let mirrored_right = imageops::flip_horizontal(right);
-        let mirrored_left = imageops::flip_horizontal(left);
-        Ok(self.predict(&mirrored_right, &mirrored_left)?.mirrored())
+        predict_mirrored(self, left, right)
     }
+
+    /// Disparity of `reference` with `target` on `side` of it: the one
+    /// entry point for pairs whose target may lie on either side
+    /// ([`StereoMatcher::predict`] or [`StereoMatcher::predict_right`]).
+    fn predict_toward(
+        &self,
+        reference: &RgbImage,
+        target: &RgbImage,
+        side: Side,
+    ) -> Result<Disparity> {
+        match side {
+            Side::Right => self.predict(reference, target),
+            Side::Left => self.predict_right(target, reference),
+        }
+    }
+}
+
+/// The `right` view's disparity by `matcher`: both views mirrored, their
+/// roles swapped, and the result mirrored back.
+pub fn predict_mirrored<M: StereoMatcher + ?Sized>(
+    matcher: &M,
+    left: &RgbImage,
+    right: &RgbImage,
+) -> Result<Disparity> {
+    check_same_size(left, right)?;
+    let mirrored_right = imageops::flip_horizontal(right);
+    let mirrored_left = imageops::flip_horizontal(left);
+    Ok(matcher.predict(&mirrored_right, &mirrored_left)?.mirrored())
 }
 
 /// An [`InferError::SizeMismatch`] unless both views have the same size.

@@ -1,4 +1,4 @@
-//! The right-view disparity through mirroring (SPEC §2) on a constructed
+//! The right-view disparity through mirroring (conventions §2) on a constructed
 //! pair: the right view is the left one shifted by a known disparity.
 
 use mbs_core::RgbImage;

@@ -2,7 +2,7 @@
 //! ray casting, with exact depth, disparity and occlusion ground truth: the
 //! built-in data for demos and tests.
 //!
-//! Geometry follows SPEC §2: camera `k` at `x = k * B`, all looking along
+//! Geometry follows conventions §2: camera `k` at `x = k * B`, all looking along
 //! `+z`, `y` down, pinhole `f`, `cx`, `cy` from [`mbs_core::Rig`]. Textures are
 //! defined on the 3D surface point (every view sees the same surface) and
 //! band-limited to the pixel grid, so backward warping with the exact

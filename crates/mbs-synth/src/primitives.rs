@@ -6,7 +6,7 @@ use serde::{Deserialize, Serialize};
 use crate::vec3::Vec3;
 
 /// The shape of one scene object, in world coordinates (metres; x right,
-/// y down, z forward, SPEC §2).
+/// y down, z forward, conventions §2).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Shape {

@@ -1,4 +1,4 @@
-//! A minimal 3-vector in f64 for the ray caster (world frame of SPEC §2:
+//! A minimal 3-vector in f64 for the ray caster (world frame of conventions §2:
 //! x right, y down, z forward, metres).
 
 use std::ops::{Add, Mul, Sub};

@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::vec3::Vec3;
 
-/// A weather of MBS20K (SPEC §3); names match the dataset's folder names.
+/// A weather of MBS20K (conventions §3); names match the dataset's folder names.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 pub enum Weather {
     /// Clear sky at night: dim moonlight, lit windows.

@@ -4,7 +4,7 @@
 //! Vulkan driver (`apt-get install mesa-vulkan-drivers`; `tools/test.sh`
 //! installs it), so every kernel of the compact network, the losses, warps
 //! and SSIM runs on burn's wgpu backend here (RAFT-Stereo's and
-//! IGEV-Stereo's are compared in `mbs_train::backbone`'s Vulkan tests);
+//! IGEV-Stereo's are compared in `mbs_nets`' Vulkan tests);
 //! without a Vulkan driver these tests fail, they never skip.
 #![allow(clippy::unwrap_used)]
 

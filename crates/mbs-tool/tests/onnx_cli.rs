@@ -1,5 +1,5 @@
 //! `mbs-tool predict --model … --card …` and `mbs-tool extrapolate
-//! --disparity onnx:… --inpaint onnx:…` on the test models of
+//! --model … --card … --inpaint onnx:…` on the test models of
 //! `testdata/onnx/` with real ONNX Runtime (from tools/setup-ort.sh).
 
 mod common;
@@ -138,7 +138,7 @@ fn extrapolate_uses_onnx_stereo_and_inpainting_models() {
     rgb::write_rgb_png(&left, &texture(0)).unwrap();
     rgb::write_rgb_png(&right, &texture(5)).unwrap();
     let out = dir.path().join("out");
-    let stereo = format!("onnx:{}", fixture("stereo_dynamic.onnx"));
+    let stereo = fixture("stereo_dynamic.onnx");
     let inpaint = format!("onnx:{}", fixture("inpaint_migan.onnx"));
     let (stereo_card, inpaint_card) = (
         fixture("stereo_dynamic.json"),
@@ -152,7 +152,7 @@ fn extrapolate_uses_onnx_stereo_and_inpainting_models() {
         right.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
-        "--disparity",
+        "--model",
         &stereo,
         "--card",
         &stereo_card,
@@ -196,7 +196,7 @@ fn extrapolate_names_missing_onnx_cards() {
     let dir = tempfile::tempdir().unwrap();
     let (left, right) = pair(dir.path());
     let out = dir.path().join("out").display().to_string();
-    let stereo = format!("onnx:{}", fixture("stereo_dynamic.onnx"));
+    let stereo = fixture("stereo_dynamic.onnx");
     let output = run(&[
         "extrapolate",
         "--left",
@@ -205,12 +205,12 @@ fn extrapolate_names_missing_onnx_cards() {
         &right,
         "--out",
         &out,
-        "--disparity",
+        "--model",
         &stereo,
     ]);
     assert!(!output.status.success());
     assert!(
-        String::from_utf8_lossy(&output.stderr).contains("--disparity onnx:MODEL needs --card"),
+        String::from_utf8_lossy(&output.stderr).contains("--card <NAME|FILE.json>"),
         "{}",
         text(&output)
     );

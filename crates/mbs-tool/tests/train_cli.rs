@@ -55,7 +55,10 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     for region in ["ALL", "NOC", "OCC"] {
         assert!(val[2][region]["out3"].as_f64().is_some(), "{region}");
     }
-    let sheet_width = 5 * 128 + 4 * 4;
+    // Reference | teacher | student | GT | weight map, 128x64 each under
+    // their captions, the disparity colour bar and the weight map's key
+    // below.
+    let sheet_size = (664, 187);
     for plot in ["loss.png", "val.png"] {
         let image = image::open(out.join(plot)).unwrap();
         let size = (mbs_viz::chart::WIDTH, mbs_viz::chart::HEIGHT);
@@ -96,7 +99,7 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     assert_eq!(out3, vec![0, 3, 6]);
     let images = events
         .iter()
-        .filter(|e| matches!(&e.value, EventValue::Image(_, size, _) if *size == (sheet_width, 64)))
+        .filter(|e| matches!(&e.value, EventValue::Image(_, size, _) if *size == sheet_size))
         .count();
     assert!(images >= 3, "{images} sheet images");
     let sheets: Vec<_> = std::fs::read_dir(out.join("visuals/step-0000006"))
@@ -104,9 +107,8 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
         .map(|e| e.unwrap().path())
         .collect();
     assert!(!sheets.is_empty());
-    // Reference | teacher | student | GT | weight map, 128 px each with 4 px gutters.
     let sheet = image::open(&sheets[0]).unwrap();
-    assert_eq!((sheet.width(), sheet.height()), (sheet_width, 64));
+    assert_eq!((sheet.width(), sheet.height()), sheet_size);
     assert!(out.join("checkpoints/step-0000006/teacher.bpk").is_file());
 
     // A finished run is not trained again.
@@ -168,12 +170,7 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     let output = run(&["export", &out_s, "--out", &exported_s]);
     assert!(output.status.success(), "{}", text(&output));
     let pred_weights = dir.path().join("pred-weights");
-    let output = run(&[
-        "predict",
-        "--manifest",
-        &manifest,
-        "--pair",
-        "1:0",
+    let weights_source = [
         "--backbone",
         "compact",
         "--weights",
@@ -182,14 +179,46 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
         "network.max_disparity=32",
         "--set",
         "network.compact.features=8",
-        "--out",
-        &pred_weights.display().to_string(),
-    ]);
+    ];
+    let pred_weights_s = pred_weights.display().to_string();
+    let mut args = vec!["predict", "--manifest", &manifest, "--pair", "1:0"];
+    args.extend(weights_source);
+    args.extend(["--out", &pred_weights_s]);
+    let output = run(&args);
     assert!(output.status.success(), "{}", text(&output));
     let same =
         mbs_core::formats::pfm::read_pfm_grey(&pred_weights.join("Town10/ClearNoon/000000.pfm"))
             .unwrap();
     assert_eq!(same.as_raw(), map.as_raw());
+
+    // extrapolate takes the same sources: with the run's teacher, and with
+    // the exported weights, the right view's disparity is predict's map.
+    let view = |k: usize| {
+        dir.path()
+            .join(format!("data/Town10/ClearNoon/000000/rgb_{k}.png"))
+            .display()
+            .to_string()
+    };
+    let (left, right) = (view(0), view(1));
+    let sources: [&[&str]; 2] = [&["--checkpoint", &out_s], &weights_source];
+    for (i, source) in sources.iter().enumerate() {
+        let extrapolated = dir.path().join(format!("extrapolated-{i}"));
+        let mut args = vec![
+            "extrapolate",
+            "--left",
+            &left,
+            "--right",
+            &right,
+            "--out",
+            extrapolated.to_str().unwrap(),
+        ];
+        args.extend(source.iter());
+        let output = run(&args);
+        assert!(output.status.success(), "{}", text(&output));
+        let right_disparity =
+            mbs_core::formats::pfm::read_pfm_grey(&extrapolated.join("disparity_3.pfm")).unwrap();
+        assert_eq!(right_disparity.as_raw(), map.as_raw(), "{source:?}");
+    }
 
     // train --init (the run, or its export) starts a new run from the
     // teacher: its step-0 validation is the first run's last one.

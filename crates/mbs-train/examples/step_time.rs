@@ -46,15 +46,15 @@ use burn::module::Module;
 use burn::optim::{GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, Distribution, Tensor};
 use mbs_core::geometry::Side;
-use mbs_train::backbone::predict;
+use mbs_nets::{
+    BackboneKind, CostVolumeNetConfig, IgevStereoConfig, NetworkConfig, RaftStereoConfig,
+    StereoNetwork, predict,
+};
 use mbs_train::clip::clip_global_norm;
 use mbs_train::ema::ema_update;
 use mbs_train::precision::Precision;
 use mbs_train::schedule::OneCycleConfig;
-use mbs_train::{
-    BackboneKind, CostVolumeNetConfig, IgevStereoConfig, LossConfig, LossInputs, NetworkConfig,
-    RaftStereoConfig, S3Loss, S3Trainer, StepBatch, StereoNetwork, TrainerConfig,
-};
+use mbs_train::{LossConfig, LossInputs, S3Loss, S3Trainer, StepBatch, TrainerConfig};
 
 type BoxError = Box<dyn std::error::Error>;
 

@@ -7,7 +7,7 @@ use burn::tensor::{Tensor, TensorData};
 use rand::Rng;
 
 use crate::error::TrainError;
-use crate::ranges;
+use mbs_nets::ranges;
 
 /// Strength of each augmentation; factors are drawn uniformly from
 /// `[1 - s, 1 + s]`, as torchvision's `ColorJitter`.
@@ -52,7 +52,8 @@ impl AugmentConfig {
             "occlusion_min_side",
             format!("{}..={}", self.occlusion_min_side, self.occlusion_max_side),
             "1 <= min side <= max side",
-        )
+        )?;
+        Ok(())
     }
 
     /// Augments a batch of pairs (`[B, 3, H, W]` in `[0, 1]`): the same
@@ -140,8 +141,8 @@ fn grey(images: Tensor<4>) -> Tensor<4> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_util::{assert_close, values};
     use burn::tensor::{Device, Distribution};
+    use mbs_nets::test_util::{assert_close, values};
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 

@@ -1,8 +1,8 @@
-//! Checkpoints of a run: `<run>/checkpoints/step-NNNNNNN/` holds the
-//! student, the teacher and the optimiser state (burnpack files, which keep
-//! the parameter ids the optimiser state is keyed by) and `state.json`
-//! (format, steps taken, the full configuration, the random state and an
-//! f16 run's loss scale).
+//! Checkpoints of a run, written and resumed: `<run>/checkpoints/step-NNNNNNN/`
+//! (the layout of [`mbs_nets::checkpoint`]) holds the student, the teacher
+//! and the optimiser state (burnpack files, which keep the parameter ids the
+//! optimiser state is keyed by) and `state.json` (format, steps taken, the
+//! full configuration, the random state and an f16 run's loss scale).
 //!
 //! A checkpoint is written into a temporary `step-NNNNNNN.PID-N.partial/`
 //! and renamed when complete, so a crash never leaves a folder that looks
@@ -15,27 +15,23 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
+use crate::config::RunConfig;
+use crate::error::TrainError;
+use crate::precision::LossScale;
+use crate::step::S3Trainer;
 use burn::module::Module;
 use burn::optim::ModuleOptimizer;
 use burn::store::{BurnpackStore, ModuleSnapshot};
 use burn::tensor::{Bytes, Device};
 use mbs_core::atomic::partial_path;
+use mbs_nets::checkpoint::{
+    CHECKPOINTS_DIR, FORMAT, STATE_FILE, STUDENT_FILE, TEACHER_FILE, completed, folder_name,
+    load_module, locate, read_state,
+};
+use mbs_nets::{Backbone, StereoNetwork};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-use crate::backbone::{Backbone, StereoNetwork};
-use crate::config::RunConfig;
-use crate::error::TrainError;
-use crate::precision::LossScale;
-use crate::step::S3Trainer;
-
-/// `format` of `state.json`.
-pub const FORMAT: &str = "mbs-checkpoint/1";
-/// Folder of a run's checkpoints.
-pub const CHECKPOINTS_DIR: &str = "checkpoints";
-const STATE_FILE: &str = "state.json";
-const STUDENT_FILE: &str = "student.bpk";
-const TEACHER_FILE: &str = "teacher.bpk";
 const OPTIMIZER_FILE: &str = "optimizer.bpk";
 
 /// `state.json` of a checkpoint.
@@ -62,11 +58,6 @@ pub struct RngState {
     /// The next step's index: its batch and augmentation generators are
     /// ChaCha8 seeded with `seed`, on stream `2 step` and `2 step + 1`.
     pub next_step: usize,
-}
-
-/// The checkpoint folder for `steps` taken.
-fn folder_name(steps: usize) -> String {
-    format!("step-{steps:07}")
 }
 
 /// Writes a checkpoint of a run's `trainer` into `run/checkpoints/` and
@@ -129,26 +120,6 @@ fn write_module<M: Module>(path: &Path, module: &M) -> Result<(), TrainError> {
     write_file(path, &bytes)
 }
 
-/// Completed checkpoints under `root`, oldest first.
-fn completed(root: &Path) -> Result<Vec<(usize, PathBuf)>, TrainError> {
-    let entries = match fs::read_dir(root) {
-        Ok(entries) => entries,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
-        Err(e) => return Err(TrainError::checkpoint(root, e)),
-    };
-    let mut found: Vec<(usize, PathBuf)> = entries
-        .filter_map(Result::ok)
-        .filter_map(|entry| {
-            let name = entry.file_name().into_string().ok()?;
-            let steps = name.strip_prefix("step-")?.parse().ok()?;
-            let path = entry.path();
-            path.join(STATE_FILE).is_file().then_some((steps, path))
-        })
-        .collect();
-    found.sort();
-    Ok(found)
-}
-
 fn prune(root: &Path, keep: usize) -> Result<(), TrainError> {
     let found = completed(root)?;
     let excess = found.len().saturating_sub(keep.max(1));
@@ -179,30 +150,9 @@ impl Checkpoint {
     /// Opens a checkpoint: a checkpoint folder, or a run folder (its newest
     /// checkpoint).
     pub fn open(path: &Path) -> Result<Checkpoint, TrainError> {
-        if !path.join(STATE_FILE).is_file() {
-            return Checkpoint::latest(path)?.ok_or_else(|| {
-                TrainError::checkpoint(
-                    path,
-                    "neither a checkpoint folder (no state.json) nor a training run with checkpoints/",
-                )
-            });
-        }
-        let state_path = path.join(STATE_FILE);
-        let text =
-            fs::read_to_string(&state_path).map_err(|e| TrainError::checkpoint(&state_path, e))?;
-        let state: CheckpointState = serde_json::from_str(&text).map_err(|e| {
-            TrainError::checkpoint(&state_path, format!("not a checkpoint state: {e}"))
-        })?;
-        if state.format != FORMAT {
-            return Err(TrainError::checkpoint(
-                &state_path,
-                format!("format `{}`, expected `{FORMAT}`", state.format),
-            ));
-        }
-        Ok(Checkpoint {
-            dir: path.to_path_buf(),
-            state,
-        })
+        let dir = locate(path)?;
+        let state = read_state(&dir)?;
+        Ok(Checkpoint { dir, state })
     }
 
     /// The configuration the checkpoint was trained with.
@@ -214,13 +164,13 @@ impl Checkpoint {
     /// The teacher (the network used for inference) on `device`.
     pub fn teacher(&self, device: &Device) -> Result<StereoNetwork, TrainError> {
         let net = self.config()?.network.init(device)?;
-        self.load_module(net, TEACHER_FILE)
+        Ok(load_module(net, &self.dir.join(TEACHER_FILE))?)
     }
 
     /// The student on `device`.
     pub fn student(&self, device: &Device) -> Result<StereoNetwork, TrainError> {
         let net = self.config()?.network.init(device)?;
-        self.load_module(net, STUDENT_FILE)
+        Ok(load_module(net, &self.dir.join(STUDENT_FILE))?)
     }
 
     /// The Adam state.
@@ -233,15 +183,5 @@ impl Checkpoint {
             .init()
             .from_bytes(Bytes::from_bytes_vec(bytes))
             .map_err(|e| TrainError::checkpoint(&path, e))
-    }
-
-    fn load_module<M: Module>(&self, mut module: M, file: &str) -> Result<M, TrainError> {
-        let path = self.dir.join(file);
-        let bytes = fs::read(&path).map_err(|e| TrainError::checkpoint(&path, e))?;
-        let mut store = BurnpackStore::from_bytes(Some(Bytes::from_bytes_vec(bytes)));
-        module
-            .load_from(&mut store)
-            .map_err(|e| TrainError::checkpoint(&path, e))?;
-        Ok(module)
     }
 }

@@ -8,7 +8,7 @@ use burn::optim::GradientsParams;
 use burn::tensor::Tensor;
 
 use crate::error::TrainError;
-use crate::host::read_scalar;
+use mbs_nets::host::read_scalar;
 
 /// Sums the squared gradients of a module's float parameters (on the device).
 struct SquaredNorm<'a> {
@@ -83,9 +83,9 @@ pub fn unscale_and_clip<M: Module>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_util::{assert_close, values};
     use burn::nn::{Linear, LinearConfig};
     use burn::tensor::{Device, TensorData};
+    use mbs_nets::test_util::{assert_close, values};
 
     /// A 2x2 linear layer with weight gradient [[1, 2], [2, 0]] and bias
     /// gradient [0, 4]: global norm sqrt(1 + 4 + 4 + 16) = 5.

@@ -7,17 +7,17 @@
 //! ranges.
 
 use burn::config::Config;
+use mbs_core::layered;
 use mbs_dataset::schema::EmbeddedSchema;
 use serde_json::Value;
 
 use crate::augment::AugmentConfig;
-use crate::backbone::NetworkConfig;
 use crate::data::DataConfig;
 use crate::error::TrainError;
 use crate::losses::LossConfig;
-use crate::ranges;
 use crate::schedule::OneCycleConfig;
 use crate::step::TrainerConfig;
+use mbs_nets::{NetworkConfig, ranges};
 
 /// The training configuration JSON Schema text.
 pub const TRAIN_CONFIG_SCHEMA: &str = include_str!("../../../schemas/train-config.schema.json");
@@ -88,12 +88,9 @@ impl RunConfig {
     pub fn layered(file: Option<&Value>, overrides: &[String]) -> Result<Self, TrainError> {
         let mut document = Self::paper().to_json()?;
         if let Some(file) = file {
-            merge(&mut document, file);
+            layered::merge(&mut document, file);
         }
-        for assignment in overrides {
-            let (path, value) = parse_override(assignment)?;
-            set_path(&mut document, &path, value)?;
-        }
+        layered::apply_overrides(&mut document, overrides).map_err(TrainError::Config)?;
         Self::from_document(&document)
     }
 
@@ -133,71 +130,12 @@ impl RunConfig {
         ] {
             ranges::at_least_one(name, value)?;
         }
-        self.network.validate()
+        Ok(self.network.validate()?)
     }
 }
 
 /// The schema every configuration document is checked against.
 static SCHEMA: EmbeddedSchema = EmbeddedSchema::new(TRAIN_CONFIG_SCHEMA);
-
-/// Overlays `top` on `base`: objects merge key by key, anything else replaces.
-fn merge(base: &mut Value, top: &Value) {
-    match (base, top) {
-        (Value::Object(base), Value::Object(top)) => {
-            for (key, value) in top {
-                match base.get_mut(key) {
-                    Some(slot) => merge(slot, value),
-                    None => {
-                        base.insert(key.clone(), value.clone());
-                    }
-                }
-            }
-        }
-        (base, top) => *base = top.clone(),
-    }
-}
-
-/// `a.b.c=value` into the path and a JSON value (`value` is parsed as JSON
-/// when it is, e.g. `3`, `false`, `[[0,1]]`, and taken as a string otherwise).
-fn parse_override(assignment: &str) -> Result<(Vec<String>, Value), TrainError> {
-    let (path, raw) = assignment.split_once('=').ok_or_else(|| {
-        TrainError::Config(format!(
-            "override `{assignment}` is not KEY=VALUE (e.g. trainer.loss.omega=3)"
-        ))
-    })?;
-    let path: Vec<String> = path.trim().split('.').map(str::to_owned).collect();
-    if path.iter().any(String::is_empty) {
-        return Err(TrainError::Config(format!(
-            "override `{assignment}`: empty key in the path"
-        )));
-    }
-    let value = serde_json::from_str(raw.trim()).unwrap_or_else(|_| Value::String(raw.into()));
-    Ok((path, value))
-}
-
-/// Sets an existing key of `document`; unknown keys are an error naming the
-/// keys that exist there.
-fn set_path(document: &mut Value, path: &[String], value: Value) -> Result<(), TrainError> {
-    let mut slot = document;
-    for (depth, key) in path.iter().enumerate() {
-        let Value::Object(map) = slot else {
-            return Err(TrainError::Config(format!(
-                "`{}` is not a section",
-                path[..depth].join(".")
-            )));
-        };
-        let known: Vec<String> = map.keys().cloned().collect();
-        slot = map.get_mut(key).ok_or_else(|| {
-            TrainError::Config(format!(
-                "unknown key `{}`; known here: {}",
-                path[..=depth].join("."),
-                known.join(", ")
-            ))
-        })?;
-    }
-    merge(slot, &value);
-    Ok(())
-}
 
 #[cfg(test)]
 mod tests {

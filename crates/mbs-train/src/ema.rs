@@ -6,7 +6,7 @@ use burn::module::{Module, ModuleMapper, ModuleVisitor, Param};
 use burn::tensor::Tensor;
 
 use crate::error::TrainError;
-use crate::ranges;
+use mbs_nets::ranges;
 
 /// Collects the student's float parameters, flattened, in visiting order.
 struct StudentReader {
@@ -94,9 +94,9 @@ pub fn ema_update<M: Module>(teacher: M, student: &M, momentum: f64) -> Result<M
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_util::{assert_close, values};
     use burn::nn::{Linear, LinearConfig};
     use burn::tensor::{Device, TensorData};
+    use mbs_nets::test_util::{assert_close, values};
 
     fn linear(weight: &[f32], bias: &[f32], device: &Device) -> Linear {
         let weight = Tensor::<2>::from_data(TensorData::new(weight.to_vec(), [2, 2]), device);

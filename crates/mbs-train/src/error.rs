@@ -2,27 +2,15 @@
 
 use std::path::PathBuf;
 
+use mbs_nets::NetError;
 use thiserror::Error;
 
 /// What can go wrong when configuring or feeding the S3 trainer.
 #[derive(Debug, Error, PartialEq)]
 pub enum TrainError {
-    /// A configuration value is out of its valid range.
-    #[error("invalid setting `{name}` = {value}: {reason}")]
-    InvalidSetting {
-        /// Name of the setting (as in the config struct).
-        name: &'static str,
-        /// The rejected value, printed.
-        value: String,
-        /// What a valid value looks like.
-        reason: &'static str,
-    },
     /// Tensors handed to a loss or a network do not have the expected shapes.
     #[error("shape mismatch: {0}")]
     Shape(String),
-    /// A value could not be read back from the device as f32.
-    #[error("could not read {0} back from the device as f32")]
-    Readback(&'static str),
     /// A rig with fewer than two views cannot give a stereo pair.
     #[error("a multi-baseline sample needs at least 2 views, got {0}")]
     TooFewViews(usize),
@@ -41,31 +29,10 @@ pub enum TrainError {
         /// What is wrong with it.
         reason: String,
     },
-    /// A checkpoint could not be written or read.
-    #[error("checkpoint {path}: {reason}")]
-    Checkpoint {
-        /// The checkpoint folder or file.
-        path: PathBuf,
-        /// What went wrong.
-        reason: String,
-    },
-    /// A device could not be opened or failed while training on it.
-    #[error("device `{name}`: {reason}")]
-    Device {
-        /// The device as named (`cuda:0`, `vulkan`).
-        name: String,
-        /// What is missing or went wrong.
-        reason: String,
-    },
-    /// A weights file (an official checkpoint, an export) could not be
-    /// read, written or matched to the network.
-    #[error("weights {path}: {reason}")]
-    Weights {
-        /// The weights file.
-        path: PathBuf,
-        /// What went wrong.
-        reason: String,
-    },
+    /// A network could not be built, loaded or run, a checkpoint written or
+    /// read, or a device used.
+    #[error(transparent)]
+    Network(#[from] NetError),
 }
 
 impl From<mbs_core::FormatError> for TrainError {
@@ -95,19 +62,8 @@ impl TrainError {
         }
     }
 
-    /// A [`TrainError::Weights`] for `path`.
-    pub fn weights(path: impl Into<PathBuf>, reason: impl ToString) -> Self {
-        TrainError::Weights {
-            path: path.into(),
-            reason: reason.to_string(),
-        }
-    }
-
-    /// A [`TrainError::Checkpoint`] for `path`.
+    /// A checkpoint error ([`NetError::Checkpoint`]) for `path`.
     pub fn checkpoint(path: impl Into<PathBuf>, reason: impl ToString) -> Self {
-        TrainError::Checkpoint {
-            path: path.into(),
-            reason: reason.to_string(),
-        }
+        NetError::checkpoint(path, reason).into()
     }
 }

@@ -1,16 +1,16 @@
-//! S3 self-supervised multi-baseline stereo training on burn: losses, masks and weight map, EMA teacher, schedules, triplet sampling, data pipeline, backbones, checkpoints, and training runs with their logs, pictures and TensorBoard events.
+//! S3 self-supervised multi-baseline stereo training on burn: losses, masks and weight map, EMA teacher, schedules, triplet sampling, data pipeline, checkpoints, and training runs with their logs, pictures and TensorBoard events; the networks it trains are `mbs-nets`'.
 //!
 //! Everything runs on burn's run-time selected device (`Device::flex()` on
-//! CPU, Vulkan or CUDA through [`device::open_device`], `.autodiff()` for
-//! training; [`step::S3Trainer::step_parallel`] shares a step among
-//! several); see `DESIGN.md` for the choice of burn.
+//! CPU, Vulkan or CUDA through [`mbs_nets::device::open_device`],
+//! `.autodiff()` for training; [`step::S3Trainer::step_parallel`] shares a
+//! step among several); see `docs/design.md` for the choice of burn.
 //!
 //! One step, as [`step::S3Trainer::step`] runs it:
 //!
 //! ```text
 //! sampling::TripletSampler  -> (reference r, student target t_s, teacher target t_t), r = B_s / B_t
 //! augment::AugmentConfig    -> colour jitter + occlusion of the student's pair
-//! backbone::predict         -> d_t = teacher(I_r, I_tt)     (no autodiff, left targets mirrored)
+//! mbs_nets::predict         -> d_t = teacher(I_r, I_tt)     (no autodiff, left targets mirrored)
 //!                              d_s = student(aug I_r, aug I_ts)
 //! losses::S3Loss::compute   -> L = mean(A |d_s - r d_t|) + lambda_p mean(M_s P_s) + lambda_s L_s
 //!                              (P, M on clean images; mask::weight_map gives A)
@@ -19,35 +19,22 @@
 //! ```
 
 pub mod augment;
-pub mod backbone;
 pub mod checkpoint;
 pub mod clip;
 pub mod config;
 pub mod data;
-pub mod device;
 pub mod ema;
 pub mod error;
-pub mod host;
-pub mod inference;
 pub mod losses;
 pub mod mask;
-pub mod mirror;
 pub mod optimizer;
 pub mod precision;
-mod ranges;
 pub mod run;
 pub mod sampling;
 pub mod schedule;
 pub mod step;
 pub mod tensorboard;
 
-#[cfg(test)]
-mod test_util;
-
-pub use backbone::{
-    Backbone, BackboneKind, CostVolumeNet, CostVolumeNetConfig, IgevStereo, IgevStereoConfig,
-    NetworkConfig, RaftStereo, RaftStereoConfig, StereoNetwork,
-};
 pub use config::RunConfig;
 pub use data::StepBatch;
 pub use error::TrainError;

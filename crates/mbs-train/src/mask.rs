@@ -39,8 +39,8 @@ pub fn weight_map(teacher_mask: Tensor<4>, student_mask: Tensor<4>, omega: f64) 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_util::{assert_close, tensor4, values};
     use burn::tensor::Device;
+    use mbs_nets::test_util::{assert_close, tensor4, values};
 
     fn maps() -> (Tensor<4>, Tensor<4>) {
         let device = Device::flex();

@@ -8,7 +8,7 @@ use burn::optim::{AdamConfig, AdamWConfig, ModuleOptimizer};
 use serde::{Deserialize, Serialize};
 
 use crate::error::TrainError;
-use crate::ranges;
+use mbs_nets::ranges;
 
 /// Adam or AdamW.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -38,7 +38,8 @@ impl OptimizerConfig {
     /// Checks epsilon and the weight decay.
     pub fn validate(&self) -> Result<(), TrainError> {
         ranges::positive("optimizer.epsilon", self.epsilon)?;
-        ranges::non_negative("optimizer.weight_decay", self.weight_decay)
+        ranges::non_negative("optimizer.weight_decay", self.weight_decay)?;
+        Ok(())
     }
 
     /// A fresh optimiser.

@@ -19,6 +19,7 @@ use burn::tensor::{Device, FloatDType, Tensor};
 use serde::{Deserialize, Serialize};
 
 use crate::error::TrainError;
+use mbs_nets::NetError;
 
 /// The format the networks compute in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -68,13 +69,14 @@ pub fn check_support<'a>(
         .into_iter()
         .find(|(_, device)| !device.supports_dtype(dtype))
     {
-        Some((name, _)) => Err(TrainError::Device {
+        Some((name, _)) => Err(NetError::Device {
             name,
             reason: format!(
                 "it cannot compute in {precision} (trainer.precision): use another precision \
                  (f32 always works) or another device"
             ),
-        }),
+        }
+        .into()),
         None => Ok(()),
     }
 }

@@ -1,4 +1,4 @@
-//! Triplet sampling (SPEC §5): a reference view and, independently and with
+//! Triplet sampling (conventions §5): a reference view and, independently and with
 //! replacement, a student target and a teacher target among the other
 //! N - 1 views, so N (N - 1)^2 triplets per sample.
 

@@ -5,7 +5,7 @@ use std::f64::consts::PI;
 use burn::config::Config;
 
 use crate::error::TrainError;
-use crate::ranges;
+use mbs_nets::ranges;
 
 /// How the one-cycle schedule moves between its end points.
 #[derive(Config, Debug, Copy, PartialEq)]

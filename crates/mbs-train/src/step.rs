@@ -7,17 +7,18 @@ use burn::config::Config;
 use burn::optim::{GradientsAccumulator, GradientsParams, ModuleOptimizer};
 use burn::tensor::{Device, FloatDType, Tensor};
 
-use crate::backbone::{Backbone, predict, predict_sequence};
 use crate::clip::unscale_and_clip;
 use crate::data::StepBatch;
 use crate::ema::ema_update;
 use crate::error::TrainError;
-use crate::host::{read_all, read_scalar};
+use mbs_nets::NetError;
 use crate::losses::{LossConfig, LossInputs, LossOutput, S3Loss};
 use crate::optimizer::OptimizerConfig;
 use crate::precision::{LossScale, Precision, cast_network};
-use crate::ranges;
 use crate::schedule::{CosineMomentum, OneCycle, OneCycleConfig};
+use mbs_nets::host::{read_all, read_scalar};
+use mbs_nets::ranges;
+use mbs_nets::{Backbone, predict, predict_sequence};
 
 /// Everything a training run sets besides the network.
 #[derive(Config, Debug)]
@@ -161,7 +162,8 @@ impl TrainerConfig {
         ranges::unit("sequence_gamma", self.sequence_gamma)?;
         self.optimizer.validate()?;
         ranges::positive("initial_loss_scale", self.initial_loss_scale)?;
-        ranges::positive("grad_clip_norm", self.grad_clip_norm)
+        ranges::positive("grad_clip_norm", self.grad_clip_norm)?;
+        Ok(())
     }
 }
 
@@ -474,10 +476,11 @@ impl<B: Backbone> S3Trainer<B> {
                 .zip(devices)
                 .map(|(worker, device)| {
                     worker.join().unwrap_or_else(|_| {
-                        Err(TrainError::Device {
+                        Err(NetError::Device {
                             name: format!("{device:?}"),
                             reason: "its share of the step failed (the runtime panicked)".into(),
-                        })
+                        }
+                        .into())
                     })
                 })
                 .collect::<Result<Vec<_>, _>>()

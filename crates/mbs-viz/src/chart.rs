@@ -19,8 +19,8 @@ use crate::VizError;
 pub const WIDTH: u32 = 900;
 /// Canvas height in pixels.
 pub const HEIGHT: u32 = 520;
-/// The font family every text of a chart is drawn in.
-const FONT: &str = "sans-serif";
+/// The font family every text of a chart (and caption) is drawn in.
+pub(crate) const FONT: &str = "sans-serif";
 /// DejaVu Sans (licence in `fonts/LICENSE-DejaVu.txt`).
 const FONT_TTF: &[u8] = include_bytes!("../fonts/DejaVuSans.ttf");
 /// Series colours, in order (Matplotlib's "tab10"); more series reuse them.
@@ -62,7 +62,7 @@ pub struct LineChart {
 }
 
 /// Registers the embedded font with plotters, once per process.
-fn register_embedded_font() {
+pub(crate) fn register_embedded_font() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
         // The bytes are a valid TTF compiled into the binary; a failure
@@ -303,7 +303,7 @@ impl LineChart {
 
 /// A tick label: at most three significant digits without trailing
 /// zeros, scientific for tiny or huge magnitudes.
-fn format_tick(v: f64) -> String {
+pub(crate) fn format_tick(v: f64) -> String {
     let a = v.abs();
     if a == 0.0 {
         return "0".into();

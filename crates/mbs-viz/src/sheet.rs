@@ -1,44 +1,12 @@
-//! Contact sheets: images tiled side by side, and the two-row sheet of an
-//! extrapolated frame (four views, synthesised pixels, disparities).
+//! The captioned two-row contact sheet of an extrapolated frame (four
+//! views, synthesised pixels, disparities and their colour bar).
 
-use image::{GenericImage, Rgb};
+use image::Rgb;
 use mbs_core::{FloatImage, MaskImage, RgbImage};
 
 use crate::VizError;
 use crate::colormap::{colorize_disparity, disparity_scale};
-
-/// Width of the white gap between tiles of [`side_by_side`].
-const GUTTER: u32 = 4;
-/// Colour of that gap.
-const GUTTER_COLOR: [u8; 3] = [255, 255, 255];
-
-/// Tiles same-height `images` left to right with a 4-pixel white gap
-/// between neighbours. An empty list or differing heights are an error.
-pub fn side_by_side(images: &[&RgbImage]) -> Result<RgbImage, VizError> {
-    let Some(first) = images.first() else {
-        return Err(VizError::Input("no images to put side by side".into()));
-    };
-    let height = first.height();
-    for (i, img) in images.iter().enumerate() {
-        if img.height() != height {
-            return Err(VizError::Input(format!(
-                "image {i} is {} pixels high, image 0 is {height}: side by side needs one height",
-                img.height()
-            )));
-        }
-    }
-    let width =
-        images.iter().map(|img| img.width()).sum::<u32>() + GUTTER * (images.len() as u32 - 1);
-    let mut sheet = RgbImage::from_pixel(width, height, Rgb(GUTTER_COLOR));
-    let mut x0 = 0;
-    for img in images {
-        sheet
-            .copy_from(*img, x0, 0)
-            .map_err(|e| VizError::Draw(e.to_string()))?;
-        x0 += img.width() + GUTTER;
-    }
-    Ok(sheet)
-}
+use crate::labelled::{Key, Panel, labelled_grid};
 
 /// Tints the pixels set in `mask` towards red.
 fn tint(view: &RgbImage, mask: &MaskImage) -> RgbImage {
@@ -52,11 +20,13 @@ fn tint(view: &RgbImage, mask: &MaskImage) -> RgbImage {
     out
 }
 
-/// The contact sheet of one extrapolated frame, two rows of four tiles:
-/// `image_1, image_2, image_3, image_4`, then `image_1` tinted red where
-/// `masks[0]` marks synthesised pixels, the two disparities (one colour
-/// scale), and `image_4` tinted by `masks[1]`. Every input has the size of
-/// `views[0]`; another size is an error.
+/// The contact sheet of one extrapolated frame, two rows of four captioned
+/// panels: `image_1, image_2, image_3, image_4`, then `image_1` tinted red
+/// where `masks[0]` marks synthesised pixels, the two disparities (one
+/// colour scale), and `image_4` tinted by `masks[1]`; below them, a colour
+/// bar of the disparity scale in pixels. The layout is that of
+/// [`labelled_grid`]. Every input has the size of `views[0]`; another size
+/// is an error.
 pub fn extrapolation_sheet(
     views: [&RgbImage; 4],
     masks: [&MaskImage; 2],
@@ -73,86 +43,130 @@ pub fn extrapolation_sheet(
             "a tile is {other:?} but the first view is {size:?} (width, height)"
         )));
     }
-    let (w, h) = size;
     let max = disparity_scale(disparities);
-    let bottom = [
-        tint(views[0], masks[0]),
-        colorize_disparity(disparities[0], max),
-        colorize_disparity(disparities[1], max),
-        tint(views[3], masks[1]),
+    let tinted = [tint(views[0], masks[0]), tint(views[3], masks[1])];
+    let coloured = disparities.map(|d| colorize_disparity(d, max));
+    let top = [
+        Panel::new(views[0], "new view image_1"),
+        Panel::new(views[1], "input (left, image_2)"),
+        Panel::new(views[2], "input (right, image_3)"),
+        Panel::new(views[3], "new view image_4"),
     ];
-    let mut sheet = RgbImage::new(4 * w, 2 * h);
-    let tiles = views.into_iter().chain(bottom.iter());
-    for (i, tile) in tiles.enumerate() {
-        let (x, y) = ((i as u32 % 4) * w, (i as u32 / 4) * h);
-        sheet
-            .copy_from(tile, x, y)
-            .map_err(|e| VizError::Draw(e.to_string()))?;
-    }
-    Ok(sheet)
+    let bottom = [
+        Panel::new(&tinted[0], "image_1: synthesised pixels (red)"),
+        Panel::new(&coloured[0], "disparity image_2 (px)"),
+        Panel::new(&coloured[1], "disparity image_3 (px)"),
+        Panel::new(&tinted[1], "image_4: synthesised pixels (red)"),
+    ];
+    let key = Key::DisparityBar {
+        title: "disparity of image_2 and image_3 (px)".into(),
+        max,
+    };
+    labelled_grid(&[&top, &bottom], &[key])
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::weight_map::{TEACHER_INVALID, weight_map_image};
+    use crate::colormap::turbo;
+
+    /// A picture whose every pixel differs from its neighbours.
+    fn picture(width: u32, height: u32, seed: u8) -> RgbImage {
+        RgbImage::from_fn(width, height, |x, y| {
+            Rgb([(x * 5 + y) as u8 ^ seed, (y * 11 + x) as u8, seed])
+        })
+    }
+
+    /// The top left corner of the only place where `tile` lies in `sheet`.
+    fn find(sheet: &RgbImage, tile: &RgbImage) -> (u32, u32) {
+        let (w, h) = tile.dimensions();
+        let places: Vec<(u32, u32)> = (0..=sheet.height() - h)
+            .flat_map(|y| (0..=sheet.width() - w).map(move |x| (x, y)))
+            .filter(|&(x, y)| {
+                tile.enumerate_pixels()
+                    .all(|(i, j, p)| sheet.get_pixel(x + i, y + j) == p)
+            })
+            .collect();
+        assert_eq!(places.len(), 1, "{places:?}");
+        places[0]
+    }
+
+    /// Pixels darker than 110 in every channel (text) in the rectangle.
+    fn dark(image: &RgbImage, (x, y): (u32, u32), (w, h): (u32, u32)) -> usize {
+        (y..y + h)
+            .flat_map(|y| (x..x + w).map(move |x| (x, y)))
+            .filter(|&(x, y)| image.get_pixel(x, y).0.iter().all(|&c| c < 110))
+            .count()
+    }
 
     #[test]
-    fn extrapolation_tiles_land_in_their_cells() {
-        let view = |v: u8| RgbImage::from_pixel(3, 2, Rgb([v, v, v]));
-        let (a, b, c, d) = (view(10), view(20), view(30), view(40));
-        let mut mask = MaskImage::new(3, 2);
+    fn extrapolation_tiles_land_in_their_cells_under_captions() {
+        let (w, h) = (160, 64);
+        let views: Vec<RgbImage> = (0..4).map(|i| picture(w, h, 40 * i)).collect();
+        let mut mask = MaskImage::new(w, h);
         mask.put_pixel(0, 0, image::Luma([255]));
-        let disp = FloatImage::from_pixel(3, 2, image::Luma([1.0]));
-        let sheet = extrapolation_sheet([&a, &b, &c, &d], [&mask, &mask], [&disp, &disp]).unwrap();
-        assert_eq!(sheet.dimensions(), (12, 4));
-        assert_eq!(sheet.get_pixel(4, 0).0, [20; 3]);
-        assert_eq!(sheet.get_pixel(9, 1).0, [40; 3]);
-        assert_eq!(sheet.get_pixel(0, 2).0, [133, 5, 5]); // tinted
-        assert_eq!(sheet.get_pixel(1, 2).0, [10; 3]); // not in the mask
+        let disparity = |s: f32| FloatImage::from_fn(w, h, |x, _| image::Luma([s * x as f32]));
+        let (left, right) = (disparity(0.1), disparity(0.05));
+        let [a, b, c, d] = [&views[0], &views[1], &views[2], &views[3]];
+        let sheet = extrapolation_sheet([a, b, c, d], [&mask, &mask], [&left, &right]).unwrap();
+
+        let tinted = tint(a, &mask);
+        let Rgb([r, g, bl]) = *a.get_pixel(0, 0);
+        assert_eq!(tinted.get_pixel(0, 0).0, [r / 2 + 128, g / 2, bl / 2]);
+        assert_eq!(tinted.get_pixel(1, 0), a.get_pixel(1, 0)); // not in the mask
+        let max = 0.1 * (w - 1) as f32;
+        let tiles = [
+            a.clone(),
+            b.clone(),
+            c.clone(),
+            d.clone(),
+            tinted,
+            colorize_disparity(&left, max),
+            colorize_disparity(&right, max),
+            tint(d, &mask),
+        ];
+        let corners: Vec<(u32, u32)> = tiles.iter().map(|t| find(&sheet, t)).collect();
+        // Two rows of four, columns aligned, a gap between columns and a
+        // caption strip with text above every tile.
+        let step = corners[1].0 - corners[0].0;
+        assert!(step > w && step < w + 20, "{corners:?}");
+        for (i, &(x, y)) in corners.iter().enumerate() {
+            let (column, row) = (i as u32 % 4, i / 4);
+            assert_eq!(x, column * step, "tile {i}");
+            assert_eq!(y, corners[4 * row].1, "tile {i}");
+            assert!(
+                dark(&sheet, (x, y - 15), (w, 15)) > 20,
+                "caption of tile {i}"
+            );
+        }
+        let bottom = corners[4].1 + h;
+        assert!(corners[0].1 > 15 && corners[4].1 > corners[0].1 + h + 15);
+        // The colour bar below: both ends of the scale, and text.
+        let below: Vec<[u8; 3]> = (bottom..sheet.height())
+            .flat_map(|y| (0..sheet.width()).map(move |x| (x, y)))
+            .map(|(x, y)| sheet.get_pixel(x, y).0)
+            .collect();
+        for end in [turbo(0.0), turbo(1.0)] {
+            assert!(below.iter().filter(|p| **p == end).count() >= 14, "{end:?}");
+        }
+        let height = sheet.height() - bottom;
+        assert!(dark(&sheet, (0, bottom), (sheet.width(), height)) > 200);
+        assert_eq!(sheet.width(), 4 * w + 3 * (step - w));
 
         let small = FloatImage::new(2, 2);
-        let err =
-            extrapolation_sheet([&a, &b, &c, &d], [&mask, &mask], [&disp, &small]).unwrap_err();
+        let err = extrapolation_sheet([a, b, c, d], [&mask, &mask], [&left, &small]).unwrap_err();
         assert!(err.to_string().contains("(2, 2)"), "{err}");
     }
 
     #[test]
-    fn side_by_side_tiles_with_white_gutters() {
-        // A contact sheet: reference, a coloured disparity, a weight map.
-        let reference = RgbImage::from_pixel(3, 2, Rgb([10, 20, 30]));
-        let disparity = FloatImage::from_raw(5, 2, (0..10).map(|v| v as f32).collect()).unwrap();
-        let coloured = colorize_disparity(&disparity, 9.0);
-        let weights = weight_map_image(&reference, &[0.0; 6], &[0.0; 6]).unwrap();
-        let sheet = side_by_side(&[&reference, &coloured, &weights]).unwrap();
-        assert_eq!(sheet.dimensions(), (3 + 4 + 5 + 4 + 3, 2));
-        for y in 0..2 {
-            for x in (3..7).chain(12..16) {
-                assert_eq!(
-                    sheet.get_pixel(x, y).0,
-                    [255, 255, 255],
-                    "gutter at {x},{y}"
-                );
-            }
-            assert_eq!(sheet.get_pixel(2, y), reference.get_pixel(2, y));
-            for x in 0..5 {
-                assert_eq!(sheet.get_pixel(7 + x, y), coloured.get_pixel(x, y));
-            }
-            assert_eq!(sheet.get_pixel(16, y).0, TEACHER_INVALID);
+    fn extrapolation_sheets_of_tiny_views_work() {
+        for (w, h) in [(1, 1), (5, 3), (64, 160)] {
+            let view = RgbImage::new(w, h);
+            let mask = MaskImage::new(w, h);
+            let disparity = FloatImage::new(w, h);
+            let sheet = extrapolation_sheet([&view; 4], [&mask; 2], [&disparity; 2]).unwrap();
+            assert!(sheet.width() >= 4 * w && sheet.height() > 2 * h);
         }
-        // One image: no gutter.
-        assert_eq!(side_by_side(&[&reference]).unwrap(), reference);
     }
 
-    #[test]
-    fn side_by_side_needs_images_of_one_height() {
-        let a = RgbImage::new(2, 2);
-        let b = RgbImage::new(2, 3);
-        let err = side_by_side(&[&a, &b]).unwrap_err();
-        assert!(
-            err.to_string().contains("image 1 is 3 pixels high"),
-            "{err}"
-        );
-        assert!(side_by_side(&[]).is_err());
-    }
 }

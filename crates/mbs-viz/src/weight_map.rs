@@ -4,6 +4,7 @@
 use mbs_core::RgbImage;
 
 use crate::VizError;
+use crate::labelled::Key;
 
 /// Brightness of the grey-scale reference under the weight map.
 const DARKEN: f32 = 0.35;
@@ -12,6 +13,31 @@ pub const TEACHER_INVALID: [u8; 3] = [230, 40, 40];
 /// Weight omega: the teacher's mask is on and the student's is off
 /// (occluded in the student's target only).
 pub const STUDENT_ONLY_INVALID: [u8; 3] = [40, 210, 60];
+
+/// The swatch of weight 1 in [`weight_map_key`]: a white reference at
+/// [`DARKEN`] brightness (darker references give darker greys).
+const BOTH_VALID_SWATCH: [u8; 3] = [89, 89, 89];
+
+/// The key to the colours of [`weight_map_image`], for a labelled sheet.
+pub fn weight_map_key() -> Key {
+    Key::Swatches {
+        title: "weight map A".into(),
+        entries: vec![
+            (
+                TEACHER_INVALID,
+                "A = 0: teacher mask off (occluded or unreliable)".into(),
+            ),
+            (
+                STUDENT_ONLY_INVALID,
+                "A = ω: only the student's mask off".into(),
+            ),
+            (
+                BOTH_VALID_SWATCH,
+                "A = 1: both masks on (reference in grey)".into(),
+            ),
+        ],
+    }
+}
 
 /// The paper's picture of the occlusion-aware weight map A over the
 /// reference image: red where the teacher mask is 0 (A = 0), green where
@@ -79,6 +105,25 @@ mod tests {
         // Teacher invalid wins over student invalid.
         let map = weight_map_image(&reference, &[0.0; 4], &[0.0; 4]).unwrap();
         assert!(map.pixels().all(|p| p.0 == TEACHER_INVALID));
+    }
+
+    #[test]
+    fn the_key_shows_the_three_colours() {
+        let Key::Swatches { entries, .. } = weight_map_key() else {
+            panic!("the weight map key is a list of swatches");
+        };
+        let colours: Vec<[u8; 3]> = entries.iter().map(|(c, _)| *c).collect();
+        let white = RgbImage::from_pixel(1, 1, image::Rgb([255; 3]));
+        let both = weight_map_image(&white, &[1.0], &[1.0]).unwrap();
+        assert_eq!(
+            colours,
+            [
+                TEACHER_INVALID,
+                STUDENT_ONLY_INVALID,
+                both.get_pixel(0, 0).0
+            ]
+        );
+        assert!(entries[0].1.starts_with("A = 0") && entries[1].1.starts_with("A = ω"));
     }
 
     #[test]

@@ -1,5 +1,5 @@
 //! One extrapolated view before inpainting: forward warp, hole mask, and the
-//! dilated mask of pixels to re-synthesise (SPEC §4, steps 2 and 3).
+//! dilated mask of pixels to re-synthesise (conventions §4, steps 2 and 3).
 
 use mbs_core::{FloatImage, MaskImage, RgbImage, Side};
 

@@ -1,8 +1,8 @@
 //! Forward warping of a view by its own disparity (z-buffer splatting), hole
 //! masks and mask dilation: the geometric half of novel-view extrapolation
-//! (SPEC §4, steps 2 and 3). Inpainting the masked pixels is `mbs-infer`'s job.
+//! (conventions §4, steps 2 and 3). Inpainting the masked pixels is `mbs-infer`'s job.
 //!
-//! Directions follow SPEC §2: warping towards a camera on the right moves a
+//! Directions follow conventions §2: warping towards a camera on the right moves a
 //! pixel at `x` to `x - d`, towards a camera on the left to `x + d`. The
 //! extrapolated views of a pair are the left image warped with
 //! [`mbs_core::Side::Left`] (to `-B`) and the right image warped with

@@ -1,4 +1,4 @@
-//! CARLA's RGB-encoded depth (SPEC §3): 8-bit RGB, R least significant,
+//! CARLA's RGB-encoded depth (conventions §3): 8-bit RGB, R least significant,
 //! `z_m = 1000 * (R + 256 G + 65536 B) / (256^3 - 1)`. Sky decodes to about
 //! 1000 m.
 
@@ -75,7 +75,7 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    /// The SPEC formula, written as literally as possible.
+    /// The formula of conventions §3, written as literally as possible.
     fn formula(r: u8, g: u8, b: u8) -> f32 {
         (1000.0 * (f64::from(r) + 256.0 * f64::from(g) + 65536.0 * f64::from(b))
             / (256.0f64.powi(3) - 1.0)) as f32

@@ -1,4 +1,4 @@
-//! Disparity error metrics (SPEC §6): EPE, Out-x and KITTI D1 over ALL valid
+//! Disparity error metrics (conventions §6): EPE, Out-x and KITTI D1 over ALL valid
 //! ground-truth pixels, over the non-occluded ones (NOC) and over the
 //! occluded ones (OCC = ALL minus NOC).
 //!

@@ -1,5 +1,5 @@
 //! Scores of a set of images: per image, averaged per image, and pooled
-//! over pixels (SPEC §6), as a text table or JSON. `eval`, the demo and the
+//! over pixels (conventions §6), as a text table or JSON. `eval`, the demo and the
 //! trainer's validation report through it.
 
 use serde_json::{Value, json};

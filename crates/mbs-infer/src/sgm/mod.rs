@@ -20,7 +20,7 @@ use mbs_core::{FloatImage, MaskImage, RgbImage};
 use rayon::prelude::*;
 
 use crate::error::{InferError, Result};
-use crate::matcher::{Disparity, StereoMatcher, check_same_size, luma};
+use crate::matcher::{Disparity, StereoMatcher, check_same_size, luma, predict_mirrored};
 use crate::postprocess::{left_right_check, remove_speckles};
 use aggregate::{BandInput, aggregate_band};
 use mbs_core::fill::fill_row_from_background;
@@ -40,7 +40,9 @@ pub enum SgmPaths {
 /// Settings of [`Sgm`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SgmConfig {
-    /// Number of disparities searched: `0..max_disparity` pixels.
+    /// Number of disparities searched: `0..max_disparity` pixels; 0
+    /// estimates it per pair ([`estimate_max_disparity`], up to
+    /// [`MAX_ESTIMATED_DISPARITY`]).
     pub max_disparity: u32,
     /// Census window width (odd). The census samples every other pixel of
     /// the window (see [`samples_of`]), at most 32 of them: 9x7 gives 32.
@@ -109,11 +111,11 @@ impl SgmConfig {
             value,
             expected,
         };
-        if !(1..=4096).contains(&self.max_disparity) {
+        if self.max_disparity > 4096 {
             return Err(invalid(
                 "max_disparity",
                 self.max_disparity.to_string(),
-                "1 to 4096",
+                "0 (estimate per pair) to 4096",
             ));
         }
         let (cw, ch) = (self.census_width, self.census_height);
@@ -147,6 +149,10 @@ pub fn samples_of(width: u32, height: u32) -> usize {
     census::samples(width as usize, height as usize).len()
 }
 
+/// The largest disparity range estimated per pair when
+/// [`SgmConfig::max_disparity`] is 0.
+pub const MAX_ESTIMATED_DISPARITY: u32 = 256;
+
 /// Semi-global matching with census costs.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Sgm {
@@ -158,6 +164,20 @@ impl Sgm {
     /// A matcher with the given settings.
     pub fn new(config: SgmConfig) -> Self {
         Self { config }
+    }
+
+    /// The matcher with its range fixed for the pair `(left, right)`:
+    /// a `max_disparity` of 0 is estimated from this pair, in this order,
+    /// so that both views' disparities of a pair search the same range.
+    fn for_pair(&self, left: &RgbImage, right: &RgbImage) -> Result<Sgm> {
+        if self.config.max_disparity != 0 {
+            return Ok(*self);
+        }
+        let max_disparity = estimate_max_disparity(left, right, MAX_ESTIMATED_DISPARITY)?;
+        Ok(Sgm::new(SgmConfig {
+            max_disparity,
+            ..self.config
+        }))
     }
 
     /// Left disparities after selection and the left-right check but before
@@ -221,6 +241,19 @@ impl StereoMatcher for Sgm {
     fn predict(&self, left: &RgbImage, right: &RgbImage) -> Result<Disparity> {
         check_same_size(left, right)?;
         self.config.validate()?;
+        self.for_pair(left, right)?.match_fixed(left, right)
+    }
+
+    fn predict_right(&self, left: &RgbImage, right: &RgbImage) -> Result<Disparity> {
+        check_same_size(left, right)?;
+        self.config.validate()?;
+        predict_mirrored(&self.for_pair(left, right)?, left, right)
+    }
+}
+
+impl Sgm {
+    /// [`StereoMatcher::predict`] with a fixed (non-zero) range.
+    fn match_fixed(&self, left: &RgbImage, right: &RgbImage) -> Result<Disparity> {
         let (w, h) = left.dimensions();
         let mut disp = self.raw_disparity(left, right)?;
         remove_speckles(

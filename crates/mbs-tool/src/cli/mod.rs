@@ -1,13 +1,14 @@
 //! Pieces shared by the subcommands: sharding, parallel batches with a
-//! progress bar and a summary, thread-pool setup, ONNX Runtime flags.
+//! progress bar and a summary, thread-pool setup, ONNX Runtime flags, the
+//! disparity source.
 
 pub mod batch;
-pub mod network;
 pub mod onnx;
 pub mod pair;
 pub mod report_error;
 pub mod rig;
 pub mod shard;
+pub mod source;
 pub mod values;
 
 /// Creates the output folder `dir` (refusing a file in its place) and

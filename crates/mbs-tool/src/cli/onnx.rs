@@ -24,9 +24,9 @@ pub struct OnnxArgs {
 }
 
 /// A device name that some network can run on (see
-/// [`mbs_train::device::DeviceName`]), checked before any work starts.
+/// [`mbs_nets::device::DeviceName`]), checked before any work starts.
 fn parse_device(name: &str) -> Result<String, String> {
-    name.parse::<mbs_train::device::DeviceName>()
+    name.parse::<mbs_nets::device::DeviceName>()
         .map(|_| name.to_string())
         .map_err(|e| e.to_string())
 }

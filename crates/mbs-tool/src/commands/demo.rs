@@ -120,8 +120,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &view(1),
         "--right",
         &view(2),
-        "--disparity",
-        "sgm",
         "--out",
         &extrapolated.display().to_string(),
         "--preview",

@@ -1,6 +1,6 @@
 //! `mbs-tool eval`: predicted disparities against ground truth — EPE,
 //! Out-x and D1 over ALL, NOC and OCC pixels, per image, averaged per image
-//! and pooled over pixels (SPEC §6).
+//! and pooled over pixels (conventions §6).
 
 use std::path::{Path, PathBuf};
 
@@ -15,10 +15,9 @@ use mbs_dataset::ground_truth::{
     GroundTruthFile, GroundTruthPair, NocSource, find_map, kitti_pairs, manifest_pairs,
 };
 use mbs_dataset::{Manifest, Split};
-use mbs_infer::StereoMatcher;
-use mbs_train::inference::NetworkMatcher;
+use mbs_infer::{SgmConfig, StereoMatcher};
 
-use crate::cli::network::NetworkArgs;
+use crate::cli::source::StereoSourceArgs;
 use rayon::prelude::*;
 use serde_json::Value;
 
@@ -30,30 +29,33 @@ use serde_json::Value;
   mbs-tool eval pred --manifest mbs-demo/manifest.json --pair 0:1
   mbs-tool eval --checkpoint mbs-demo/run --manifest mbs-demo/train-data/manifest.json --split test
   mbs-tool eval --backbone raft-stereo --weights raftstereo-eth3d.pth --kitti /data/kitti2015/training
+  mbs-tool eval --kitti /data/kitti2015/training --max-disparity 192   # the built-in matcher
 
 Predictions are looked up as <PREDICTIONS>/<name>.pfm, .png (KITTI 16-bit)
 or .exr, <name> being the GT file stem (KITTI) or the sample id (manifest).
-With --checkpoint, the run's teacher network predicts every pair instead;
-with --backbone and --weights, that network (e.g. official RAFT-Stereo
-weights) does.
+Without PREDICTIONS, a disparity source predicts every pair: the built-in
+matcher by default, the run's teacher with --checkpoint, an official or
+exported network with --backbone and --weights (e.g. official RAFT-Stereo
+weights), or an ONNX model with --model and --card.
 A missing prediction value (+inf/NaN, 0 in PNGs) counts as an outlier for
 Out-x and D1 and is left out of EPE; the density column says how many
 pixels had one. ALL = valid GT; NOC = valid non-occluded GT (KITTI
 disp_noc, a --noc mask, or the manifest's occlusion mask); OCC = ALL - NOC.")]
 pub struct Args {
-    /// A folder of predicted disparities, or one file with --gt.
-    #[arg(required_unless_present_any = ["checkpoint", "weights"], conflicts_with_all = ["checkpoint", "weights"])]
+    /// A folder of predicted disparities, or one file with --gt [default:
+    /// predict every pair with the disparity source].
+    #[arg(conflicts_with_all = ["checkpoint", "weights", "model"])]
     pub predictions: Option<PathBuf>,
-    /// A trained network that predicts every pair instead of PREDICTIONS.
+    /// What predicts the pairs when no PREDICTIONS are given.
     #[command(flatten)]
-    pub network: NetworkArgs,
+    pub source: StereoSourceArgs,
     /// A KITTI 2015 (disp_occ_0, disp_noc_0) or 2012 (disp_occ, disp_noc)
     /// training folder.
     #[arg(long, conflicts_with_all = ["gt", "manifest"])]
     pub kitti: Option<PathBuf>,
     /// Ground truth of a single prediction: PFM/EXR (+inf = unknown) or
     /// PNG/PGM (see --gt-scale).
-    #[arg(long, conflicts_with_all = ["manifest", "checkpoint", "weights"])]
+    #[arg(long, requires = "predictions", conflicts_with = "manifest")]
     pub gt: Option<PathBuf>,
     /// Non-occluded mask for --gt (non-zero = non-occluded), e.g.
     /// Middlebury's nonocc.png.
@@ -79,10 +81,6 @@ pub struct Args {
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
-    /// Where --checkpoint/--weights networks run: cpu, vulkan[:N], or
-    /// cuda[:N] in a build with `--features cuda`.
-    #[arg(long, default_value = "cpu")]
-    pub device: String,
     /// Worker threads (0 = one per core).
     #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
     pub jobs: usize,
@@ -107,7 +105,7 @@ pub enum Prediction {
     /// No file named after the item in this predictions folder: the item
     /// is reported as failed and the others are scored.
     Missing(PathBuf),
-    /// A pair the `--checkpoint` network predicts.
+    /// A pair the disparity source predicts.
     Pair {
         /// The reference view.
         reference: PathBuf,
@@ -143,11 +141,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         bail!("no ground truth: give --kitti DIR, --gt FILE or --manifest FILE");
     };
-    let network = args.network.matcher(&args.device)?;
+    let matcher = match predictions {
+        Some(_) => None,
+        None => Some(args.source.matcher(SgmConfig::default())?),
+    };
     let results: Vec<anyhow::Result<RegionSums>> = items
         .par_iter()
         .map(|item| {
-            let prediction = predict(item, network.as_ref())?;
+            let prediction = predict(item, matcher.as_deref())?;
             score(item, &prediction, args.gt_scale, &args.thresholds)
         })
         .collect();
@@ -184,7 +185,7 @@ fn parse_split(text: &str) -> Result<Split, String> {
 }
 
 /// The images of a KITTI training folder with their predictions (none:
-/// the views, which must exist, for the `--checkpoint` network).
+/// the views, which must exist, for the disparity source).
 pub fn kitti_items(dir: &Path, predictions: Option<&Path>) -> anyhow::Result<Vec<Item>> {
     let pairs = kitti_pairs(dir)?;
     if predictions.is_none() {
@@ -237,10 +238,13 @@ pub fn manifest_items(
     items(pairs, predictions)
 }
 
-/// Reads an item's prediction, or computes it with the checkpoint's
-/// network; with the file it came from (for messages).
-fn predict(item: &Item, network: Option<&NetworkMatcher>) -> anyhow::Result<(FloatImage, PathBuf)> {
-    match (&item.prediction, network) {
+/// Reads an item's prediction, or computes it with the disparity source;
+/// with the file it came from (for messages).
+fn predict(
+    item: &Item,
+    matcher: Option<&dyn StereoMatcher>,
+) -> anyhow::Result<(FloatImage, PathBuf)> {
+    match (&item.prediction, matcher) {
         (Prediction::File(path), _) => Ok((read_disparity(path, None)?, path.clone())),
         (Prediction::Missing(folder), _) => bail!(
             "no prediction {}.pfm, .png or .exr in {}",
@@ -253,18 +257,18 @@ fn predict(item: &Item, network: Option<&NetworkMatcher>) -> anyhow::Result<(Flo
                 target,
                 side,
             },
-            Some(network),
+            Some(matcher),
         ) => {
             let reference_image = rgb::read_rgb(reference)?;
             let target_image = rgb::read_rgb(target)?;
-            let disparity = match side {
-                Side::Left => network.predict_right(&target_image, &reference_image)?,
-                Side::Right => network.predict(&reference_image, &target_image)?,
-            };
+            let disparity = matcher.predict_toward(&reference_image, &target_image, *side)?;
             Ok((disparity.disparity, reference.clone()))
         }
         (Prediction::Pair { reference, .. }, None) => {
-            bail!("{}: no prediction and no --checkpoint", reference.display())
+            bail!(
+                "{}: no prediction and no disparity source",
+                reference.display()
+            )
         }
     }
 }

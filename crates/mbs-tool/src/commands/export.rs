@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use burn::tensor::Device;
 use clap::Parser;
-use mbs_train::checkpoint::Checkpoint;
+use mbs_nets::checkpoint::TrainedNetworks;
 
 /// Arguments of `export`.
 #[derive(Parser)]
@@ -40,7 +40,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.out.is_dir() {
         bail!("--out {} is a folder; give a file name", args.out.display());
     }
-    let checkpoint = Checkpoint::open(&args.run)?;
+    let checkpoint = TrainedNetworks::open(&args.run)?;
     let device = Device::flex();
     let (which, net) = if args.student {
         ("student", checkpoint.student(&device)?)
@@ -52,11 +52,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .with_context(|| format!("cannot create {}", parent.display()))?;
     }
     net.export(&args.out)?;
-    let backbone = checkpoint.config()?.network.backbone;
+    let backbone = checkpoint.network.backbone;
     eprintln!(
         "export: the {which} of {} ({backbone}, step {}) -> {}",
         checkpoint.dir.display(),
-        checkpoint.state.steps,
+        checkpoint.steps,
         args.out.display()
     );
     Ok(())

@@ -1,5 +1,5 @@
 //! `mbs-tool extrapolate`: a stereo pair -> two extra views, one baseline
-//! further left and one further right (SPEC §4), for one pair or a whole
+//! further left and one further right (conventions §4), for one pair or a whole
 //! KITTI folder.
 
 use std::path::{Path, PathBuf};
@@ -7,16 +7,17 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};
 use mbs_dataset::kitti::{KittiFolder, KittiVersion};
+use mbs_extrapolate::disparity::warping_sgm_config;
 use mbs_extrapolate::{
     DisparitySource, Extrapolator, Frame, four_view_manifest, kitti_frames, pair_frame,
 };
 use mbs_infer::inpaint::{BackgroundFill, Inpainter, IsotropicFill};
-use mbs_infer::onnx::{ModelCard, OnnxInpainter, OnnxStereo};
+use mbs_infer::onnx::{ModelCard, OnnxInpainter};
 use mbs_warp::Dilation;
 
 use crate::cli::batch::{self, Outcome};
-use crate::cli::onnx::OnnxArgs;
 use crate::cli::shard::Shard;
+use crate::cli::source::{StereoSource, StereoSourceArgs};
 
 /// Arguments of `extrapolate`.
 #[derive(Parser)]
@@ -24,8 +25,11 @@ use crate::cli::shard::Shard;
   mbs-tool extrapolate --left L.png --right R.png --out out/
   mbs-tool extrapolate --left L.png --right R.png --left-disparity DL.pfm --out out/
   mbs-tool extrapolate --kitti kitti2015/training --left-disparity-dir monster/left
-  mbs-tool extrapolate --kitti kitti2015/testing --disparity onnx:igev.onnx --card igev \\
+  mbs-tool extrapolate --kitti kitti2015/testing --model igev.onnx --card igev \\
       --inpaint onnx:lama_fp32.onnx --inpaint-card lama --device cuda
+  mbs-tool extrapolate --kitti kitti2015/testing --checkpoint runs/s3 --device vulkan
+  mbs-tool extrapolate --left L.png --right R.png --backbone igev \\
+      --weights sceneflow.pth --out out/
 
 Outputs: image_1 (new view left of the left view, at -B) and image_4 (right of
 the right view, at +2B), mask_1 / mask_4 (255 = synthesised: holes and
@@ -39,8 +43,11 @@ only files inside OUT. Disparity files may be PFM, EXR or KITTI 16-bit PNG (valu
 0 = invalid); invalid pixels are filled from the background side. With only
 one view's disparity, the other is derived by warping it (z-buffer) and
 filling the disocclusions from the background side. Without files, the
-disparities come from --disparity (the built-in semi-global matcher by
-default). Do not pass KITTI's ground truth (disp_occ_0, disp_noc_0) for data
+disparities come from the disparity source: the built-in semi-global
+matcher tuned for warping (8 paths, no uniqueness test, a 5x5 median) by
+default, an ONNX model (--model, --card), a training run's teacher
+(--checkpoint) or an official or exported network (--backbone, --weights);
+the right view's by mirroring. Do not pass KITTI's ground truth (disp_occ_0, disp_noc_0) for data
 meant for training without ground truth: the extrapolated views would carry
 it into training (a warning says so). Finished frames are skipped, so an
 interrupted run resumes where it stopped.")]
@@ -73,19 +80,9 @@ pub struct Args {
     /// KITTI: folder of right-view disparities named like image_3's files.
     #[arg(long, requires = "kitti", conflicts_with = "disparity_dir")]
     pub right_disparity_dir: Option<PathBuf>,
-    /// Where disparities come from when no file is given for a frame: `sgm`
-    /// (the built-in semi-global matcher with settings tuned for warping:
-    /// 8 paths, no uniqueness test, a 5x5 median) or `onnx:MODEL.onnx` (a
-    /// stereo network fed as --card says); left view, and right view by
-    /// mirroring.
-    #[arg(long, value_name = "sgm|onnx:MODEL", default_value = "sgm", value_parser = parse_disparity_source)]
-    pub disparity: DisparityKind,
-    /// How to feed `--disparity onnx:MODEL`: a built-in card name or a card FILE.json.
-    #[arg(long, value_name = "NAME|FILE.json")]
-    pub card: Option<String>,
-    /// Number of disparities the matcher searches (0 = estimate per pair, up to 256).
-    #[arg(long, default_value_t = 0)]
-    pub max_disparity: u32,
+    /// Where the disparities of frames without disparity files come from.
+    #[command(flatten)]
+    pub source: StereoSourceArgs,
     /// How the hole masks are grown before inpainting (none measured best on
     /// Middlebury Tsukuba, also with disparities that bleed across edges).
     #[arg(long, value_enum, default_value_t = DilationKind::None)]
@@ -102,9 +99,6 @@ pub struct Args {
     /// How to feed `--inpaint onnx:MODEL`: a built-in card name (lama, migan) or a card FILE.json.
     #[arg(long, value_name = "NAME|FILE.json")]
     pub inpaint_card: Option<String>,
-    /// ONNX Runtime settings (with onnx:MODEL sources).
-    #[command(flatten)]
-    pub onnx: OnnxArgs,
     /// Also write a contact sheet per frame (preview/NAME.png): the four
     /// views, synthesised pixels tinted red, and the disparities used.
     #[arg(long)]
@@ -121,25 +115,6 @@ pub struct Args {
     /// Worker threads (0 = one per core).
     #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
     pub jobs: usize,
-}
-
-/// Disparity estimators for frames without disparity files.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum DisparityKind {
-    /// The built-in semi-global matcher (`mbs-tool predict`).
-    Sgm,
-    /// An ONNX stereo network (`onnx:MODEL.onnx`).
-    Onnx(PathBuf),
-}
-
-fn parse_disparity_source(s: &str) -> Result<DisparityKind, String> {
-    match (s, s.strip_prefix("onnx:")) {
-        ("sgm", _) => Ok(DisparityKind::Sgm),
-        (_, Some(model)) if !model.is_empty() => Ok(DisparityKind::Onnx(model.into())),
-        _ => Err(format!(
-            "invalid disparity source {s:?}: expected sgm or onnx:MODEL.onnx"
-        )),
-    }
 }
 
 /// Mask dilations (see `mbs_warp::Dilation`).
@@ -286,29 +261,20 @@ fn inpainter(args: &Args) -> anyhow::Result<Box<dyn Inpainter>> {
                 .inpaint_card
                 .as_deref()
                 .context("--inpaint onnx:MODEL needs --inpaint-card NAME|FILE.json")?;
-            let net = OnnxInpainter::open(model, ModelCard::load(card)?, &args.onnx.options()?)?;
-            args.onnx
-                .report_fallback(&model.display().to_string(), net.device());
+            let runtime = &args.source.runtime;
+            let net = OnnxInpainter::open(model, ModelCard::load(card)?, &runtime.options()?)?;
+            runtime.report_fallback(&model.display().to_string(), net.device());
             Box::new(net)
         }
     })
 }
 
-/// The disparity source for frames without files.
+/// The disparity source for frames without files: the built-in matcher
+/// tuned for warping (estimating each pair's range unless
+/// --max-disparity), or a network.
 fn disparity_source(args: &Args) -> anyhow::Result<DisparitySource> {
-    Ok(match &args.disparity {
-        DisparityKind::Sgm => DisparitySource::Sgm {
-            max_disparity: args.max_disparity,
-        },
-        DisparityKind::Onnx(model) => {
-            let card = args
-                .card
-                .as_deref()
-                .context("--disparity onnx:MODEL needs --card NAME|FILE.json")?;
-            let net = OnnxStereo::open(model, ModelCard::load(card)?, &args.onnx.options()?)?;
-            args.onnx
-                .report_fallback(&model.display().to_string(), net.device());
-            DisparitySource::Matcher(Box::new(net))
-        }
+    Ok(match args.source.open(warping_sgm_config(0))? {
+        StereoSource::BuiltIn(config) => DisparitySource::BuiltIn(config),
+        StereoSource::Network(matcher) => DisparitySource::Matcher(matcher),
     })
 }

@@ -1,24 +1,24 @@
-//! `mbs-tool predict`: disparity for rectified pairs with the built-in
-//! semi-global matcher or an ONNX stereo network (`--model`, `--card`).
+//! `mbs-tool predict`: disparity for rectified pairs from any disparity
+//! source (the built-in semi-global matcher, an ONNX model, a trained
+//! network).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};
+use mbs_core::Side;
 use mbs_core::confine::join_confined;
 use mbs_core::formats::{pfm, png16, rgb};
 use mbs_dataset::Manifest;
 use mbs_dataset::ground_truth::{check_cameras, sample_view};
 use mbs_dataset::kitti::KittiFolder;
-use mbs_infer::onnx::{ModelCard, OnnxStereo};
-use mbs_infer::{Disparity, Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max_disparity};
+use mbs_infer::{SgmConfig, StereoMatcher};
 use mbs_viz::colormap::{colorize_disparity, disparity_scale};
 
 use crate::cli::batch::{self, Outcome};
-use crate::cli::network::NetworkArgs;
-use crate::cli::onnx::OnnxArgs;
 use crate::cli::pair::parse_pair;
 use crate::cli::shard::Shard;
+use crate::cli::source::StereoSourceArgs;
 
 /// Arguments of `predict`.
 #[derive(Parser)]
@@ -65,28 +65,9 @@ pub struct Args {
     /// Also write a colour-mapped PNG of each disparity map.
     #[arg(long)]
     pub color: bool,
-    /// An ONNX stereo network to use instead of the built-in matcher.
-    #[arg(long, value_name = "FILE.onnx", requires = "card", conflicts_with_all = ["checkpoint", "weights"])]
-    pub model: Option<PathBuf>,
-    /// How to feed --model: a built-in card name or a card FILE.json.
-    #[arg(long, value_name = "NAME|FILE.json", requires = "model")]
-    pub card: Option<String>,
-    /// A trained network instead of the built-in matcher.
+    /// Where the disparities come from.
     #[command(flatten)]
-    pub network: NetworkArgs,
-    /// ONNX Runtime settings (with --model).
-    #[command(flatten)]
-    pub onnx: OnnxArgs,
-    /// Number of disparities searched (0 = estimate per pair, up to 256);
-    /// with --model only the top of the --color scale (0 = the map's maximum).
-    #[arg(long, default_value_t = 128)]
-    pub max_disparity: u32,
-    /// Aggregation paths of the semi-global matcher.
-    #[arg(long, value_enum, default_value_t = Paths::Five)]
-    pub paths: Paths,
-    /// Leave unmatched pixels invalid instead of filling them.
-    #[arg(long)]
-    pub no_fill: bool,
+    pub source: StereoSourceArgs,
     /// Recompute outputs that already exist.
     #[arg(long)]
     pub overwrite: bool,
@@ -116,17 +97,6 @@ impl Format {
     }
 }
 
-/// Aggregation paths (see `mbs_infer::SgmPaths`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Paths {
-    /// Horizontal and top-down paths: one pass, fastest.
-    #[value(name = "5")]
-    Five,
-    /// All eight directions: more accurate, about 1.6x the time.
-    #[value(name = "8")]
-    Eight,
-}
-
 /// One pair to match and where its outputs go.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Job {
@@ -134,8 +104,8 @@ pub struct Job {
     pub reference: PathBuf,
     /// The target view.
     pub target: PathBuf,
-    /// Whether the target camera lies left of the reference.
-    pub target_on_left: bool,
+    /// Which side of the reference the target camera lies on.
+    pub side: Side,
     /// Output name without extension, relative to the output folder.
     pub name: String,
 }
@@ -149,7 +119,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         vec![Job {
             reference: left.clone(),
             target: right.clone(),
-            target_on_left: false,
+            side: Side::Right,
             name: file_stem(left)?,
         }]
     } else if let Some(dir) = &args.kitti {
@@ -163,24 +133,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(shard) => shard.select(jobs),
         None => jobs,
     };
-    let network: Option<Box<dyn StereoMatcher>> = match (&args.model, &args.card) {
-        (Some(model), Some(card)) => {
-            let stereo = OnnxStereo::open(model, ModelCard::load(card)?, &args.onnx.options()?)?;
-            args.onnx
-                .report_fallback(&model.display().to_string(), stereo.device());
-            Some(Box::new(stereo))
-        }
-        _ => match args.network.matcher(&args.onnx.device)? {
-            Some(matcher) => Some(Box::new(matcher)),
-            None => None,
-        },
-    };
+    let matcher = args.source.matcher(SgmConfig::default())?;
     crate::cli::prepare_out(&args.out)?;
     let summary = batch::run(
         &jobs,
         "pairs",
         |j| j.reference.display().to_string(),
-        |j| predict_one(&args, network.as_deref(), j),
+        |j| predict_one(&args, matcher.as_ref(), j),
     );
     summary.finish("predict", "pairs")
 }
@@ -202,7 +161,7 @@ pub fn kitti_jobs(dir: &Path) -> anyhow::Result<Vec<Job>> {
         .map(|f| Job {
             reference: folder.left(f),
             target: folder.right(f),
-            target_on_left: false,
+            side: Side::Right,
             name: f.clone(),
         })
         .collect();
@@ -226,18 +185,18 @@ pub fn manifest_jobs(path: &Path, (reference, target): (usize, usize)) -> anyhow
             Ok(Job {
                 reference: sample_view(path, s, reference)?,
                 target: sample_view(path, s, target)?,
-                target_on_left: target < reference,
+                side: if target < reference {
+                    Side::Left
+                } else {
+                    Side::Right
+                },
                 name: s.id.clone(),
             })
         })
         .collect()
 }
 
-fn predict_one(
-    args: &Args,
-    network: Option<&dyn StereoMatcher>,
-    job: &Job,
-) -> anyhow::Result<Outcome> {
+fn predict_one(args: &Args, matcher: &dyn StereoMatcher, job: &Job) -> anyhow::Result<Outcome> {
     let out = join_confined(
         &args.out,
         &format!("{}.{}", job.name, args.format.extension()),
@@ -248,62 +207,20 @@ fn predict_one(
     }
     let reference = rgb::read_rgb(&job.reference)?;
     let target = rgb::read_rgb(&job.target)?;
-    // The matcher wants the left view first; a left target is mirrored.
-    let (left, right) = if job.target_on_left {
-        (&target, &reference)
-    } else {
-        (&reference, &target)
-    };
-    let (prediction, max_disparity) = match network {
-        Some(network) => {
-            let prediction = run_matcher(network, left, right, job.target_on_left)?;
-            let top = match args.max_disparity {
-                0 => disparity_scale([&prediction.disparity]),
-                n => n as f32,
-            };
-            (prediction, top)
-        }
-        None => {
-            let max_disparity = match args.max_disparity {
-                0 => estimate_max_disparity(left, right, 256)?,
-                n => n,
-            };
-            let sgm = Sgm::new(SgmConfig {
-                paths: match args.paths {
-                    Paths::Five => SgmPaths::Five,
-                    Paths::Eight => SgmPaths::Eight,
-                },
-                fill: !args.no_fill,
-                ..SgmConfig::with_max_disparity(max_disparity)
-            });
-            let prediction = run_matcher(&sgm, left, right, job.target_on_left)?;
-            (prediction, max_disparity as f32)
-        }
-    };
+    let prediction = matcher.predict_toward(&reference, &target, job.side)?;
     let disparity = &prediction.disparity;
     match args.format {
         Format::Pfm => pfm::write_pfm_grey(&out, disparity, pfm::Endian::Little)?,
         Format::Png16 => png16::write_kitti_disparity(&out, disparity)?,
     }
     if args.color {
-        rgb::write_rgb_png(&color, &colorize_disparity(disparity, max_disparity))?;
+        let top = match args.source.max_disparity.unwrap_or(0) {
+            0 => disparity_scale([disparity]),
+            n => n as f32,
+        };
+        rgb::write_rgb_png(&color, &colorize_disparity(disparity, top))?;
     }
     Ok(Outcome::Done)
-}
-
-/// The disparity of the reference view: `left`'s, or `right`'s by mirroring
-/// when the target lies on the left.
-fn run_matcher(
-    matcher: &dyn StereoMatcher,
-    left: &mbs_core::RgbImage,
-    right: &mbs_core::RgbImage,
-    target_on_left: bool,
-) -> anyhow::Result<Disparity> {
-    Ok(if target_on_left {
-        matcher.predict_right(left, right)?
-    } else {
-        matcher.predict(left, right)?
-    })
 }
 
 #[cfg(test)]

@@ -14,8 +14,8 @@ use super::samples::TrainingSamples;
 use super::{Stream, step_rng};
 use crate::augment::AugmentConfig;
 use crate::error::TrainError;
-use crate::host::{Window, append_chw, chw_tensor};
 use crate::sampling::{Triplet, draw_triplet};
+use mbs_nets::host::{Window, append_chw, chw_tensor};
 
 /// A decoded batch: clean crops of the reference and both targets.
 #[derive(Debug, Clone, PartialEq)]
@@ -226,7 +226,7 @@ mod tests {
         let device = Device::flex();
         let items = 5;
         let values: Vec<f32> = (0..items * 12).map(|i| (i / 12) as f32).collect();
-        let numbered = crate::test_util::tensor4(&values, [items, 3, 2, 2], &device);
+        let numbered = mbs_nets::test_util::tensor4(&values, [items, 3, 2, 2], &device);
         let batch = StepBatch {
             reference: numbered.clone(),
             student_target: numbered.clone(),
@@ -241,7 +241,7 @@ mod tests {
         let firsts: Vec<Vec<f32>> = shares
             .iter()
             .map(|share| {
-                let values = crate::test_util::values(share.augmented_target.clone());
+                let values = mbs_nets::test_util::values(share.augmented_target.clone());
                 values.iter().step_by(12).copied().collect()
             })
             .collect();

@@ -18,7 +18,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use crate::error::TrainError;
-use crate::ranges;
+use mbs_nets::ranges;
 
 pub use batch::{HostBatch, StepBatch};
 pub use loader::BatchLoader;

@@ -1,5 +1,5 @@
 //! Held-out pairs with ground truth, scored during training: EPE and Out-x
-//! over ALL, NOC and OCC pixels, pooled over the set (SPEC §6).
+//! over ALL, NOC and OCC pixels, pooled over the set (conventions §6).
 
 use std::path::{Path, PathBuf};
 
@@ -11,9 +11,9 @@ use mbs_dataset::Manifest;
 use mbs_dataset::ground_truth::{GroundTruthPair, check_cameras, sample_pairs, sample_view};
 use mbs_dataset::manifest::Split;
 
-use crate::backbone::Backbone;
 use crate::error::TrainError;
-use crate::inference::predict_image;
+use mbs_nets::Backbone;
+use mbs_nets::inference::predict_image;
 
 /// Out-x thresholds tracked by validation.
 pub const THRESHOLDS: [f32; 3] = [1.0, 2.0, 3.0];

@@ -31,8 +31,8 @@ pub fn geometry_consistency(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_util::{tensor4, values};
     use burn::tensor::Device;
+    use mbs_nets::test_util::{tensor4, values};
 
     #[test]
     fn per_sample_ratio_and_weights() {

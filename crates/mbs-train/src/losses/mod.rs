@@ -13,8 +13,8 @@ use mbs_core::geometry::Side;
 
 use crate::error::TrainError;
 use crate::mask::{MaskParts, validity_mask, weight_map};
-use crate::ranges;
 use geometry::geometry_consistency;
+use mbs_nets::ranges;
 use photometric::photometric_map;
 use smoothness::edge_aware_smoothness;
 use warp::warp_to_reference;
@@ -114,7 +114,8 @@ impl LossConfig {
             "geometry/photometric/smoothness",
             "all false",
             "at least one loss term on",
-        )
+        )?;
+        Ok(())
     }
 }
 

@@ -73,8 +73,8 @@ pub fn photometric_map(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_util::{assert_close, tensor4, values};
     use burn::tensor::Device;
+    use mbs_nets::test_util::{assert_close, tensor4, values};
 
     const X: [f32; 20] = [
         0.1, 0.5, 0.9, 0.3, 0.2, 0.4, 0.8, 0.6, 0.1, 0.7, 0.9, 0.2, 0.3, 0.5, 0.6, 0.0, 0.4, 1.0,

@@ -31,8 +31,8 @@ pub fn edge_aware_smoothness(disparity: Tensor<4>, image: Tensor<4>, normalise: 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_util::{tensor4, values};
     use burn::tensor::Device;
+    use mbs_nets::test_util::{tensor4, values};
 
     #[test]
     fn hand_computed_2x3_case() {

@@ -15,8 +15,9 @@
 //!   `L = 0.5 + 10 * 0.0125 + 0.01 * exp(-0.2) / 3`.
 
 use super::*;
-use crate::test_util::{assert_close, tensor4, values};
 use burn::tensor::Device;
+use mbs_nets::NetError;
+use mbs_nets::test_util::{assert_close, tensor4, values};
 
 fn rows(row: [f32; 4]) -> Vec<f32> {
     [row, row].concat()
@@ -138,10 +139,10 @@ fn gradient_reaches_the_student_only() {
 fn rejects_bad_settings_and_shapes() {
     assert!(matches!(
         S3Loss::new(LossConfig::new().with_ssim_window(4)),
-        Err(TrainError::InvalidSetting {
+        Err(TrainError::Network(NetError::InvalidSetting {
             name: "ssim_window",
             ..
-        })
+        }))
     ));
     assert!(S3Loss::new(LossConfig::new().with_alpha(1.5)).is_err());
     let all_off = LossConfig::new()

@@ -48,8 +48,9 @@ fn side_sign(side: Side) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_util::{assert_close, tensor4, values};
     use burn::tensor::Device;
+    use mbs_nets::mirror::mirror_left;
+    use mbs_nets::test_util::{assert_close, tensor4, values};
 
     #[test]
     fn integer_and_fractional_shifts_right_and_left() {
@@ -100,5 +101,36 @@ mod tests {
         }
         // Hand value at x = 3: x - d = 0.3, slope -(row[1] - row[0]) * weight 4 = -2.4.
         assert!((analytic[3] + 2.4).abs() < 1e-5, "{}", analytic[3]);
+    }
+
+    #[test]
+    fn a_mirrored_left_pair_is_a_right_pair() {
+        let device = Device::flex();
+        // Reference pixel x is seen at x + 1 in the left target.
+        let reference = tensor4(&[0.1, 0.2, 0.4, 0.8, 0.9], [1, 1, 1, 5], &device);
+        let target = tensor4(&[0.0, 0.1, 0.2, 0.4, 0.8], [1, 1, 1, 5], &device);
+        let d = Tensor::<4>::ones([1, 1, 1, 5], &device);
+        let direct = warp_to_reference(target.clone(), d.clone(), &[Side::Left]);
+        // Mirrored: the target is now on the right, sampled at x - d.
+        let flipped_ref = mirror_left(reference, &[Side::Left]);
+        let flipped_target = mirror_left(target, &[Side::Left]);
+        assert_close(
+            &values(flipped_ref.clone()),
+            &[0.9, 0.8, 0.4, 0.2, 0.1],
+            0.0,
+        );
+        let warped = warp_to_reference(flipped_target, d, &[Side::Right]);
+        // Interior columns reconstruct the mirrored reference exactly.
+        assert_close(
+            &values(warped.clone()).as_slice()[1..],
+            &values(flipped_ref)[1..],
+            1e-6,
+        );
+        // Flipping the mirrored reconstruction back equals the direct left warp.
+        assert_close(
+            &values(mirror_left(warped, &[Side::Left])),
+            &values(direct),
+            1e-6,
+        );
     }
 }

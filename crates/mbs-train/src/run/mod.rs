@@ -28,17 +28,17 @@ use mbs_core::atomic::write_bytes_atomic;
 use mbs_core::{FloatImage, RgbImage};
 use mbs_dataset::Manifest;
 
-use crate::backbone::StereoNetwork;
-use crate::backbone::official::StateDict;
 use crate::checkpoint::{self, Checkpoint};
 use crate::config::RunConfig;
 use crate::data::StepBatch;
 use crate::data::validation::{ValidationMetrics, ValidationPair};
 use crate::data::{BatchLoader, TrainingSamples, ValidationSet};
 use crate::error::TrainError;
-use crate::host::image_tensor;
 use crate::precision::check_support;
 use crate::step::{S3Trainer, StepReport};
+use mbs_nets::StereoNetwork;
+use mbs_nets::host::image_tensor;
+use mbs_nets::official::StateDict;
 
 mod logs;
 mod report;
@@ -134,7 +134,7 @@ pub fn initial_weights(path: &Path) -> Result<StateDict, TrainError> {
         let teacher = Checkpoint::open(path)?.teacher(&Device::flex())?;
         Ok(teacher.state_dict().0)
     } else {
-        StateDict::read(path)
+        Ok(StateDict::read(path)?)
     }
 }
 

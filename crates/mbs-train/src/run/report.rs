@@ -8,7 +8,10 @@ use std::path::{Path, PathBuf};
 use mbs_core::FloatImage;
 use mbs_core::atomic::write_bytes_atomic;
 use mbs_core::formats::rgb::rgb_png_bytes;
-use mbs_viz::{LineChart, Series, colorize_disparity, side_by_side, weight_map_image};
+use mbs_viz::{
+    Key, LineChart, Panel, Series, colorize_disparity, labelled_row, weight_map_image,
+    weight_map_key,
+};
 use serde_json::Value;
 
 use super::Visual;
@@ -93,7 +96,9 @@ impl RunReport {
 
     /// Draws the contact sheet of each visual into `visuals/step-N/` and
     /// logs it as a TensorBoard image: reference | teacher | student | GT
-    /// | weight map.
+    /// | weight map, each under its caption, and below them the colour bar
+    /// of the disparities (one scale, 0 to the network's maximum) and the
+    /// key to the weight map's colours.
     pub fn visuals(&mut self, steps: usize, visuals: &[Visual]) -> Result<(), TrainError> {
         let dir = self.out.join(VISUALS_DIR).join(format!("step-{steps:07}"));
         for (i, visual) in visuals.iter().enumerate() {
@@ -108,7 +113,18 @@ impl RunReport {
                 colour(&visual.student),
                 colour(&visual.gt),
             );
-            let sheet = side_by_side(&[&visual.reference, &teacher, &student, &gt, &weights])?;
+            let panels = [
+                Panel::new(&visual.reference, "reference"),
+                Panel::new(&teacher, "teacher disparity (px)"),
+                Panel::new(&student, "student disparity (px)"),
+                Panel::new(&gt, "ground truth (px)"),
+                Panel::new(&weights, "weight map"),
+            ];
+            let scale = Key::DisparityBar {
+                title: "disparity of teacher, student and ground truth (px)".into(),
+                max: self.max_disparity,
+            };
+            let sheet = labelled_row(&panels, &[scale, weight_map_key()])?;
             let name: String = visual
                 .name
                 .chars()

@@ -4,12 +4,12 @@
 
 use super::*;
 use crate::augment::AugmentConfig;
-use crate::backbone::{CostVolumeNet, CostVolumeNetConfig};
 use crate::precision::{LossScale, Precision};
 use crate::sampling::{Triplet, TripletSampler};
 use burn::module::Module;
 use burn::tensor::{Device, TensorData};
 use mbs_core::geometry::{Rig, Side};
+use mbs_nets::{CostVolumeNet, CostVolumeNetConfig};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -137,8 +137,8 @@ fn loss_decreases_over_twenty_steps() {
     // falls in 20 steps).
     let fixed = two_item_batch(&scenes, &device);
     // Mean |d_s - truth| of the student on the clean pairs (truth 8 and 16 px).
-    let error = |trainer: &S3Trainer<crate::backbone::CostVolumeNet>| {
-        let d = crate::test_util::values(crate::backbone::predict(
+    let error = |trainer: &S3Trainer<mbs_nets::CostVolumeNet>| {
+        let d = mbs_nets::test_util::values(mbs_nets::predict(
             &trainer.student().valid(),
             fixed.reference.clone(),
             fixed.student_target.clone(),
@@ -200,8 +200,8 @@ fn fixed_teacher_stays_fixed_and_ema_teacher_moves() {
     let mut rng = ChaCha8Rng::seed_from_u64(5);
     let scenes = vec![scene(&mut rng)];
     let net = CostVolumeNetConfig::new().with_features(4).with_hidden(4);
-    let weights = |trainer: &S3Trainer<crate::backbone::CostVolumeNet>| {
-        let mut reader = crate::test_util::FlatParams::default();
+    let weights = |trainer: &S3Trainer<mbs_nets::CostVolumeNet>| {
+        let mut reader = mbs_nets::test_util::FlatParams::default();
         trainer.teacher().visit(&mut reader);
         reader.0
     };
@@ -393,8 +393,8 @@ fn data_parallel_twins(precision: Precision, tolerance: f32) {
         );
         assert_eq!(one.loss_scale, two.loss_scale);
     }
-    let weights = |trainer: &S3Trainer<crate::backbone::CostVolumeNet>| {
-        let mut reader = crate::test_util::FlatParams::default();
+    let weights = |trainer: &S3Trainer<mbs_nets::CostVolumeNet>| {
+        let mut reader = mbs_nets::test_util::FlatParams::default();
         trainer.student().visit(&mut reader);
         reader.0
     };
@@ -405,7 +405,7 @@ fn data_parallel_twins(precision: Precision, tolerance: f32) {
         .map(|(x, y)| (x - y).abs())
         .fold(0.0, f32::max);
     println!("{precision}: weights within {worst} of the one-device step's");
-    crate::test_util::assert_close(&a, &b, tolerance);
+    mbs_nets::test_util::assert_close(&a, &b, tolerance);
     let message = parallel
         .step_parallel(twins.split(2).remove(0), &pair)
         .map(|_| ())
@@ -481,7 +481,7 @@ fn f16_overflow_skips_the_step_and_halves_the_loss_scale() {
         .with_initial_loss_scale(LossScale::PYTORCH_INITIAL);
     let mut trainer = S3Trainer::new(setup.net.clone(), &config).expect("valid config");
     let weights = |trainer: &S3Trainer<CostVolumeNet>| {
-        let mut reader = crate::test_util::FlatParams::default();
+        let mut reader = mbs_nets::test_util::FlatParams::default();
         trainer.student().visit(&mut reader);
         trainer.teacher().visit(&mut reader);
         reader.0
@@ -571,5 +571,62 @@ impl MixedPrecisionSetup {
 
     fn train(&self, precision: Precision, steps: usize) -> Vec<StepReport> {
         self.train_on(&mut self.trainer(precision), steps)
+    }
+}
+
+/// IGEV-Stereo through a whole S3 step: every trained part moves.
+#[test]
+fn one_s3_step_updates_every_part_and_pads_odd_sizes() {
+    use burn::tensor::Distribution;
+    use mbs_core::geometry::Side;
+    use mbs_nets::IgevStereoConfig;
+    use mbs_nets::official::export_state_dict;
+
+    let device = Device::flex();
+    let train_device = device.clone().autodiff();
+    let config = IgevStereoConfig::new()
+        .with_hidden_dim(16)
+        .with_gru_levels(2)
+        .with_max_disp(32)
+        .with_train_iters(2)
+        .with_test_iters(2);
+    let net = config.init(&train_device).expect("valid");
+    let before = export_state_dict(&net).0;
+    let trainer_config = TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(1e-3, 4));
+    let mut trainer = S3Trainer::new(net, &trainer_config).expect("valid");
+    // 40x70: not multiples of 32, so the padding and the crop run too.
+    let image = || Tensor::<4>::random([1, 3, 40, 70], Distribution::Default, &device);
+    let (reference, target) = (image(), image());
+    let batch = StepBatch {
+        augmented_reference: reference.clone(),
+        augmented_target: target.clone(),
+        reference,
+        student_target: target.clone(),
+        teacher_target: target,
+        student_sides: vec![Side::Left],
+        teacher_sides: vec![Side::Right],
+        ratios: vec![0.5],
+    };
+    let report = trainer.step(batch).expect("a step");
+    assert!(
+        report.loss.is_finite() && report.grad_norm > 0.0,
+        "{report:?}"
+    );
+    let after = export_state_dict(trainer.student()).0;
+    // Every trained part moved: the MobileNetV2 stem, the 3-D hourglass,
+    // the context encoder, the GRU and both upsampling heads.
+    for key in [
+        "feature.conv_stem.weight",
+        "cost_agg.conv1.0.conv.weight",
+        "classifier.weight",
+        "cnet.conv1.weight",
+        "update_block.gru04.convz.weight",
+        "spx.0.weight",
+        "spx_gru.0.weight",
+    ] {
+        assert_ne!(
+            before.tensors[key], after.tensors[key],
+            "{key} did not change"
+        );
     }
 }

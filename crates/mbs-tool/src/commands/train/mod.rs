@@ -1,5 +1,5 @@
 //! `mbs-tool train`: S3 self-supervised training of the built-in stereo
-//! network on a manifest's multi-view samples (SPEC §5), with periodic
+//! network on a manifest's multi-view samples (conventions §5), with periodic
 //! validation, checkpoints and resumption.
 
 mod report;
@@ -10,8 +10,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Context, bail};
 use clap::Parser;
+use mbs_nets::checkpoint::CHECKPOINTS_DIR;
 use mbs_train::RunConfig;
-use mbs_train::checkpoint::CHECKPOINTS_DIR;
 use mbs_train::run::{End, Start, TrainingRun};
 
 use report::Report;
@@ -184,7 +184,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     crate::cli::set_threads(args.jobs)?;
     // Before anything is removed or written: a bad device name is an input error.
-    let devices = mbs_train::device::open_devices(&args.device)?;
+    let devices = mbs_nets::device::open_devices(&args.device)?;
     let names = args.device.split(',').map(|name| name.trim().to_string());
     mbs_train::precision::check_support(config.trainer.precision, names.zip(&devices))?;
     if args.restart {

@@ -15,7 +15,7 @@ use burn::tensor::{Device, Tensor};
 use super::Backbone;
 use super::layers::counting;
 use super::upsample::upsample_bilinear;
-use crate::error::TrainError;
+use crate::error::NetError;
 use crate::ranges;
 
 /// Hyper-parameters of [`CostVolumeNet`] (its disparity range is the
@@ -37,7 +37,7 @@ pub struct CostVolumeNetConfig {
 impl CostVolumeNetConfig {
     /// Checks the disparity range `max_disparity` (full-resolution pixels)
     /// and the layer widths.
-    pub fn validate(&self, max_disparity: usize) -> Result<(), TrainError> {
+    pub fn validate(&self, max_disparity: usize) -> Result<(), NetError> {
         ranges::require(
             max_disparity >= 4 && max_disparity % 4 == 0,
             "max_disparity",
@@ -52,7 +52,7 @@ impl CostVolumeNetConfig {
 
     /// Builds the network for disparities up to `max_disparity` (a multiple
     /// of 4) with fresh weights on `device`.
-    pub fn init(&self, max_disparity: usize, device: &Device) -> Result<CostVolumeNet, TrainError> {
+    pub fn init(&self, max_disparity: usize, device: &Device) -> Result<CostVolumeNet, NetError> {
         self.validate(max_disparity)?;
         let conv = |from: usize, to: usize, stride: usize| {
             Conv2dConfig::new([from, to], [3, 3])

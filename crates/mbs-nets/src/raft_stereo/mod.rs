@@ -1,6 +1,6 @@
 //! RAFT-Stereo (Lipson et al. 2021) as a burn module, structurally the
 //! official PyTorch implementation (princeton-vl/RAFT-Stereo, `core/`), so
-//! its state dicts map one to one ([`crate::backbone::official`]).
+//! its state dicts map one to one ([`crate::official`]).
 //!
 //! A feature encoder gives 256-channel features of both images at
 //! `1 / 2^n_downsample` resolution; their 1-D correlation pyramid is looked
@@ -27,7 +27,7 @@ use super::layers::{conv, counting, pad_to_multiple};
 use super::norm::NormKind;
 use super::official::OfficialLayout;
 use super::upsample::convex_upsample;
-use crate::error::TrainError;
+use crate::error::NetError;
 use crate::ranges;
 
 /// Channels of the matching features (fixed in the official code).
@@ -68,7 +68,7 @@ pub struct RaftStereoConfig {
 
 impl RaftStereoConfig {
     /// Checks the level counts and widths.
-    pub fn validate(&self) -> Result<(), TrainError> {
+    pub fn validate(&self) -> Result<(), NetError> {
         ranges::require(
             (1..=3).contains(&self.gru_levels),
             "gru_levels",
@@ -90,7 +90,7 @@ impl RaftStereoConfig {
     }
 
     /// Builds the network with fresh weights on `device`.
-    pub fn init(&self, device: &Device) -> Result<RaftStereo, TrainError> {
+    pub fn init(&self, device: &Device) -> Result<RaftStereo, NetError> {
         self.validate()?;
         let hidden = self.hidden_dim;
         let factor = 1 << self.n_downsample;

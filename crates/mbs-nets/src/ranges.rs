@@ -1,20 +1,20 @@
-//! Range checks of the training settings: every setting's check goes
-//! through these, so each refusal names the setting, the value and what is
-//! allowed in the same words. `RunConfig::validate` runs them all.
+//! Range checks of settings, the networks' and the trainer's: every
+//! check goes through these, so each refusal names the setting, the value
+//! and what is allowed in the same words.
 
-use crate::error::TrainError;
+use crate::error::NetError;
 
 /// Refuses `value` of setting `name` unless `ok`, saying what is allowed.
-pub(crate) fn require(
+pub fn require(
     ok: bool,
     name: &'static str,
     value: impl ToString,
     allowed: &'static str,
-) -> Result<(), TrainError> {
+) -> Result<(), NetError> {
     if ok {
         Ok(())
     } else {
-        Err(TrainError::InvalidSetting {
+        Err(NetError::InvalidSetting {
             name,
             value: value.to_string(),
             reason: allowed,
@@ -23,7 +23,7 @@ pub(crate) fn require(
 }
 
 /// A number in `[0, 1]`.
-pub(crate) fn unit(name: &'static str, value: f64) -> Result<(), TrainError> {
+pub fn unit(name: &'static str, value: f64) -> Result<(), NetError> {
     require(
         (0.0..=1.0).contains(&value),
         name,
@@ -33,7 +33,7 @@ pub(crate) fn unit(name: &'static str, value: f64) -> Result<(), TrainError> {
 }
 
 /// A finite number above 0.
-pub(crate) fn positive(name: &'static str, value: f64) -> Result<(), TrainError> {
+pub fn positive(name: &'static str, value: f64) -> Result<(), NetError> {
     require(
         value.is_finite() && value > 0.0,
         name,
@@ -43,7 +43,7 @@ pub(crate) fn positive(name: &'static str, value: f64) -> Result<(), TrainError>
 }
 
 /// A finite number of at least 0.
-pub(crate) fn non_negative(name: &'static str, value: f64) -> Result<(), TrainError> {
+pub fn non_negative(name: &'static str, value: f64) -> Result<(), NetError> {
     require(
         value.is_finite() && value >= 0.0,
         name,
@@ -53,12 +53,12 @@ pub(crate) fn non_negative(name: &'static str, value: f64) -> Result<(), TrainEr
 }
 
 /// A count of at least 1.
-pub(crate) fn at_least_one(name: &'static str, value: usize) -> Result<(), TrainError> {
+pub fn at_least_one(name: &'static str, value: usize) -> Result<(), NetError> {
     require(value >= 1, name, value, "at least 1")
 }
 
 /// Every named count is at least 1.
-pub(crate) fn counts(named: &[(&'static str, usize)]) -> Result<(), TrainError> {
+pub fn counts(named: &[(&'static str, usize)]) -> Result<(), NetError> {
     named
         .iter()
         .try_for_each(|&(name, value)| at_least_one(name, value))

@@ -14,8 +14,8 @@ use burn::nn::conv::{
 use burn::tensor::activation::{leaky_relu, sigmoid};
 use burn::tensor::{Device, Tensor};
 
-use crate::backbone::layers::conv;
-use crate::backbone::norm::{Norm, NormKind};
+use crate::layers::conv;
+use crate::norm::{Norm, NormKind};
 
 /// PyTorch's `nn.LeakyReLU()` slope.
 const LEAKY_SLOPE: f64 = 0.01;

@@ -10,11 +10,12 @@ use burn::config::Config;
 use burn::module::Module;
 use burn::tensor::{Device, Tensor};
 use serde::{Deserialize, Serialize};
+use serde_json::Value;
 
 use super::igev_stereo::{IgevStereo, IgevStereoConfig};
 use super::official::{OfficialLayout, StateDict, export_state_dict, load_state_dict};
 use super::{Backbone, CostVolumeNet, CostVolumeNetConfig, RaftStereo, RaftStereoConfig};
-use crate::error::TrainError;
+use crate::error::NetError;
 use crate::ranges;
 
 /// Which network a run trains.
@@ -45,14 +46,14 @@ impl fmt::Display for BackboneKind {
 }
 
 impl FromStr for BackboneKind {
-    type Err = TrainError;
+    type Err = NetError;
 
     fn from_str(text: &str) -> Result<Self, Self::Err> {
         match text {
             "compact" => Ok(BackboneKind::Compact),
             "raft-stereo" | "raft_stereo" | "raftstereo" => Ok(BackboneKind::RaftStereo),
             "igev" | "igev-stereo" | "igev_stereo" => Ok(BackboneKind::Igev),
-            other => Err(TrainError::Config(format!(
+            other => Err(NetError::Config(format!(
                 "unknown backbone `{other}`; expected one of {}",
                 BackboneKind::NAMES.join(", ")
             ))),
@@ -83,8 +84,48 @@ pub struct NetworkConfig {
 }
 
 impl NetworkConfig {
+    /// The defaults of `backbone` overlaid with `network.KEY=VALUE`
+    /// overrides (the keys of a run's `network` section, e.g.
+    /// `network.raft_stereo.n_downsample=3`), checked: the configuration of
+    /// a network loaded for inference, with no training settings.
+    pub fn with_overrides(backbone: BackboneKind, overrides: &[String]) -> Result<Self, NetError> {
+        let mut section = NetworkConfig::new().with_backbone(backbone).to_json()?;
+        let relative: Vec<String> = overrides
+            .iter()
+            .map(|assignment| {
+                assignment
+                    .strip_prefix("network.")
+                    .map(str::to_owned)
+                    .ok_or_else(|| {
+                        NetError::Config(format!(
+                            "`{assignment}`: only network.KEY=VALUE settings apply to a network"
+                        ))
+                    })
+            })
+            .collect::<Result<_, _>>()?;
+        mbs_core::layered::apply_overrides(&mut section, &relative)
+            .map_err(|e| NetError::Config(format!("network.{e}")))?;
+        Self::from_json(&section)
+    }
+
+    /// A `network` section as a run's configuration saves it, checked; keys
+    /// missing from it (added since it was written) take their defaults.
+    pub fn from_json(section: &Value) -> Result<Self, NetError> {
+        let mut document = NetworkConfig::new().to_json()?;
+        mbs_core::layered::merge(&mut document, section);
+        let config: NetworkConfig = serde_json::from_value(document)
+            .map_err(|e| NetError::Config(format!("network: {e}")))?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// The configuration as a JSON value.
+    pub fn to_json(&self) -> Result<Value, NetError> {
+        serde_json::to_value(self).map_err(|e| NetError::Config(e.to_string()))
+    }
+
     /// Checks the chosen backbone's settings.
-    pub fn validate(&self) -> Result<(), TrainError> {
+    pub fn validate(&self) -> Result<(), NetError> {
         ranges::require(
             self.max_disparity >= 1,
             "max_disparity",
@@ -99,7 +140,7 @@ impl NetworkConfig {
     }
 
     /// Builds the chosen network with fresh weights on `device`.
-    pub fn init(&self, device: &Device) -> Result<StereoNetwork, TrainError> {
+    pub fn init(&self, device: &Device) -> Result<StereoNetwork, NetError> {
         Ok(match self.backbone {
             BackboneKind::Compact => {
                 StereoNetwork::Compact(self.compact.init(self.max_disparity, device)?)
@@ -129,13 +170,13 @@ impl StereoNetwork {
     /// (`.pth` or `.safetensors`, official keys) or an export of mbs
     /// ([`StereoNetwork::export`]). The file must match the network's
     /// structure exactly; the error lists what does not.
-    pub fn with_weights(self, path: &Path) -> Result<Self, TrainError> {
+    pub fn with_weights(self, path: &Path) -> Result<Self, NetError> {
         self.with_state_dict(&StateDict::read(path)?, path)
     }
 
     /// The network with the weights of `dict` (read from `source`, which
     /// errors name).
-    pub fn with_state_dict(self, dict: &StateDict, source: &Path) -> Result<Self, TrainError> {
+    pub fn with_state_dict(self, dict: &StateDict, source: &Path) -> Result<Self, NetError> {
         Ok(match self {
             StereoNetwork::Compact(net) => {
                 StereoNetwork::Compact(load_state_dict(net, dict, source)?)
@@ -160,7 +201,7 @@ impl StereoNetwork {
 
     /// Writes [`StereoNetwork::state_dict`] to `path` as safetensors, which
     /// the official PyTorch module loads with `load_state_dict`.
-    pub fn export(&self, path: &Path) -> Result<(), TrainError> {
+    pub fn export(&self, path: &Path) -> Result<(), NetError> {
         let (dict, counters) = self.state_dict();
         dict.write_safetensors(path, &counters)
     }

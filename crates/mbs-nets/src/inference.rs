@@ -1,8 +1,8 @@
 //! A trained backbone on whole images: `RgbImage` pair in, disparity map
 //! on the reference grid out (targets on the left go through mirroring);
 //! a checkpoint's teacher, or a backbone with weights from a file (an
-//! official checkpoint, an export), as a `StereoMatcher` for `predict` and
-//! `eval`.
+//! official checkpoint, an export), as a `StereoMatcher` for `predict`,
+//! `eval` and `extrapolate`.
 
 use std::path::Path;
 
@@ -10,12 +10,10 @@ use burn::tensor::Device;
 use mbs_core::{FloatImage, MaskImage, RgbImage, Side};
 use mbs_infer::{Disparity, InferError, StereoMatcher};
 
-use crate::checkpoint::Checkpoint;
-
-use crate::backbone::{Backbone, NetworkConfig, StereoNetwork, predict};
-use crate::error::TrainError;
-use crate::host::image_tensor;
-use crate::host::read_all;
+use crate::checkpoint::TrainedNetworks;
+use crate::error::NetError;
+use crate::host::{image_tensor, read_all};
+use crate::{Backbone, NetworkConfig, StereoNetwork, predict};
 
 /// Disparity of `reference` (pixels, on its grid) against `target`, which
 /// lies on `side` of it. The images must have the same size.
@@ -25,9 +23,9 @@ pub fn predict_image<B: Backbone>(
     target: &RgbImage,
     side: Side,
     device: &Device,
-) -> Result<FloatImage, TrainError> {
+) -> Result<FloatImage, NetError> {
     if reference.dimensions() != target.dimensions() {
-        return Err(TrainError::Shape(format!(
+        return Err(NetError::Shape(format!(
             "reference is {:?} but target is {:?} (width, height)",
             reference.dimensions(),
             target.dimensions()
@@ -42,7 +40,7 @@ pub fn predict_image<B: Backbone>(
     );
     let values = read_all(disparity, "the disparity")?;
     FloatImage::from_raw(width, height, values)
-        .ok_or_else(|| TrainError::Shape("the network returned a map of the wrong size".into()))
+        .ok_or_else(|| NetError::Shape("the network returned a map of the wrong size".into()))
 }
 
 /// A trained network as a [`StereoMatcher`] on a device: what `predict`
@@ -60,7 +58,7 @@ impl NetworkMatcher {
         config: &NetworkConfig,
         path: &Path,
         device: Device,
-    ) -> Result<Self, TrainError> {
+    ) -> Result<Self, NetError> {
         let net = config.init(&device)?.with_weights(path)?;
         Ok(Self {
             net,
@@ -71,8 +69,8 @@ impl NetworkMatcher {
 
     /// Loads the teacher of a checkpoint folder, or of the newest
     /// checkpoint of a training run folder, on `device`.
-    pub fn open(path: &Path, device: Device) -> Result<Self, TrainError> {
-        let checkpoint = Checkpoint::open(path)?;
+    pub fn open(path: &Path, device: Device) -> Result<Self, NetError> {
+        let checkpoint = TrainedNetworks::open(path)?;
         let net = checkpoint.teacher(&device)?;
         Ok(Self {
             net,
@@ -80,7 +78,7 @@ impl NetworkMatcher {
             name: format!(
                 "S3 teacher ({}, step {})",
                 checkpoint.dir.display(),
-                checkpoint.state.steps
+                checkpoint.steps
             ),
         })
     }

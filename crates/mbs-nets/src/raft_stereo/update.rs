@@ -11,8 +11,8 @@ use burn::tensor::activation::{relu, sigmoid, tanh};
 use burn::tensor::module::avg_pool2d;
 use burn::tensor::ops::AvgPoolOptions;
 
-use crate::backbone::layers::conv;
-use crate::backbone::upsample::resize_bilinear_aligned;
+use crate::layers::conv;
+use crate::upsample::resize_bilinear_aligned;
 
 /// Channels of the motion features (official `encoder_output_dim`).
 const MOTION_CHANNELS: usize = 128;

@@ -1,7 +1,7 @@
 //! IGEV-Stereo (Xu et al. 2023), the paper's main backbone, as a burn
 //! module, structurally the official PyTorch implementation (gangweiX/IGEV,
 //! `IGEV-Stereo/core/`), so its state dicts map one to one
-//! ([`crate::backbone::official`]).
+//! ([`crate::official`]).
 //!
 //! A MobileNetV2 feature encoder gives matching features at 1/4
 //! resolution; their group-wise correlation volume is aggregated by a 3-D
@@ -36,7 +36,7 @@ use super::official::OfficialLayout;
 use super::raft_stereo::RaftStereo;
 use super::raft_stereo::encoder::ContextEncoder;
 use super::raft_stereo::update::{GruState, LevelsToUpdate};
-use crate::error::TrainError;
+use crate::error::NetError;
 use crate::ranges;
 
 /// Channel groups of the correlation volume (fixed in the official code).
@@ -70,7 +70,7 @@ pub struct IgevStereoConfig {
 
 impl IgevStereoConfig {
     /// Checks the levels, range and iteration counts.
-    pub fn validate(&self) -> Result<(), TrainError> {
+    pub fn validate(&self) -> Result<(), NetError> {
         ranges::require(
             (1..=3).contains(&self.gru_levels),
             "gru_levels",
@@ -92,7 +92,7 @@ impl IgevStereoConfig {
     }
 
     /// Builds the network with fresh weights on `device`.
-    pub fn init(&self, device: &Device) -> Result<IgevStereo, TrainError> {
+    pub fn init(&self, device: &Device) -> Result<IgevStereo, NetError> {
         self.validate()?;
         let hidden = self.hidden_dim;
         let instance = NormKind::Instance;

@@ -9,8 +9,8 @@ use burn::tensor::Device;
 use burn::tensor::Tensor;
 use burn::tensor::activation::relu;
 
-use crate::backbone::layers::conv;
-use crate::backbone::norm::{Norm, NormKind};
+use crate::layers::conv;
+use crate::norm::{Norm, NormKind};
 
 /// The official `ResidualBlock`: two 3x3 convolutions with normalisation and
 /// a 1x1 projection of the input when the shape changes.

@@ -5,11 +5,11 @@
 use burn::tensor::{Device, Tensor, TensorData};
 use mbs_core::RgbImage;
 
-use crate::error::TrainError;
+use crate::error::NetError;
 
 /// A crop window, in pixels.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Window {
+pub struct Window {
     /// First row.
     pub top: usize,
     /// First column.
@@ -21,7 +21,7 @@ pub(crate) struct Window {
 }
 
 /// Appends `window` of `image` to `out` as planar RGB in `[0, 1]`.
-pub(crate) fn append_chw(window: &Window, image: &RgbImage, out: &mut Vec<f32>) {
+pub fn append_chw(window: &Window, image: &RgbImage, out: &mut Vec<f32>) {
     let stride = image.width() as usize * 3;
     let raw = image.as_raw();
     for channel in 0..3 {
@@ -36,7 +36,7 @@ pub(crate) fn append_chw(window: &Window, image: &RgbImage, out: &mut Vec<f32>) 
 }
 
 /// Planar values of `shape` as a tensor on `device`.
-pub(crate) fn chw_tensor(data: Vec<f32>, shape: [usize; 4], device: &Device) -> Tensor<4> {
+pub fn chw_tensor(data: Vec<f32>, shape: [usize; 4], device: &Device) -> Tensor<4> {
     Tensor::from_data(TensorData::new(data, shape), device)
 }
 
@@ -55,20 +55,20 @@ pub fn image_tensor(image: &RgbImage, device: &Device) -> Tensor<4> {
 }
 
 /// The first value of `tensor` as f32.
-pub(crate) fn read_scalar(tensor: Tensor<1>, what: &'static str) -> Result<f32, TrainError> {
+pub fn read_scalar(tensor: Tensor<1>, what: &'static str) -> Result<f32, NetError> {
     read_all(tensor, what)?
         .first()
         .copied()
-        .ok_or(TrainError::Readback(what))
+        .ok_or(NetError::Readback(what))
 }
 
 /// Every value of `tensor` as f32, row-major.
-pub(crate) fn read_all<const D: usize>(
+pub fn read_all<const D: usize>(
     tensor: Tensor<D>,
     what: &'static str,
-) -> Result<Vec<f32>, TrainError> {
+) -> Result<Vec<f32>, NetError> {
     tensor
         .into_data()
         .try_to_vec::<f32>()
-        .map_err(|_| TrainError::Readback(what))
+        .map_err(|_| NetError::Readback(what))
 }

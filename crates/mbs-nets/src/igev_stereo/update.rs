@@ -8,8 +8,8 @@ use burn::nn::conv::Conv2d;
 use burn::tensor::activation::relu;
 use burn::tensor::{Device, Tensor};
 
-use crate::backbone::layers::conv;
-use crate::backbone::raft_stereo::update::{ConvGru, GruState, LevelsToUpdate};
+use crate::layers::conv;
+use crate::raft_stereo::update::{ConvGru, GruState, LevelsToUpdate};
 
 /// Channels of the motion features.
 const MOTION_CHANNELS: usize = 128;

@@ -9,8 +9,8 @@ use burn::tensor::Device;
 use serde_json::Value;
 
 use super::*;
-use crate::backbone::official::{StateDict, export_state_dict, load_state_dict};
-use crate::backbone::seeded::seeded_tensor;
+use crate::official::{StateDict, export_state_dict, load_state_dict};
+use crate::seeded::seeded_tensor;
 use crate::test_util::parity::{self, input, seeded_dict};
 use crate::test_util::values;
 

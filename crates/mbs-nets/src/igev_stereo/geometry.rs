@@ -7,8 +7,8 @@ use burn::tensor::Tensor;
 use burn::tensor::activation::softmax;
 use burn::tensor::ops::PadMode;
 
-use crate::backbone::layers::counting;
-use crate::backbone::raft_stereo::correlation::{lookup_offsets, sample_linear};
+use crate::layers::counting;
+use crate::raft_stereo::correlation::{lookup_offsets, sample_linear};
 
 /// Group-wise correlation `[B, groups, D, H, W]` of left and right
 /// features (`[B, C, H, W]`): for each candidate `d`, the mean over each

@@ -10,7 +10,7 @@ use burn::tensor::activation::relu6;
 use burn::tensor::{Device, Tensor};
 
 use super::blocks::{BasicConv2d, Conv2x, ConvSpec};
-use crate::backbone::norm::{Norm, NormKind};
+use crate::norm::{Norm, NormKind};
 
 /// A convolution without bias with "same" padding (`groups` for depthwise ones).
 pub(super) fn conv(

@@ -15,7 +15,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 
 use burn::tensor::{Device, Tensor};
 
-use crate::error::TrainError;
+use crate::error::NetError;
 
 /// A device as named on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -30,10 +30,10 @@ pub enum DeviceName {
 }
 
 impl FromStr for DeviceName {
-    type Err = TrainError;
+    type Err = NetError;
 
-    fn from_str(name: &str) -> Result<Self, TrainError> {
-        let unknown = || TrainError::Device {
+    fn from_str(name: &str) -> Result<Self, NetError> {
+        let unknown = || NetError::Device {
             name: name.to_string(),
             reason: "unknown device: use cpu, vulkan, vulkan:N, cuda or cuda:N, or a \
                      comma-separated list of them (cuda:0,cuda:1)"
@@ -67,8 +67,8 @@ impl DeviceName {
     /// Opens the device and runs a small kernel on it. An error names the
     /// device and says what is missing: the build feature, the driver, or
     /// (for CUDA) NVRTC and the CUDA headers.
-    pub fn open(self) -> Result<Device, TrainError> {
-        let failed = |reason: String| TrainError::Device {
+    pub fn open(self) -> Result<Device, NetError> {
+        let failed = |reason: String| NetError::Device {
             name: self.to_string(),
             reason,
         };
@@ -81,13 +81,13 @@ impl DeviceName {
 }
 
 /// Opens the one device `name` names (see [`DeviceName`]).
-pub fn open_device(name: &str) -> Result<Device, TrainError> {
+pub fn open_device(name: &str) -> Result<Device, NetError> {
     name.trim().parse::<DeviceName>()?.open()
 }
 
 /// Opens each device of the comma-separated `list`, in order. The same
 /// device may appear twice (its shards then run one after the other).
-pub fn open_devices(list: &str) -> Result<Vec<Device>, TrainError> {
+pub fn open_devices(list: &str) -> Result<Vec<Device>, NetError> {
     list.split(',').map(open_device).collect()
 }
 

@@ -1,14 +1,29 @@
-//! Stereo backbones: anything that maps a rectified pair to a
-//! full-resolution disparity can be trained with S3 (SPEC §5).
+//! Stereo networks on burn: the compact cost-volume network, RAFT-Stereo and IGEV-Stereo, their configurations, official weights in and out, devices, host conversion, and inference on whole images as a `StereoMatcher`; usable without the trainer.
+//!
+//! Any network that maps a rectified pair to a full-resolution disparity
+//! ([`Backbone`]) can be trained with S3 (`mbs-train`, conventions §5) and
+//! served to `predict`, `eval` and `extrapolate` ([`inference`]).
+//!
+//! Everything runs on burn's run-time selected device (`Device::flex()` on
+//! the CPU, Vulkan or CUDA through [`device::open_device`]).
 
+pub mod checkpoint;
 pub mod cost_volume;
+pub mod device;
+pub mod error;
+pub mod host;
 pub mod igev_stereo;
+pub mod inference;
 mod layers;
+pub mod mirror;
 pub mod network;
 pub mod norm;
 pub mod official;
 pub mod raft_stereo;
+pub mod ranges;
 pub mod seeded;
+#[cfg(any(test, feature = "test-support"))]
+pub mod test_util;
 pub mod upsample;
 #[cfg(all(test, feature = "vulkan"))]
 mod vulkan_tests;
@@ -20,7 +35,9 @@ use mbs_core::geometry::Side;
 use crate::mirror::mirror_left;
 
 pub use cost_volume::{CostVolumeNet, CostVolumeNetConfig};
+pub use error::NetError;
 pub use igev_stereo::{IgevStereo, IgevStereoConfig};
+pub use inference::NetworkMatcher;
 pub use network::{BackboneKind, NetworkConfig, StereoNetwork};
 pub use raft_stereo::{RaftStereo, RaftStereoConfig};
 

@@ -46,8 +46,8 @@ pub mod parity {
     use serde_json::Value;
 
     use super::values;
-    use crate::backbone::official::{StateDict, StateTensor};
-    use crate::backbone::seeded::seeded_tensor;
+    use crate::official::{StateDict, StateTensor};
+    use crate::seeded::seeded_tensor;
 
     /// Largest difference allowed to the official output (pixels).
     pub const TOLERANCE_PX: f32 = 1e-3;

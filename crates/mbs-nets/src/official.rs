@@ -18,7 +18,7 @@ use burn::tensor::{Tensor, TensorData};
 use mbs_core::atomic::partial_path;
 use safetensors::{Dtype, SafeTensors};
 
-use crate::error::TrainError;
+use crate::error::NetError;
 
 /// A network whose parameters are those of an official implementation.
 pub trait OfficialLayout: Module {
@@ -51,7 +51,7 @@ impl StateDict {
     /// Reads a `.pth`/`.pt` (PyTorch) or `.safetensors` file; the format
     /// is chosen by the extension. A `module.` prefix on every key is
     /// removed.
-    pub fn read(path: &Path) -> Result<Self, TrainError> {
+    pub fn read(path: &Path) -> Result<Self, NetError> {
         let extension = path
             .extension()
             .and_then(|e| e.to_str())
@@ -61,14 +61,14 @@ impl StateDict {
             "safetensors" => Self::read_safetensors(path)?,
             "pth" | "pt" | "ckpt" | "bin" => Self::read_pytorch(path)?,
             _ => {
-                return Err(TrainError::weights(
+                return Err(NetError::weights(
                     path,
                     "unknown format: expected a .pth, .pt or .safetensors file",
                 ));
             }
         };
         if dict.tensors.is_empty() {
-            return Err(TrainError::weights(path, "holds no float tensors"));
+            return Err(NetError::weights(path, "holds no float tensors"));
         }
         if dict
             .tensors
@@ -83,10 +83,10 @@ impl StateDict {
         Ok(dict)
     }
 
-    fn read_safetensors(path: &Path) -> Result<Self, TrainError> {
-        let bytes = std::fs::read(path).map_err(|e| TrainError::weights(path, e))?;
+    fn read_safetensors(path: &Path) -> Result<Self, NetError> {
+        let bytes = std::fs::read(path).map_err(|e| NetError::weights(path, e))?;
         let file = SafeTensors::deserialize(&bytes)
-            .map_err(|e| TrainError::weights(path, format!("not a safetensors file: {e}")))?;
+            .map_err(|e| NetError::weights(path, format!("not a safetensors file: {e}")))?;
         let mut tensors = BTreeMap::new();
         for (key, view) in file.tensors() {
             let values = match view.dtype() {
@@ -115,10 +115,10 @@ impl StateDict {
         Ok(StateDict { tensors })
     }
 
-    fn read_pytorch(path: &Path) -> Result<Self, TrainError> {
+    fn read_pytorch(path: &Path) -> Result<Self, NetError> {
         use burn::store::pytorch_reader::{DType, PytorchReader};
         let reader = PytorchReader::new(path)
-            .map_err(|e| TrainError::weights(path, format!("not a PyTorch state dict: {e}")))?;
+            .map_err(|e| NetError::weights(path, format!("not a PyTorch state dict: {e}")))?;
         let mut tensors = BTreeMap::new();
         for (key, tensor) in reader.into_tensors() {
             let (width, decode): (usize, fn(&[u8]) -> f32) = match tensor.dtype() {
@@ -132,7 +132,7 @@ impl StateDict {
             };
             let bytes = tensor
                 .read()
-                .map_err(|e| TrainError::weights(path, format!("tensor {key}: {e}")))?;
+                .map_err(|e| NetError::weights(path, format!("tensor {key}: {e}")))?;
             tensors.insert(
                 key,
                 StateTensor {
@@ -148,7 +148,7 @@ impl StateDict {
     /// (keys of int64 zero scalars such as batch-norm's
     /// `num_batches_tracked`) beside it; through a temporary file renamed
     /// when complete.
-    pub fn write_safetensors(&self, path: &Path, counters: &[String]) -> Result<(), TrainError> {
+    pub fn write_safetensors(&self, path: &Path, counters: &[String]) -> Result<(), NetError> {
         let zero = 0i64.to_le_bytes();
         let mut views = Vec::with_capacity(self.tensors.len() + counters.len());
         let bytes: Vec<(&String, Vec<u8>, &[usize])> = self
@@ -161,12 +161,12 @@ impl StateDict {
             .collect();
         for (key, data, shape) in &bytes {
             let view = safetensors::tensor::TensorView::new(Dtype::F32, shape.to_vec(), data)
-                .map_err(|e| TrainError::weights(path, e))?;
+                .map_err(|e| NetError::weights(path, e))?;
             views.push(((*key).clone(), view));
         }
         for key in counters {
             let view = safetensors::tensor::TensorView::new(Dtype::I64, vec![], &zero)
-                .map_err(|e| TrainError::weights(path, e))?;
+                .map_err(|e| NetError::weights(path, e))?;
             views.push((key.clone(), view));
         }
         let partial = partial_path(path);
@@ -175,8 +175,8 @@ impl StateDict {
             "pt".to_string(),
         )]));
         safetensors::serialize_to_file(views, metadata, &partial)
-            .map_err(|e| TrainError::weights(path, e))?;
-        std::fs::rename(&partial, path).map_err(|e| TrainError::weights(path, e))
+            .map_err(|e| NetError::weights(path, e))?;
+        std::fs::rename(&partial, path).map_err(|e| NetError::weights(path, e))
     }
 }
 
@@ -220,7 +220,7 @@ pub fn load_state_dict<M: OfficialLayout>(
     module: M,
     dict: &StateDict,
     source: &Path,
-) -> Result<M, TrainError> {
+) -> Result<M, NetError> {
     let mut loader = Loader {
         path: Vec::new(),
         key: M::official_key,
@@ -249,7 +249,7 @@ pub fn load_state_dict<M: OfficialLayout>(
             problems.push(format!("{} keys {what}: {}", keys.len(), listing(keys)));
         }
     }
-    Err(TrainError::weights(
+    Err(NetError::weights(
         source,
         format!(
             "does not match the network ({}); check the backbone and its network.* settings",

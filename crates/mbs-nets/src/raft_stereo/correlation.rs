@@ -6,7 +6,7 @@
 
 use burn::tensor::{FloatDType, Tensor};
 
-use crate::backbone::layers::counting;
+use crate::layers::counting;
 
 /// All-pairs correlation rows and their pooled copies.
 pub struct CorrelationPyramid {

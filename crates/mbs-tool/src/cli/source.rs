@@ -1,0 +1,149 @@
+//! Where disparities come from, for `predict`, `eval` and `extrapolate`:
+//! one set of flags, turned into one [`StereoMatcher`] here. The sources
+//! are the built-in semi-global matcher (the default, with the command's
+//! own preset), an ONNX stereo network with its card (`--model`,
+//! `--card`), a training run's teacher (`--checkpoint`), or an official or
+//! exported network (`--backbone`, `--weights`); networks and ONNX models
+//! run on `--device`.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::ValueEnum;
+use mbs_infer::onnx::{ModelCard, OnnxStereo};
+use mbs_infer::{Sgm, SgmConfig, SgmPaths, StereoMatcher};
+use mbs_nets::{BackboneKind, NetworkConfig, NetworkMatcher};
+
+use crate::cli::onnx::OnnxArgs;
+
+/// Flags choosing the disparity source.
+#[derive(clap::Args)]
+pub struct StereoSourceArgs {
+    /// An ONNX stereo network instead of the built-in matcher.
+    #[arg(long, value_name = "FILE.onnx", requires = "card", conflicts_with_all = ["checkpoint", "weights"], help_heading = "Disparity source")]
+    pub model: Option<PathBuf>,
+    /// How to feed --model: a built-in card name (crestereo, hitnet,
+    /// raft-stereo, igev) or a card FILE.json.
+    #[arg(
+        long,
+        value_name = "NAME|FILE.json",
+        requires = "model",
+        help_heading = "Disparity source"
+    )]
+    pub card: Option<String>,
+    /// The teacher of a training run (or of one of its checkpoints/step-N
+    /// folders) instead of the built-in matcher.
+    #[arg(
+        long,
+        value_name = "RUN|CHECKPOINT",
+        conflicts_with = "weights",
+        help_heading = "Disparity source"
+    )]
+    pub checkpoint: Option<PathBuf>,
+    /// --backbone with these weights instead of the built-in matcher: an
+    /// official checkpoint (.pth or .safetensors, with or without
+    /// DataParallel's `module.` prefix) or an `mbs-tool export`.
+    #[arg(
+        long,
+        value_name = "FILE",
+        requires = "backbone",
+        help_heading = "Disparity source"
+    )]
+    pub weights: Option<PathBuf>,
+    /// The network of --weights.
+    #[arg(long, value_name = "NAME", requires = "weights", value_parser = parse_backbone, help_heading = "Disparity source")]
+    pub backbone: Option<BackboneKind>,
+    /// A network setting for --weights (repeatable), e.g.
+    /// `network.raft_stereo.n_downsample=3` or `network.raft_stereo.test_iters=12`.
+    #[arg(
+        long = "set",
+        value_name = "network.KEY=VALUE",
+        requires = "weights",
+        help_heading = "Disparity source"
+    )]
+    pub set: Vec<String>,
+    /// Number of disparities the built-in matcher searches (0 = estimate
+    /// per pair, up to 256) [default: the command's]; with a network, the
+    /// top of --color's scale (0 = each map's maximum).
+    #[arg(long, value_name = "N", help_heading = "Disparity source")]
+    pub max_disparity: Option<u32>,
+    /// Aggregation paths of the built-in matcher [default: the command's].
+    #[arg(long, value_enum, help_heading = "Disparity source")]
+    pub paths: Option<Paths>,
+    /// Leave pixels the built-in matcher could not match invalid instead
+    /// of filling them from the background side.
+    #[arg(long, help_heading = "Disparity source")]
+    pub no_fill: bool,
+    /// Where networks run, and the ONNX Runtime library.
+    #[command(flatten)]
+    pub runtime: OnnxArgs,
+}
+
+/// Aggregation paths (see `mbs_infer::SgmPaths`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Paths {
+    /// Horizontal and top-down paths: one pass, fastest.
+    #[value(name = "5")]
+    Five,
+    /// All eight directions: more accurate, about 1.6x the time.
+    #[value(name = "8")]
+    Eight,
+}
+
+/// `--backbone`, as `BackboneKind` spells it.
+fn parse_backbone(text: &str) -> Result<BackboneKind, String> {
+    text.parse().map_err(|e: mbs_nets::NetError| e.to_string())
+}
+
+/// The disparity source the flags chose.
+pub enum StereoSource {
+    /// The built-in matcher with the command's preset and the flags' settings.
+    BuiltIn(SgmConfig),
+    /// A network: ONNX, a run's teacher, or official or exported weights.
+    Network(Box<dyn StereoMatcher>),
+}
+
+impl StereoSourceArgs {
+    /// Opens the chosen source; `preset` is the command's built-in matcher,
+    /// which the flags adjust.
+    pub fn open(&self, preset: SgmConfig) -> anyhow::Result<StereoSource> {
+        if let (Some(model), Some(card)) = (&self.model, &self.card) {
+            let stereo = OnnxStereo::open(model, ModelCard::load(card)?, &self.runtime.options()?)?;
+            self.runtime
+                .report_fallback(&model.display().to_string(), stereo.device());
+            return Ok(StereoSource::Network(Box::new(stereo)));
+        }
+        if let Some(path) = &self.checkpoint {
+            let device = mbs_nets::device::open_device(&self.runtime.device)?;
+            return Ok(StereoSource::Network(Box::new(NetworkMatcher::open(
+                path, device,
+            )?)));
+        }
+        if let (Some(weights), Some(backbone)) = (&self.weights, self.backbone) {
+            let config = NetworkConfig::with_overrides(backbone, &self.set)
+                .context("the network settings (--set)")?;
+            let device = mbs_nets::device::open_device(&self.runtime.device)?;
+            return Ok(StereoSource::Network(Box::new(
+                NetworkMatcher::with_weights(&config, weights, device)?,
+            )));
+        }
+        Ok(StereoSource::BuiltIn(SgmConfig {
+            max_disparity: self.max_disparity.unwrap_or(preset.max_disparity),
+            paths: match self.paths {
+                Some(Paths::Five) => SgmPaths::Five,
+                Some(Paths::Eight) => SgmPaths::Eight,
+                None => preset.paths,
+            },
+            fill: preset.fill && !self.no_fill,
+            ..preset
+        }))
+    }
+
+    /// The chosen source as a matcher (see [`StereoSourceArgs::open`]).
+    pub fn matcher(&self, preset: SgmConfig) -> anyhow::Result<Box<dyn StereoMatcher>> {
+        Ok(match self.open(preset)? {
+            StereoSource::BuiltIn(config) => Box::new(Sgm::new(config)),
+            StereoSource::Network(network) => network,
+        })
+    }
+}
