@@ -168,5 +168,4 @@ mod tests {
             assert!(sheet.width() >= 4 * w && sheet.height() > 2 * h);
         }
     }
-
 }

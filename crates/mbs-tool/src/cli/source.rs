@@ -50,7 +50,7 @@ pub struct StereoSourceArgs {
         help_heading = "Disparity source"
     )]
     pub weights: Option<PathBuf>,
-    /// The network of --weights.
+    /// The network of --weights: compact, raft-stereo or igev.
     #[arg(long, value_name = "NAME", requires = "weights", value_parser = parse_backbone, help_heading = "Disparity source")]
     pub backbone: Option<BackboneKind>,
     /// A network setting for --weights (repeatable), e.g.
