@@ -54,14 +54,21 @@ pub fn completed(root: &Path) -> Result<Vec<(usize, PathBuf)>, NetError> {
     Ok(found)
 }
 
+/// The newest completed checkpoint folder of the run folder `run`, if any.
+pub fn latest(run: &Path) -> Result<Option<PathBuf>, NetError> {
+    Ok(completed(&run.join(CHECKPOINTS_DIR))?
+        .pop()
+        .map(|(_, dir)| dir))
+}
+
 /// The checkpoint folder `path` names: itself when it holds a state file,
 /// else the newest checkpoint of the run folder `path`.
 pub fn locate(path: &Path) -> Result<PathBuf, NetError> {
     if path.join(STATE_FILE).is_file() {
         return Ok(path.to_path_buf());
     }
-    match completed(&path.join(CHECKPOINTS_DIR))?.pop() {
-        Some((_, dir)) => Ok(dir),
+    match latest(path)? {
+        Some(dir) => Ok(dir),
         None => Err(NetError::checkpoint(
             path,
             "neither a checkpoint folder (no state.json) nor a training run with checkpoints/",

@@ -22,13 +22,13 @@ use crate::step::S3Trainer;
 use burn::module::Module;
 use burn::optim::ModuleOptimizer;
 use burn::store::{BurnpackStore, ModuleSnapshot};
-use burn::tensor::{Bytes, Device};
+use burn::tensor::Bytes;
 use mbs_core::atomic::partial_path;
+use mbs_nets::Backbone;
 use mbs_nets::checkpoint::{
-    CHECKPOINTS_DIR, FORMAT, STATE_FILE, STUDENT_FILE, TEACHER_FILE, completed, folder_name,
-    load_module, locate, read_state,
+    CHECKPOINTS_DIR, FORMAT, STATE_FILE, STUDENT_FILE, TEACHER_FILE, TrainedNetworks, completed,
+    folder_name, latest, locate, read_state,
 };
-use mbs_nets::{Backbone, StereoNetwork};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
@@ -141,8 +141,8 @@ pub struct Checkpoint {
 impl Checkpoint {
     /// The newest completed checkpoint of the run folder `run`, if any.
     pub fn latest(run: &Path) -> Result<Option<Checkpoint>, TrainError> {
-        match completed(&run.join(CHECKPOINTS_DIR))?.pop() {
-            Some((_, dir)) => Checkpoint::open(&dir).map(Some),
+        match latest(run)? {
+            Some(dir) => Checkpoint::open(&dir).map(Some),
             None => Ok(None),
         }
     }
@@ -161,16 +161,14 @@ impl Checkpoint {
             .map_err(|e| TrainError::checkpoint(self.dir.join(STATE_FILE), e))
     }
 
-    /// The teacher (the network used for inference) on `device`.
-    pub fn teacher(&self, device: &Device) -> Result<StereoNetwork, TrainError> {
-        let net = self.config()?.network.init(device)?;
-        Ok(load_module(net, &self.dir.join(TEACHER_FILE))?)
-    }
-
-    /// The student on `device`.
-    pub fn student(&self, device: &Device) -> Result<StereoNetwork, TrainError> {
-        let net = self.config()?.network.init(device)?;
-        Ok(load_module(net, &self.dir.join(STUDENT_FILE))?)
+    /// The checkpoint's teacher and student, with the network settings of
+    /// its (checked) configuration.
+    pub fn networks(&self) -> Result<TrainedNetworks, TrainError> {
+        Ok(TrainedNetworks {
+            dir: self.dir.clone(),
+            steps: self.state.steps,
+            network: self.config()?.network,
+        })
     }
 
     /// The Adam state.

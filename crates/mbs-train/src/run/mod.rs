@@ -37,6 +37,7 @@ use crate::error::TrainError;
 use crate::precision::check_support;
 use crate::step::{S3Trainer, StepReport};
 use mbs_nets::StereoNetwork;
+use mbs_nets::checkpoint::TrainedNetworks;
 use mbs_nets::host::image_tensor;
 use mbs_nets::official::StateDict;
 
@@ -131,7 +132,7 @@ pub enum End {
 /// `.safetensors` state dict, or an `mbs-tool export`).
 pub fn initial_weights(path: &Path) -> Result<StateDict, TrainError> {
     if path.is_dir() {
-        let teacher = Checkpoint::open(path)?.teacher(&Device::flex())?;
+        let teacher = TrainedNetworks::open(path)?.teacher(&Device::flex())?;
         Ok(teacher.state_dict().0)
     } else {
         Ok(StateDict::read(path)?)
@@ -225,9 +226,10 @@ impl TrainingRun {
             Some(checkpoint) => {
                 check_resumable(&checkpoint, &config)?;
                 let steps = checkpoint.state.steps;
+                let networks = checkpoint.networks()?;
                 trainer.restore(
-                    checkpoint.student(&train_device)?,
-                    checkpoint.teacher(&device)?,
+                    networks.student(&train_device)?,
+                    networks.teacher(&device)?,
                     checkpoint.optimizer()?,
                     steps,
                     checkpoint.state.loss_scale,
