@@ -265,6 +265,28 @@ fn errors_name_the_problem() {
     assert_eq!(message.matches("missing.png").count(), 1, "{message}");
     assert!(!out.exists());
 
+    // A disparity source that cannot be opened is refused before anything
+    // is written: a training setting given to a network, and weights that
+    // are not there.
+    let weights = dir.path().join("no-such-weights.safetensors");
+    let network = ["--backbone", "compact", "--weights", s(&weights)];
+    let output = run(&[&pair[..], &network, &["--set", "trainer.lr.max_lr=1"]].concat());
+    assert!(!output.status.success());
+    assert!(
+        text(&output).contains("only network.KEY=VALUE settings apply to a network"),
+        "{}",
+        text(&output)
+    );
+    assert!(!out.exists());
+    let output = run(&[&pair[..], &network].concat());
+    assert!(!output.status.success());
+    assert!(
+        text(&output).contains("no-such-weights.safetensors"),
+        "{}",
+        text(&output)
+    );
+    assert!(!out.exists());
+
     // A view that cannot be read fails its frame; no empty manifest is left.
     let broken = dir.path().join("broken.png");
     std::fs::write(&broken, b"not a png").unwrap();

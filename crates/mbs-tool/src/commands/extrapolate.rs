@@ -185,9 +185,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             (vec![frame], out.clone())
         }
     };
-    crate::cli::prepare_out(&out)?;
+    // Models and networks are opened before anything is written, so a bad
+    // source leaves no output folder behind.
     let extrapolator = Extrapolator::new(dilation(&args), inpainter(&args)?);
     let source = disparity_source(&args)?;
+    crate::cli::prepare_out(&out)?;
     let selected: Vec<&Frame> = match args.shard {
         Some(shard) => shard.select(frames.iter().collect()),
         None => frames.iter().collect(),
