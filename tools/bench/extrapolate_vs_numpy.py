@@ -84,7 +84,7 @@ def psnr(a, b, mask=None):
 
 
 def ssim(a, b, mask=None):
-    """Gaussian 11x11 sigma 1.5 SSIM, channel mean: the same as mbs_core::quality::ssim."""
+    """Gaussian 11x11 sigma 1.5 SSIM, channel mean: the same as mbs_image::quality::ssim."""
     c1, c2 = (0.01 * 255) ** 2, (0.03 * 255) ** 2
     maps = []
     for c in range(3):

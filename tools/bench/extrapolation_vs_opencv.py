@@ -21,7 +21,7 @@ Peer, per pair:
   columns with linear weights and a z-buffer (contributions within 1 px of
   the nearest disparity are blended);
 - fill: cv2.inpaint TELEA, radius 3, over the pixels nothing landed on.
-SSIM is the Gaussian 11x11, sigma 1.5 form of mbs_core::quality::ssim.
+SSIM is the Gaussian 11x11, sigma 1.5 form of mbs_image::quality::ssim.
 
 Needs numpy and opencv-python-headless (not a CI dependency). From the
 repository root:

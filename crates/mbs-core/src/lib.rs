@@ -1,6 +1,7 @@
-//! Rig geometry, image / disparity / depth types, file formats, disparity
-//! metrics and their reports, image-quality measures and the background-side
-//! fill, shared by every mbs crate.
+//! Rig geometry, image / disparity / depth types, file formats with atomic
+//! and confined writing, disparity metrics and their reports, and settings
+//! in layers, shared by every mbs crate (operations on images are
+//! `mbs-image`'s).
 //!
 //! Conventions (see `docs/conventions.md` §2): cameras sit on one horizontal line, camera
 //! `k` at `x = k * B`; disparity is a non-negative magnitude on the reference
@@ -10,16 +11,11 @@
 pub mod atomic;
 pub mod confine;
 pub mod error;
-pub mod fill;
 pub mod formats;
 pub mod geometry;
 pub mod layered;
 pub mod limits;
-pub mod median;
 pub mod metrics;
-pub mod mutation;
-pub mod quality;
-pub mod resample;
 
 pub use error::{FormatError, Result};
 pub use geometry::{Rig, Side};

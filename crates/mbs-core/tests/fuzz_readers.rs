@@ -9,8 +9,8 @@
 use std::path::Path;
 
 use mbs_core::formats::{carla, exr, pfm, png16, read_disparity, rgb};
-use mbs_core::mutation::fuzz_reader;
 use mbs_core::{FloatImage, Result};
+use mbs_test_support::mutation::fuzz_reader;
 
 /// Mutated files per valid file.
 const CASES_PER_FORMAT: usize = 1000;

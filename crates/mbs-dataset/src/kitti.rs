@@ -141,7 +141,7 @@ impl KittiVersion {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_util::touch;
+    use mbs_test_support::files::touch;
 
     #[test]
     fn detects_both_versions_and_lists_frames() {

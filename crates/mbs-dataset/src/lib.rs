@@ -1,5 +1,5 @@
 //! Dataset layouts (MBS20K, KITTI), the manifest model with its JSON Schema,
-//! pairs with ground truth, and the on-disk checks behind `mbs-tool validate`.
+//! stereo pairs from any of them with their ground truth, and the on-disk checks behind `mbs-tool validate`.
 
 pub mod checksum;
 pub mod error;
@@ -7,12 +7,10 @@ pub mod ground_truth;
 pub mod kitti;
 pub mod manifest;
 pub mod mbs20k;
+pub mod pairs;
 pub mod probe;
 pub mod schema;
 pub mod validate;
-
-#[cfg(test)]
-mod test_util;
 
 pub use error::DatasetError;
 pub use manifest::{Manifest, PairGroundTruth, Provenance, Sample, Split};

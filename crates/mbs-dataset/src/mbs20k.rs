@@ -1,12 +1,16 @@
 //! The MBS20K layout (conventions §3): `<root>/<Town>/<Weather>/<frame>/rgb_0.png …
 //! rgb_{N-1}.png, depth_0.png`. Scanning it gives a manifest; the counts per
-//! town and weather print like the paper's statistics table.
+//! town and weather print like the paper's statistics table; decoding its
+//! depth writes `depth_0.exr` and `disp_0_T.png` beside (or mirroring)
+//! each `depth_0.png`.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use mbs_core::Rig;
+use mbs_core::formats::{DepthFormat, DisparityFormat, carla, rgb};
+use mbs_core::geometry::{depth_to_disparity, limit_depth};
 
 use crate::error::DatasetError;
 use crate::manifest::{DepthEncoding, DepthInfo, FORMAT, Manifest, Provenance, Sample, Split};
@@ -23,6 +27,148 @@ pub fn view_file(k: usize) -> String {
 
 /// The file name of the depth image of camera 0.
 pub const DEPTH_FILE: &str = "depth_0.png";
+
+/// The name of camera `camera`'s decoded depth in `format`.
+pub fn decoded_depth_file(camera: usize, format: DepthFormat) -> String {
+    match format {
+        DepthFormat::Exr => format!("depth_{camera}.exr"),
+        DepthFormat::Pfm => format!("depth_{camera}.pfm"),
+        DepthFormat::Png16 => format!("depth_{camera}_mm.png"),
+    }
+}
+
+/// The name of the disparity of pair `reference:target` decoded from depth,
+/// in `format`.
+pub fn decoded_disparity_file(reference: usize, target: usize, format: DisparityFormat) -> String {
+    format!("disp_{reference}_{target}.{}", format.extension())
+}
+
+/// A depth image to decode and the folder its outputs go to.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DepthImage {
+    /// The CARLA-encoded depth PNG.
+    pub encoded: PathBuf,
+    /// Where its decoded depth and disparities go.
+    pub out_dir: PathBuf,
+}
+
+/// Every `depth_0.png` in `root` or below (a whole tree, a town or one
+/// frame), sorted by path; outputs beside each, or in the same place under
+/// `out`.
+pub fn depth_images_in_folder(
+    root: &Path,
+    out: Option<&Path>,
+) -> Result<Vec<DepthImage>, DatasetError> {
+    let mut images = Vec::new();
+    // walkdir follows linked towns and stops at link cycles.
+    for entry in walkdir::WalkDir::new(root)
+        .follow_links(true)
+        .sort_by_file_name()
+    {
+        let entry = entry.map_err(|e| DatasetError::Io {
+            path: e.path().unwrap_or(root).to_path_buf(),
+            source: e.into(),
+        })?;
+        if entry.file_type().is_file() && entry.file_name() == DEPTH_FILE {
+            let dir = entry.path().parent().unwrap_or(root);
+            let relative = dir.strip_prefix(root).unwrap_or(Path::new(""));
+            images.push(DepthImage {
+                encoded: entry.path().to_path_buf(),
+                out_dir: out.map_or_else(|| dir.to_path_buf(), |o| o.join(relative)),
+            });
+        }
+    }
+    if images.is_empty() {
+        return Err(DatasetError::Layout {
+            path: root.to_path_buf(),
+            message: format!("no {DEPTH_FILE} found in this folder or below"),
+        });
+    }
+    Ok(images)
+}
+
+/// The depth image of every sample of a manifest read from `path`; outputs
+/// beside each, or in the same place under `out` (manifest paths are
+/// confined names, so they stay inside it).
+pub fn depth_images_in_manifest(
+    path: &Path,
+    manifest: &Manifest,
+    out: Option<&Path>,
+) -> Result<Vec<DepthImage>, DatasetError> {
+    let images = manifest
+        .samples
+        .iter()
+        .filter_map(|s| s.depth.as_deref())
+        .map(|relative| {
+            let encoded = crate::manifest::resolve(path, relative);
+            let folder = relative.rsplit_once('/').map_or("", |(dir, _)| dir);
+            let out_dir = match out {
+                Some(o) if folder.is_empty() => o.to_path_buf(),
+                Some(o) => mbs_core::confine::join_confined(o, folder)?,
+                None => encoded.parent().unwrap_or(Path::new("")).to_path_buf(),
+            };
+            Ok(DepthImage { encoded, out_dir })
+        })
+        .collect::<Result<Vec<_>, DatasetError>>()?;
+    if images.is_empty() {
+        return Err(DatasetError::Manifest {
+            path: path.to_path_buf(),
+            message: "no sample has a depth image".into(),
+        });
+    }
+    Ok(images)
+}
+
+/// What decoding writes for every depth image.
+#[derive(Debug, Clone)]
+pub struct DepthDecoding {
+    /// The rig the disparities are computed for.
+    pub rig: Rig,
+    /// The camera the depth images belong to.
+    pub camera: usize,
+    /// The cameras a disparity is written for, against `camera`.
+    pub targets: Vec<usize>,
+    /// Depth beyond this many metres is invalid.
+    pub max_depth_m: f32,
+    /// The file format of the depth maps.
+    pub depth_format: DepthFormat,
+    /// The file format of the disparity maps.
+    pub disparity_format: DisparityFormat,
+}
+
+impl DepthDecoding {
+    /// Decodes one depth image and writes the outputs it does not have yet
+    /// (each atomically); `false` when all were there already.
+    pub fn decode(&self, image: &DepthImage) -> Result<bool, DatasetError> {
+        let depth_path = image
+            .out_dir
+            .join(decoded_depth_file(self.camera, self.depth_format));
+        let missing: Vec<(usize, PathBuf)> = self
+            .targets
+            .iter()
+            .map(|&t| {
+                let name = decoded_disparity_file(self.camera, t, self.disparity_format);
+                (t, image.out_dir.join(name))
+            })
+            .filter(|(_, path)| !path.exists())
+            .collect();
+        let depth_missing = !depth_path.exists();
+        if !depth_missing && missing.is_empty() {
+            return Ok(false);
+        }
+        let depth = carla::decode_depth(&rgb::read_rgb8_strict(&image.encoded)?);
+        if depth_missing {
+            let limited = limit_depth(&depth, self.max_depth_m);
+            self.depth_format.write(&depth_path, &limited)?;
+        }
+        for (target, path) in missing {
+            let disparity =
+                depth_to_disparity(&depth, &self.rig, self.camera, target, self.max_depth_m);
+            self.disparity_format.write(&path, &disparity)?;
+        }
+        Ok(true)
+    }
+}
 
 /// How to scan an MBS20K tree.
 #[derive(Debug, Clone)]
@@ -233,7 +379,7 @@ impl Counts {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_util::touch;
+    use mbs_test_support::files::touch;
 
     #[test]
     fn scans_layout_assigns_test_split_and_counts() {

@@ -2,9 +2,9 @@
 //! never panics and its errors name the manifest; `validate --deep` never
 //! panics either.
 
-use mbs_core::mutation::fuzz_reader;
 use mbs_dataset::Manifest;
 use mbs_dataset::validate::{ValidateOptions, validate_manifest};
+use mbs_test_support::mutation::fuzz_reader;
 
 #[test]
 fn mutated_manifests_never_panic_and_errors_name_the_file() {

@@ -5,8 +5,8 @@
 use std::path::Path;
 
 use mbs_core::formats::read_float_map;
-use mbs_core::median::median_filter;
 use mbs_core::{FloatImage, RgbImage, Side};
+use mbs_image::median::median_filter;
 use mbs_infer::{Sgm, SgmConfig, SgmPaths, StereoMatcher};
 use mbs_warp::{fill_disparity_background, forward_warp};
 

@@ -8,8 +8,8 @@
 use std::path::{Path, PathBuf};
 
 use mbs_core::formats::rgb::read_rgb;
-use mbs_core::quality::{psnr, ssim};
 use mbs_core::{MaskImage, RgbImage};
+use mbs_image::quality::{psnr, ssim};
 
 use crate::{DisparitySource, ExtrapolateError, Extrapolator};
 

@@ -9,7 +9,7 @@ use mbs_core::atomic::link_or_copy;
 use mbs_core::formats::pfm::{Endian, write_pfm_grey};
 use mbs_core::formats::rgb::{read_rgb, write_mask_png, write_rgb_png};
 use mbs_dataset::ground_truth::find_map;
-use mbs_dataset::kitti::KittiFolder;
+use mbs_dataset::pairs::StereoPair;
 use mbs_viz::extrapolation_sheet;
 
 use crate::{Disparities, DisparitySource, ExtrapolateError, Extrapolator, FourViewFiles};
@@ -54,12 +54,12 @@ pub struct Frame {
     pub ground_truth: Option<(PathBuf, PathBuf)>,
 }
 
-/// The one frame of a pair written into `out`; disparity files from
-/// `left_disparity`/`right_disparity`, or found as `disparity_2.*` and
-/// `disparity_3.*` in `disparity_dir` (an error if it has neither).
+/// The one frame of a pair (its target right of its reference) written
+/// into `out`; disparity files from `left_disparity`/`right_disparity`, or
+/// found as `disparity_2.*` and `disparity_3.*` in `disparity_dir` (an
+/// error if it has neither).
 pub fn pair_frame(
-    left: &Path,
-    right: &Path,
+    pair: &StereoPair,
     out: &Path,
     (left_disparity, right_disparity): (Option<PathBuf>, Option<PathBuf>),
     disparity_dir: Option<&Path>,
@@ -77,9 +77,8 @@ pub fn pair_frame(
         }
         None => (left_disparity, right_disparity),
     };
-    let id = left
-        .file_stem()
-        .and_then(|s| s.to_str())
+    let (left, right) = (&pair.reference, &pair.target);
+    let id = Some(pair.id.as_str())
         .filter(|s| mbs_core::confine::check_name(s).is_ok())
         .unwrap_or("pair")
         .to_string();
@@ -112,23 +111,22 @@ fn linked_name(stem: &str, input: &Path) -> String {
     }
 }
 
-/// The frames of a KITTI split folder (2015 or 2012, training or testing):
-/// every left view with its namesake on the right, outputs in sibling
-/// folders under `out`, disparities found by frame name in the folders
-/// given (a view without a file gets none).
+/// The frames of a KITTI split folder's pairs (2015 or 2012, training or
+/// testing): outputs in sibling folders under `out`, disparities found by
+/// frame name in the folders given (a view without a file gets none).
 pub fn kitti_frames(
-    folder: &KittiFolder,
+    pairs: &[StereoPair],
     out: &Path,
     (left_dir, right_dir): (Option<&Path>, Option<&Path>),
 ) -> Vec<Frame> {
-    folder
-        .frames
+    pairs
         .iter()
-        .map(|stem| {
+        .map(|pair| {
+            let stem = &pair.id;
             let name = format!("{stem}.png");
             Frame {
-                left: folder.left(stem),
-                right: folder.right(stem),
+                left: pair.reference.clone(),
+                right: pair.target.clone(),
                 left_disparity: left_dir.and_then(|d| find_map(d, stem)),
                 right_disparity: right_dir.and_then(|d| find_map(d, stem)),
                 id: stem.clone(),
@@ -141,9 +139,10 @@ pub fn kitti_frames(
                 disparity_2: out.join("disparity_2").join(format!("{stem}.pfm")),
                 disparity_3: out.join("disparity_3").join(format!("{stem}.pfm")),
                 preview: out.join("preview").join(&name),
-                ground_truth: folder
-                    .disparity_occ(stem)
-                    .map(|gt| (gt, out.join("disp_occ_0").join(&name))),
+                ground_truth: pair
+                    .truth
+                    .as_ref()
+                    .map(|gt| (gt.disparity.clone(), out.join("disp_occ_0").join(&name))),
                 name,
             }
         })

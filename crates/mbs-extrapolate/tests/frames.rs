@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use mbs_dataset::pairs::PairSource;
 use mbs_extrapolate::{DisparitySource, Extrapolator, four_view_manifest, pair_frame};
 use mbs_infer::inpaint::BackgroundFill;
 use mbs_warp::Dilation;
@@ -18,7 +19,14 @@ fn view(col: u32) -> PathBuf {
 fn a_frame_is_written_whole_and_described_by_its_manifest() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
-    let frame = pair_frame(&view(3), &view(4), &out, (None, None), None).unwrap();
+    let pair = PairSource::Single {
+        left: view(3),
+        right: view(4),
+    }
+    .pairs()
+    .unwrap()
+    .remove(0);
+    let frame = pair_frame(&pair, &out, (None, None), None).unwrap();
     let extrapolator = Extrapolator::new(Dilation::None, Box::new(BackgroundFill::default()));
 
     let err = frame.process(&extrapolator, None, false).unwrap_err();
@@ -31,7 +39,7 @@ fn a_frame_is_written_whole_and_described_by_its_manifest() {
     assert!(frame.is_done(true));
     let image_1 = mbs_core::formats::rgb::read_rgb(&frame.image_1).unwrap();
     let real = mbs_core::formats::rgb::read_rgb(&view(2)).unwrap();
-    let psnr = mbs_core::quality::psnr(&image_1, &real, None).unwrap();
+    let psnr = mbs_image::quality::psnr(&image_1, &real, None).unwrap();
     assert!(psnr > 28.7, "{psnr}"); // measured 28.89 dB
 
     let manifest = four_view_manifest(&[frame.files()], &out, 615.0, 0.16).unwrap();

@@ -1,5 +1,5 @@
 //! Post-processing shared by matchers: left-right consistency and speckle
-//! removal (holes are filled by `mbs_core::fill`). Maps are row-major `f32`
+//! removal (holes are filled by `mbs_image::fill`). Maps are row-major `f32`
 //! slices with `+inf` for "no value".
 
 /// Invalidates left disparities that the right-view disparity does not

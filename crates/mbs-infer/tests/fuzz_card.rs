@@ -1,8 +1,8 @@
 //! Seeded mutations of a built-in model card read as a file: never a
 //! panic, and every error names the card file.
 
-use mbs_core::mutation::fuzz_reader;
 use mbs_infer::onnx::ModelCard;
+use mbs_test_support::mutation::fuzz_reader;
 
 #[test]
 fn mutated_cards_never_panic_and_errors_name_the_file() {

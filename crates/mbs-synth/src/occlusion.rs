@@ -15,7 +15,7 @@ const EPS: f64 = 1e-6;
 /// 255 where the surface point seen through the pixel centre of `reference`
 /// is not visible from `target` (another surface lies between them, or it
 /// projects outside `[0, width - 1]` columns of the target, as
-/// `mbs_core::resample::warp_from_target` would reject it), 0 elsewhere.
+/// `mbs_image::resample::warp_from_target` would reject it), 0 elsewhere.
 /// Computed by casting a ray from the target camera to each point.
 ///
 /// # Panics

@@ -3,9 +3,9 @@
 //! exact disparity warps every view back onto camera 0.
 
 use mbs_core::formats::carla;
-use mbs_core::quality::psnr;
-use mbs_core::resample::warp_from_target;
 use mbs_core::{FloatImage, MaskImage, RgbImage, Rig, Side};
+use mbs_image::quality::psnr;
+use mbs_image::resample::warp_from_target;
 use mbs_synth::{
     Material, Object, Pattern, RenderOptions, Scene, SceneConfig, Shape, Weather, occlusion_mask,
     one_step_disparity, render,

@@ -10,9 +10,10 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{mbs_tool, text, tree};
+use common::{mbs_tool, text};
 use mbs_core::FloatImage;
 use mbs_core::formats::pfm::{Endian, write_pfm_grey};
+use mbs_test_support::files::tree;
 use serde_json::{Value, json};
 
 const W: u32 = 64;

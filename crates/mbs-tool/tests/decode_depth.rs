@@ -6,8 +6,9 @@ mod common;
 
 use std::time::{Duration, Instant};
 
-use common::{run, text, tree, write_carla_frames};
+use common::{run, text, write_carla_frames};
 use mbs_core::formats::{exr, pfm, png16};
+use mbs_test_support::files::tree;
 
 #[test]
 fn decodes_depth_and_disparity_with_invalid_far_pixels() {

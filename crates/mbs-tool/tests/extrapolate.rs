@@ -10,8 +10,8 @@ use common::{run, text};
 use mbs_core::formats::pfm::{Endian, read_pfm_grey, write_pfm_grey};
 use mbs_core::formats::png16::write_kitti_disparity;
 use mbs_core::formats::rgb::{read_mask, read_rgb, write_rgb_png};
-use mbs_core::quality::psnr;
 use mbs_core::{FloatImage, MaskImage};
+use mbs_image::quality::psnr;
 
 fn tsukuba(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

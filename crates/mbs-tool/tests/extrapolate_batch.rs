@@ -11,8 +11,8 @@ use std::path::{Path, PathBuf};
 use common::{run, text};
 use mbs_core::formats::pfm::{Endian, write_pfm_grey};
 use mbs_core::formats::rgb::{read_mask, read_rgb, write_rgb_png};
-use mbs_core::quality::psnr;
 use mbs_core::{FloatImage, MaskImage};
+use mbs_image::quality::psnr;
 
 fn s(path: &Path) -> &str {
     path.to_str().unwrap()

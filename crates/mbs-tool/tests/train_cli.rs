@@ -9,7 +9,7 @@ use std::process::Stdio;
 use std::time::{Duration, Instant};
 
 use common::{SMALL, lines, mbs_tool, run, synth, text};
-use mbs_train::tensorboard::EventValue;
+use mbs_test_support::events::{EventValue, read_events};
 use serde_json::Value;
 
 #[test]
@@ -70,7 +70,7 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
         .map(|e| e.unwrap().path())
         .collect();
     assert_eq!(event_files.len(), 1, "{event_files:?}");
-    let events = mbs_train::tensorboard::read_events(&event_files[0]).unwrap();
+    let events = read_events(&event_files[0]).unwrap();
     let scalar = |tag: &str| -> Vec<(u64, f32)> {
         events
             .iter()

@@ -3,7 +3,7 @@
 //! checking what was read never panic (the CLI names the file around
 //! those errors, as here).
 
-use mbs_core::mutation::fuzz_reader;
+use mbs_test_support::mutation::fuzz_reader;
 use mbs_train::config::RunConfig;
 
 #[test]

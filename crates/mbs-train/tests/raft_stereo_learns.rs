@@ -78,8 +78,8 @@ fn small_raft_stereo_halves_the_untrained_out3() {
         start.elapsed().as_secs_f64(),
         out3(&before),
         out3(&after),
-        before.all.epe.unwrap(),
-        after.all.epe.unwrap()
+        before.all().epe.unwrap(),
+        after.all().epe.unwrap()
     );
     assert!(
         out3(&after) <= 0.5 * out3(&before),

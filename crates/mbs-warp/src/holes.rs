@@ -3,7 +3,7 @@
 //! (smaller-disparity) surface next to it.
 
 use mbs_core::FloatImage;
-use mbs_core::fill::fill_row_from_background;
+use mbs_image::fill::fill_row_from_background;
 use rayon::prelude::*;
 
 /// Fills each horizontal run of invalid (non-finite) pixels with the smaller

@@ -45,21 +45,54 @@ pub fn open_image(path: &std::path::Path) -> crate::Result<image::DynamicImage> 
         .map_err(|e| crate::FormatError::image(path, e))
 }
 
-/// The float formats a depth or disparity map can be written in.
+/// The file formats a disparity map is written in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum FloatFormat {
-    /// OpenEXR, one float32 channel named `Y`, uncompressed.
-    Exr,
-    /// Portable float map, greyscale, little-endian.
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum DisparityFormat {
+    /// PFM float32, +inf = invalid.
     Pfm,
+    /// KITTI 16-bit PNG, value / 256 px, 0 = invalid.
+    Png16,
 }
 
-impl FloatFormat {
+impl DisparityFormat {
     /// The file extension, without the dot.
     pub fn extension(self) -> &'static str {
         match self {
-            FloatFormat::Exr => "exr",
-            FloatFormat::Pfm => "pfm",
+            DisparityFormat::Pfm => "pfm",
+            DisparityFormat::Png16 => "png",
+        }
+    }
+
+    /// Writes `disparity` to `path` in this format, atomically.
+    pub fn write(self, path: &std::path::Path, disparity: &crate::FloatImage) -> crate::Result<()> {
+        match self {
+            DisparityFormat::Pfm => pfm::write_pfm_grey(path, disparity, pfm::Endian::Little),
+            DisparityFormat::Png16 => png16::write_kitti_disparity(path, disparity),
+        }
+    }
+}
+
+/// The file formats a metric depth map is written in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum DepthFormat {
+    /// OpenEXR float32, one channel `Y`, metres.
+    Exr,
+    /// PFM float32, metres.
+    Pfm,
+    /// 16-bit PNG in millimetres (at most 65.535 m).
+    Png16,
+}
+
+impl DepthFormat {
+    /// Writes `depth` (metres, `+inf` = invalid) to `path` in this format,
+    /// atomically.
+    pub fn write(self, path: &std::path::Path, depth: &crate::FloatImage) -> crate::Result<()> {
+        match self {
+            DepthFormat::Exr => exr::write_exr(path, depth),
+            DepthFormat::Pfm => pfm::write_pfm_grey(path, depth, pfm::Endian::Little),
+            DepthFormat::Png16 => png16::write_depth_mm(path, depth),
         }
     }
 }

@@ -6,10 +6,10 @@
 use std::path::{Path, PathBuf};
 
 use mbs_core::formats::rgb::read_rgb;
-use mbs_core::quality::{psnr, ssim};
 use mbs_core::{FloatImage, MaskImage, RgbImage, Side};
 use mbs_extrapolate::disparity::derive_other_view;
 use mbs_extrapolate::{Disparities, Extrapolator};
+use mbs_image::quality::{psnr, ssim};
 use mbs_warp::fill_disparity_background;
 
 /// The Middlebury Tsukuba row-3 folder of the shared data.

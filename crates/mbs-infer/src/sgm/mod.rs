@@ -23,7 +23,7 @@ use crate::error::{InferError, Result};
 use crate::matcher::{Disparity, StereoMatcher, check_same_size, luma, predict_mirrored};
 use crate::postprocess::{left_right_check, remove_speckles};
 use aggregate::{BandInput, aggregate_band};
-use mbs_core::fill::fill_row_from_background;
+use mbs_image::fill::fill_row_from_background;
 
 /// Which aggregation paths run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -67,7 +67,7 @@ pub struct SgmConfig {
     /// Largest disparity step inside one speckle region, in pixels.
     pub speckle_range: f32,
     /// Fill holes from the background side (see
-    /// [`mbs_core::fill::fill_row_from_background`]).
+    /// [`mbs_image::fill::fill_row_from_background`]).
     pub fill: bool,
     /// Rows per band (the unit of parallel work).
     pub band_rows: u32,

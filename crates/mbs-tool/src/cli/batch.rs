@@ -71,36 +71,62 @@ pub fn progress_bar(len: usize, label: &str) -> ProgressBar {
     bar
 }
 
-/// Runs `work` on every item in parallel. A failing item is reported on
-/// stderr with its name and does not stop the others.
+/// Runs `work` on every item in parallel with a progress bar and returns
+/// each item's result, in order. A failing item is reported on stderr with
+/// its name, gives `None` and does not stop the others; the summary counts
+/// successes as done.
+pub fn map<T, R, W>(
+    items: &[T],
+    label: &str,
+    name: impl Fn(&T) -> String + Sync,
+    work: W,
+) -> (Vec<Option<R>>, Summary)
+where
+    T: Sync,
+    R: Send,
+    W: Fn(&T) -> anyhow::Result<R> + Sync,
+{
+    let start = Instant::now();
+    let bar = progress_bar(items.len(), label);
+    let failed = AtomicUsize::new(0);
+    let results: Vec<Option<R>> = items
+        .par_iter()
+        .map(|item| {
+            let result = work(item);
+            bar.inc(1);
+            result
+                .map_err(|e| {
+                    bar.suspend(|| eprintln!("error: {}", describe_item(&name(item), &e)));
+                    failed.fetch_add(1, Ordering::Relaxed);
+                })
+                .ok()
+        })
+        .collect();
+    bar.finish_and_clear();
+    let failed = failed.into_inner();
+    let summary = Summary {
+        done: items.len() - failed,
+        skipped: 0,
+        failed,
+        elapsed: start.elapsed(),
+    };
+    (results, summary)
+}
+
+/// Runs `work` on every item in parallel, as [`map`] does, counting the
+/// items whose outputs were already there as skipped.
 pub fn run<T, W>(items: &[T], label: &str, name: impl Fn(&T) -> String + Sync, work: W) -> Summary
 where
     T: Sync,
     W: Fn(&T) -> anyhow::Result<Outcome> + Sync,
 {
-    let start = Instant::now();
-    let bar = progress_bar(items.len(), label);
-    let done = AtomicUsize::new(0);
-    let skipped = AtomicUsize::new(0);
-    let failed = AtomicUsize::new(0);
-    items.par_iter().for_each(|item| {
-        match work(item) {
-            Ok(Outcome::Done) => done.fetch_add(1, Ordering::Relaxed),
-            Ok(Outcome::Skipped) => skipped.fetch_add(1, Ordering::Relaxed),
-            Err(e) => {
-                bar.suspend(|| eprintln!("error: {}", describe_item(&name(item), &e)));
-                failed.fetch_add(1, Ordering::Relaxed)
-            }
-        };
-        bar.inc(1);
-    });
-    bar.finish_and_clear();
-    Summary {
-        done: done.into_inner(),
-        skipped: skipped.into_inner(),
-        failed: failed.into_inner(),
-        elapsed: start.elapsed(),
-    }
+    let (outcomes, mut summary) = map(items, label, name, work);
+    summary.skipped = outcomes
+        .iter()
+        .filter(|o| **o == Some(Outcome::Skipped))
+        .count();
+    summary.done -= summary.skipped;
+    summary
 }
 
 #[cfg(test)]

@@ -1,10 +1,10 @@
 //! Pieces shared by the subcommands: sharding, parallel batches with a
 //! progress bar and a summary, thread-pool setup, ONNX Runtime flags, the
-//! disparity source.
+//! pairs and the disparity source.
 
 pub mod batch;
 pub mod onnx;
-pub mod pair;
+pub mod pairs;
 pub mod report_error;
 pub mod rig;
 pub mod shard;

@@ -1,17 +1,16 @@
 //! `mbs-tool decode-depth`: CARLA depth PNGs -> metric depth and disparity.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use anyhow::{Context, bail};
-use clap::{Parser, ValueEnum};
-use mbs_core::formats::{carla, exr, pfm, png16, rgb};
-use mbs_core::geometry::{depth_to_disparity, limit_depth};
-use mbs_core::{FloatImage, Rig};
+use anyhow::bail;
+use clap::Parser;
+use mbs_core::Rig;
+use mbs_core::formats::{DepthFormat, DisparityFormat};
 use mbs_dataset::Manifest;
-use mbs_dataset::manifest::resolve;
+use mbs_dataset::mbs20k::{DepthDecoding, depth_images_in_folder, depth_images_in_manifest};
 
 use crate::cli::batch::{self, Outcome};
-use crate::cli::pair::parse_pair;
+use crate::cli::pairs::parse_pair;
 use crate::cli::shard::Shard;
 
 /// Arguments of `decode-depth`.
@@ -63,100 +62,6 @@ pub struct Args {
     pub jobs: usize,
 }
 
-/// Depth map file formats.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum DepthFormat {
-    /// OpenEXR float32, one channel `Y`, metres.
-    Exr,
-    /// PFM float32, metres.
-    Pfm,
-    /// 16-bit PNG in millimetres (at most 65.535 m).
-    Png16,
-}
-
-/// Disparity map file formats.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum DisparityFormat {
-    /// KITTI 16-bit PNG, value / 256 px, 0 = invalid.
-    Png16,
-    /// PFM float32, +inf = invalid.
-    Pfm,
-}
-
-/// One depth image and where its outputs go.
-struct Job {
-    depth_png: PathBuf,
-    out_dir: PathBuf,
-}
-
-/// What to write for every job.
-struct Plan {
-    rig: Rig,
-    camera: usize,
-    targets: Vec<usize>,
-    max_depth_m: f32,
-    depth_format: DepthFormat,
-    disparity_format: DisparityFormat,
-}
-
-impl Plan {
-    fn depth_name(&self) -> String {
-        let c = self.camera;
-        match self.depth_format {
-            DepthFormat::Exr => format!("depth_{c}.exr"),
-            DepthFormat::Pfm => format!("depth_{c}.pfm"),
-            DepthFormat::Png16 => format!("depth_{c}_mm.png"),
-        }
-    }
-
-    fn disparity_name(&self, target: usize) -> String {
-        let ext = match self.disparity_format {
-            DisparityFormat::Png16 => "png",
-            DisparityFormat::Pfm => "pfm",
-        };
-        format!("disp_{}_{target}.{ext}", self.camera)
-    }
-
-    fn run(&self, job: &Job) -> anyhow::Result<Outcome> {
-        let depth_path = job.out_dir.join(self.depth_name());
-        let disparity_paths: Vec<(usize, PathBuf)> = self
-            .targets
-            .iter()
-            .map(|&t| (t, job.out_dir.join(self.disparity_name(t))))
-            .collect();
-        let depth_missing = !depth_path.exists();
-        let missing: Vec<&(usize, PathBuf)> = disparity_paths
-            .iter()
-            .filter(|(_, p)| !p.exists())
-            .collect();
-        if !depth_missing && missing.is_empty() {
-            return Ok(Outcome::Skipped);
-        }
-        let encoded = rgb::read_rgb8_strict(&job.depth_png)?;
-        let depth = carla::decode_depth(&encoded);
-        if depth_missing {
-            self.write_depth(&depth_path, &limit_depth(&depth, self.max_depth_m))?;
-        }
-        for (target, path) in missing {
-            let disparity =
-                depth_to_disparity(&depth, &self.rig, self.camera, *target, self.max_depth_m);
-            match self.disparity_format {
-                DisparityFormat::Png16 => png16::write_kitti_disparity(path, &disparity)?,
-                DisparityFormat::Pfm => pfm::write_pfm_grey(path, &disparity, pfm::Endian::Little)?,
-            }
-        }
-        Ok(Outcome::Done)
-    }
-
-    fn write_depth(&self, path: &Path, depth: &FloatImage) -> mbs_core::Result<()> {
-        match self.depth_format {
-            DepthFormat::Exr => exr::write_exr(path, depth),
-            DepthFormat::Pfm => pfm::write_pfm_grey(path, depth, pfm::Endian::Little),
-            DepthFormat::Png16 => png16::write_depth_mm(path, depth),
-        }
-    }
-}
-
 /// Runs `decode-depth`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
@@ -168,7 +73,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ..Rig::mbs20k()
         };
         (
-            jobs_from_folder(&args.input, args.out.as_deref())?,
+            depth_images_in_folder(&args.input, args.out.as_deref())?,
             rig,
             0,
             None,
@@ -177,7 +82,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let manifest = Manifest::load(&args.input)?;
         let depth = manifest.depth.as_ref();
         let camera = depth.map_or(0, |d| d.camera);
-        let jobs = jobs_from_manifest(&args.input, &manifest, args.out.as_deref())?;
+        let jobs = depth_images_in_manifest(&args.input, &manifest, args.out.as_deref())?;
         (jobs, manifest.rig, camera, depth.map(|d| d.max_depth_m))
     };
     let max_depth_m = args
@@ -191,7 +96,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let targets = requested_targets(&args.pairs, args.all_pairs, camera, rig.num_views)?;
-    let plan = Plan {
+    let plan = DepthDecoding {
         rig,
         camera,
         targets,
@@ -209,8 +114,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let summary = batch::run(
         &jobs,
         "images",
-        |j| j.depth_png.display().to_string(),
-        |j| plan.run(j),
+        |j| j.encoded.display().to_string(),
+        |j| {
+            Ok(match plan.decode(j)? {
+                true => Outcome::Done,
+                false => Outcome::Skipped,
+            })
+        },
     );
     summary.finish("decode-depth", "images")
 }
@@ -236,60 +146,6 @@ fn requested_targets(
             Ok(t)
         })
         .collect()
-}
-
-fn jobs_from_folder(root: &Path, out: Option<&Path>) -> anyhow::Result<Vec<Job>> {
-    let mut jobs = Vec::new();
-    for entry in walkdir::WalkDir::new(root)
-        .follow_links(true)
-        .sort_by_file_name()
-    {
-        let entry = entry.with_context(|| format!("cannot list {}", root.display()))?;
-        if entry.file_type().is_file() && entry.file_name() == mbs_dataset::mbs20k::DEPTH_FILE {
-            let frame_dir = entry.path().parent().unwrap_or(root);
-            let relative = frame_dir.strip_prefix(root).unwrap_or(Path::new(""));
-            jobs.push(Job {
-                depth_png: entry.path().to_path_buf(),
-                out_dir: out.map_or_else(|| frame_dir.to_path_buf(), |o| o.join(relative)),
-            });
-        }
-    }
-    if jobs.is_empty() {
-        bail!(
-            "{}: no {} found in this folder or below",
-            root.display(),
-            mbs_dataset::mbs20k::DEPTH_FILE
-        );
-    }
-    Ok(jobs)
-}
-
-fn jobs_from_manifest(
-    manifest_path: &Path,
-    manifest: &Manifest,
-    out: Option<&Path>,
-) -> anyhow::Result<Vec<Job>> {
-    let jobs: Vec<Job> = manifest
-        .samples
-        .iter()
-        .filter_map(|s| s.depth.as_deref())
-        .map(|rel| {
-            let depth_png = resolve(manifest_path, rel);
-            // Manifest paths are confined names (checked on load), so
-            // their folders stay inside `out`.
-            let rel_dir = rel.rsplit_once('/').map_or("", |(dir, _)| dir);
-            let out_dir = match out {
-                Some(o) if rel_dir.is_empty() => o.to_path_buf(),
-                Some(o) => mbs_core::confine::join_confined(o, rel_dir)?,
-                None => depth_png.parent().unwrap_or(Path::new("")).to_path_buf(),
-            };
-            Ok(Job { depth_png, out_dir })
-        })
-        .collect::<anyhow::Result<_>>()?;
-    if jobs.is_empty() {
-        bail!("{}: no sample has a depth image", manifest_path.display());
-    }
-    Ok(jobs)
 }
 
 #[cfg(test)]

@@ -5,11 +5,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use clap::Parser;
-use mbs_core::formats::{pfm, png16, rgb};
+use mbs_core::formats::{DisparityFormat, pfm, png16, rgb};
 use mbs_core::metrics::{MetricsReport, evaluate};
-use mbs_core::quality::psnr;
 use mbs_dataset::Manifest;
-use mbs_dataset::mbs20k::Counts;
+use mbs_dataset::mbs20k::{Counts, decoded_disparity_file};
+use mbs_image::quality::psnr;
 
 use super::{decode_depth, eval, extrapolate, synth, train, validate};
 
@@ -264,8 +264,12 @@ fn decoded_vs_ground_truth(
         )?;
         // The file holds one baseline's disparity; pair 0:4 spans four.
         gt.iter_mut().for_each(|d| *d *= 4.0);
-        let ours = png16::read_kitti_disparity(&decoded.join(&sample.id).join("disp_0_4.png"))
-            .with_context(|| format!("sample {}", sample.id))?;
+        let ours = png16::read_kitti_disparity(
+            &decoded
+                .join(&sample.id)
+                .join(decoded_disparity_file(0, 4, DisparityFormat::Png16)),
+        )
+        .with_context(|| format!("sample {}", sample.id))?;
         images.push((sample.id.clone(), evaluate(&ours, &gt, None, &[])?));
     }
     // EPE is over the pixels the decoder kept (nearer than --max-depth).

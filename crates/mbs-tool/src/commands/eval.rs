@@ -4,22 +4,18 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::cli::pair::parse_pair;
-use crate::cli::report_error::describe_item;
 use anyhow::bail;
 use clap::Parser;
+use mbs_core::FloatImage;
 use mbs_core::formats::{read_disparity, rgb};
 use mbs_core::metrics::{MetricsReport, RegionSums, evaluate};
-use mbs_core::{FloatImage, Side};
-use mbs_dataset::ground_truth::{
-    GroundTruthFile, GroundTruthPair, NocSource, find_map, kitti_pairs, manifest_pairs,
-};
-use mbs_dataset::{Manifest, Split};
+use mbs_dataset::ground_truth::{GroundTruthFile, NocSource, find_map};
+use mbs_dataset::pairs::{PairSource, StereoPair};
 use mbs_infer::{SgmConfig, StereoMatcher};
 
+use crate::cli::batch;
+use crate::cli::pairs::PairArgs;
 use crate::cli::source::StereoSourceArgs;
-use rayon::prelude::*;
-use serde_json::Value;
 
 /// Arguments of `eval`.
 #[derive(Parser)]
@@ -30,6 +26,7 @@ use serde_json::Value;
   mbs-tool eval --checkpoint mbs-demo/run --manifest mbs-demo/train-data/manifest.json --split test
   mbs-tool eval --backbone raft-stereo --weights raftstereo-eth3d.pth --kitti /data/kitti2015/training
   mbs-tool eval --kitti /data/kitti2015/training --max-disparity 192   # the built-in matcher
+  mbs-tool eval --left im2.png --right im6.png --gt disp2.png --gt-scale 4 --max-disparity 64
 
 Predictions are looked up as <PREDICTIONS>/<name>.pfm, .png (KITTI 16-bit)
 or .exr, <name> being the GT file stem (KITTI) or the sample id (manifest).
@@ -49,27 +46,18 @@ pub struct Args {
     /// What predicts the pairs when no PREDICTIONS are given.
     #[command(flatten)]
     pub source: StereoSourceArgs,
-    /// A KITTI 2015 (disp_occ_0, disp_noc_0) or 2012 (disp_occ, disp_noc)
-    /// training folder.
-    #[arg(long, conflicts_with_all = ["gt", "manifest"])]
-    pub kitti: Option<PathBuf>,
-    /// Ground truth of a single prediction: PFM/EXR (+inf = unknown) or
-    /// PNG/PGM (see --gt-scale).
-    #[arg(long, requires = "predictions", conflicts_with = "manifest")]
+    /// The pairs with ground truth.
+    #[command(flatten)]
+    pub pairs: PairArgs,
+    /// Ground truth of one prediction file (PREDICTIONS) or of one pair
+    /// (--left, --right): PFM/EXR (+inf = unknown) or PNG/PGM (see
+    /// --gt-scale).
+    #[arg(long, conflicts_with_all = ["kitti", "manifest"])]
     pub gt: Option<PathBuf>,
     /// Non-occluded mask for --gt (non-zero = non-occluded), e.g.
     /// Middlebury's nonocc.png.
     #[arg(long, requires = "gt")]
     pub noc: Option<PathBuf>,
-    /// A dataset manifest whose samples have ground truth for --pair.
-    #[arg(long)]
-    pub manifest: Option<PathBuf>,
-    /// Camera pair of the manifest's ground truth, REFERENCE:TARGET.
-    #[arg(long, default_value = "0:1", value_parser = parse_pair)]
-    pub pair: (usize, usize),
-    /// Only the manifest's samples of this split (train, val or test).
-    #[arg(long, requires = "manifest", value_parser = parse_split)]
-    pub split: Option<Split>,
     /// GT PNG/PGM codes per pixel of disparity [default: 256 for 16-bit
     /// images (KITTI), 1 for 8-bit ones; Middlebury 2003 quarter size: 4,
     /// Tsukuba: 16].
@@ -106,63 +94,48 @@ pub enum Prediction {
     /// is reported as failed and the others are scored.
     Missing(PathBuf),
     /// A pair the disparity source predicts.
-    Pair {
-        /// The reference view.
-        reference: PathBuf,
-        /// The target view.
-        target: PathBuf,
-        /// Which side of the reference the target lies on.
-        side: Side,
-    },
+    Pair(StereoPair),
 }
 
 /// Runs `eval`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
     let predictions = args.predictions.as_deref();
-    let items = if let (Some(gt), Some(predictions)) = (&args.gt, predictions) {
-        let name = predictions.file_name().map_or_else(
-            || predictions.display().to_string(),
-            |n| n.to_string_lossy().into_owned(),
-        );
-        vec![Item {
-            prediction: Prediction::File(predictions.to_path_buf()),
-            truth: GroundTruthFile {
+    let items = match (&args.gt, args.pairs.source()?) {
+        (Some(gt), source) => {
+            let truth = GroundTruthFile {
                 disparity: gt.clone(),
                 scale: 1.0,
                 noc: args.noc.clone().map(NocSource::Mask),
-            },
-            name,
-        }]
-    } else if let Some(dir) = &args.kitti {
-        kitti_items(dir, predictions)?
-    } else if let Some(manifest) = &args.manifest {
-        manifest_items(manifest, args.pair, args.split, predictions)?
-    } else {
-        bail!("no ground truth: give --kitti DIR, --gt FILE or --manifest FILE");
+            };
+            vec![single_item(predictions, source, truth)?]
+        }
+        (None, Some(source)) => items(source.scored_pairs()?, predictions),
+        (None, None) => {
+            bail!("no ground truth: give --kitti DIR, --manifest FILE or --gt FILE")
+        }
     };
-    let matcher = match predictions {
-        Some(_) => None,
-        None => Some(args.source.matcher(SgmConfig::default())?),
+    let matcher = match items
+        .iter()
+        .any(|i| matches!(i.prediction, Prediction::Pair(_)))
+    {
+        true => Some(args.source.matcher(SgmConfig::default())?),
+        false => None,
     };
-    let results: Vec<anyhow::Result<RegionSums>> = items
-        .par_iter()
-        .map(|item| {
+    let (results, summary) = batch::map(
+        &items,
+        "images",
+        |item| item.name.clone(),
+        |item| {
             let prediction = predict(item, matcher.as_deref())?;
             score(item, &prediction, args.gt_scale, &args.thresholds)
-        })
+        },
+    );
+    let scored: Vec<(String, RegionSums)> = items
+        .iter()
+        .zip(results)
+        .filter_map(|(item, sums)| Some((item.name.clone(), sums?)))
         .collect();
-    let mut scored = Vec::new();
-    let mut failed = 0;
-    for (item, result) in items.iter().zip(results) {
-        match result {
-            Ok(sums) => scored.push((item.name.clone(), sums)),
-            Err(e) => {
-                eprintln!("error: {}", describe_item(&item.name, &e));
-                failed += 1;
-            }
-        }
-    }
     if scored.is_empty() {
         bail!("no image could be scored (see above)");
     }
@@ -172,70 +145,61 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         print!("{}", report.table(&args.thresholds));
     }
-    if failed > 0 {
-        bail!("{failed} of {} images failed (see above)", items.len());
+    summary.finish("eval", "images")
+}
+
+/// The one item `--gt` scores: the prediction file, or else the one pair
+/// (--left, --right) predicted by the disparity source.
+fn single_item(
+    predictions: Option<&Path>,
+    source: Option<PairSource>,
+    truth: GroundTruthFile,
+) -> anyhow::Result<Item> {
+    if let Some(file) = predictions {
+        let name = file.file_name().map_or_else(
+            || file.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        return Ok(Item {
+            name,
+            prediction: Prediction::File(file.to_path_buf()),
+            truth,
+        });
     }
-    Ok(())
-}
-
-/// A split by its manifest name (the names `Split` is serialised with).
-fn parse_split(text: &str) -> Result<Split, String> {
-    serde_json::from_value(Value::from(text))
-        .map_err(|_| format!("`{text}` is not a split: train, val or test"))
-}
-
-/// The images of a KITTI training folder with their predictions (none:
-/// the views, which must exist, for the disparity source).
-pub fn kitti_items(dir: &Path, predictions: Option<&Path>) -> anyhow::Result<Vec<Item>> {
-    let pairs = kitti_pairs(dir)?;
-    if predictions.is_none() {
-        mbs_dataset::kitti::KittiFolder::open(dir)?;
+    match source {
+        Some(source @ PairSource::Single { .. }) => {
+            let pair = source.pairs()?.remove(0);
+            Ok(Item {
+                name: pair.id.clone(),
+                prediction: Prediction::Pair(pair),
+                truth,
+            })
+        }
+        _ => bail!("--gt scores one prediction file (PREDICTIONS) or one pair (--left, --right)"),
     }
-    items(pairs, predictions)
 }
 
-/// The pairs with their prediction files, named by their ids.
-fn items(pairs: Vec<GroundTruthPair>, predictions: Option<&Path>) -> anyhow::Result<Vec<Item>> {
+/// The pairs with ground truth, with their prediction files in the
+/// `predictions` folder (none: predicted by the disparity source).
+fn items(pairs: Vec<StereoPair>, predictions: Option<&Path>) -> Vec<Item> {
     pairs
         .into_iter()
-        .map(|pair| {
+        .filter_map(|mut pair| {
+            let truth = pair.truth.take()?;
             let prediction = match predictions {
                 Some(folder) => find_map(folder, &pair.id).map_or_else(
                     || Prediction::Missing(folder.to_path_buf()),
                     Prediction::File,
                 ),
-                None => Prediction::Pair {
-                    reference: pair.reference,
-                    target: pair.target,
-                    side: pair.side,
-                },
+                None => Prediction::Pair(pair.clone()),
             };
-            Ok(Item {
+            Some(Item {
                 name: pair.id,
                 prediction,
-                truth: pair.truth,
+                truth,
             })
         })
         .collect()
-}
-
-/// The samples of a manifest with ground truth for `pair`.
-pub fn manifest_items(
-    path: &Path,
-    (reference, target): (usize, usize),
-    split: Option<Split>,
-    predictions: Option<&Path>,
-) -> anyhow::Result<Vec<Item>> {
-    let manifest = Manifest::load(path)?;
-    let pairs = manifest_pairs(path, &manifest, &[(reference, target)], split)?;
-    if pairs.is_empty() {
-        bail!(
-            "{}: no sample{} has ground truth for pair {reference}:{target}",
-            path.display(),
-            split.map_or(String::new(), |s| format!(" of the {s:?} split"))
-        );
-    }
-    items(pairs, predictions)
 }
 
 /// Reads an item's prediction, or computes it with the disparity source;
@@ -251,23 +215,16 @@ fn predict(
             item.name,
             folder.display()
         ),
-        (
-            Prediction::Pair {
-                reference,
-                target,
-                side,
-            },
-            Some(matcher),
-        ) => {
-            let reference_image = rgb::read_rgb(reference)?;
-            let target_image = rgb::read_rgb(target)?;
-            let disparity = matcher.predict_toward(&reference_image, &target_image, *side)?;
-            Ok((disparity.disparity, reference.clone()))
+        (Prediction::Pair(pair), Some(matcher)) => {
+            let reference = rgb::read_rgb(&pair.reference)?;
+            let target = rgb::read_rgb(&pair.target)?;
+            let disparity = matcher.predict_toward(&reference, &target, pair.side)?;
+            Ok((disparity.disparity, pair.reference.clone()))
         }
-        (Prediction::Pair { reference, .. }, None) => {
+        (Prediction::Pair(pair), None) => {
             bail!(
                 "{}: no prediction and no disparity source",
-                reference.display()
+                pair.reference.display()
             )
         }
     }
@@ -311,20 +268,4 @@ fn check_size(
         );
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn splits_parse_by_their_manifest_names() {
-        assert_eq!(parse_split("train"), Ok(Split::Train));
-        assert_eq!(parse_split("val"), Ok(Split::Val));
-        assert_eq!(parse_split("test"), Ok(Split::Test));
-        assert_eq!(
-            parse_split("Test"),
-            Err("`Test` is not a split: train, val or test".into())
-        );
-    }
 }

@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};
-use mbs_dataset::kitti::{KittiFolder, KittiVersion};
+use mbs_dataset::kitti::KittiVersion;
+use mbs_dataset::pairs::{KittiFrames, PairSource};
 use mbs_extrapolate::disparity::warping_sgm_config;
 use mbs_extrapolate::{
     DisparitySource, Extrapolator, Frame, four_view_manifest, kitti_frames, pair_frame,
@@ -170,8 +171,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             for dir in [&dirs.0, &dirs.1].into_iter().flatten() {
                 warn_if_ground_truth(dir);
             }
-            let folder = KittiFolder::open(root)?;
-            let frames = kitti_frames(&folder, &out, (dirs.0.as_deref(), dirs.1.as_deref()));
+            let pairs = PairSource::Kitti {
+                dir: root.clone(),
+                frames: KittiFrames::All,
+            }
+            .pairs()?;
+            let frames = kitti_frames(&pairs, &out, (dirs.0.as_deref(), dirs.1.as_deref()));
             (frames, out)
         }
         None => {
@@ -180,8 +185,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             };
             crate::cli::require_file(left, "left view")?;
             crate::cli::require_file(right, "right view")?;
+            let pair = PairSource::Single {
+                left: left.clone(),
+                right: right.clone(),
+            }
+            .pairs()?
+            .remove(0);
             let files = (args.left_disparity.clone(), args.right_disparity.clone());
-            let frame = pair_frame(left, right, out, files, args.disparity_dir.as_deref())?;
+            let frame = pair_frame(&pair, out, files, args.disparity_dir.as_deref())?;
             (vec![frame], out.clone())
         }
     };

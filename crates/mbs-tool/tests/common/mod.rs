@@ -58,25 +58,6 @@ pub fn write_carla_frames(root: &Path, frames: u32, width: u32, height: u32) -> 
         .collect()
 }
 
-/// Every file under `root` (relative path -> bytes), sorted.
-pub fn tree(root: &Path) -> Vec<(PathBuf, Vec<u8>)> {
-    let mut files: Vec<(PathBuf, Vec<u8>)> = walkdir::WalkDir::new(root)
-        .into_iter()
-        .filter_map(Result::ok)
-        .filter(|e| e.file_type().is_file())
-        .map(|e| {
-            let rel = e
-                .path()
-                .strip_prefix(root)
-                .expect("under root")
-                .to_path_buf();
-            (rel, std::fs::read(e.path()).expect("read"))
-        })
-        .collect();
-    files.sort();
-    files
-}
-
 /// A small synthetic training set (its manifest is returned): Town01 for training, Town10 held out.
 pub fn synth(root: &Path) -> String {
     let out = root.display().to_string();

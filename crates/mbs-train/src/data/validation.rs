@@ -5,11 +5,12 @@ use std::path::{Path, PathBuf};
 
 use burn::tensor::Device;
 use mbs_core::formats::rgb::read_rgb;
-use mbs_core::metrics::{Metrics, Region, RegionSums, evaluate};
+use mbs_core::metrics::{ErrorSums, Metrics, Region, RegionSums, evaluate};
 use mbs_core::{FloatImage, MaskImage, RgbImage, Side};
 use mbs_dataset::Manifest;
-use mbs_dataset::ground_truth::{GroundTruthPair, check_cameras, sample_pairs, sample_view};
+use mbs_dataset::ground_truth::GroundTruthFile;
 use mbs_dataset::manifest::Split;
+use mbs_dataset::pairs::{StereoPair, check_cameras, sample_pair, sample_view};
 
 use crate::error::TrainError;
 use mbs_nets::Backbone;
@@ -23,8 +24,10 @@ pub const THRESHOLDS: [f32; 3] = [1.0, 2.0, 3.0];
 pub struct ValidationPair {
     /// `<sample id> <reference>:<target>`.
     pub name: String,
-    /// The views and their ground truth.
-    pub pair: GroundTruthPair,
+    /// The views.
+    pub pair: StereoPair,
+    /// The reference view's ground truth.
+    pub truth: GroundTruthFile,
     /// The farthest view on the target's side and its baseline ratio to
     /// the pair's: the student's target in the visual outputs, so the
     /// weight map shows what only the teacher sees.
@@ -47,7 +50,7 @@ pub struct LoadedPair {
 impl ValidationPair {
     /// Reads the pair's files.
     pub fn load(&self) -> Result<LoadedPair, TrainError> {
-        let gt = self.pair.truth.load(None)?;
+        let gt = self.truth.load(None)?;
         Ok(LoadedPair {
             reference: read_rgb(&self.pair.reference)?,
             target: read_rgb(&self.pair.target)?,
@@ -93,8 +96,11 @@ impl ValidationSet {
         let limit = if limit == 0 { usize::MAX } else { limit };
         let mut set = ValidationSet::default();
         for sample in held_out(split).take(limit) {
-            for pair in sample_pairs(path, sample, &cameras)? {
-                let (reference, target) = pair.cameras;
+            for &(reference, target) in &cameras {
+                let mut pair = sample_pair(path, sample, (reference, target))?;
+                let Some(truth) = pair.truth.take() else {
+                    continue;
+                };
                 let wide = if target > reference { views - 1 } else { 0 };
                 set.pairs.push(ValidationPair {
                     name: format!("{} {reference}:{target}", sample.id),
@@ -103,6 +109,7 @@ impl ValidationSet {
                         manifest.rig.baseline_ratio(reference, wide, target),
                     ),
                     pair,
+                    truth,
                 });
             }
         }
@@ -126,14 +133,12 @@ impl ValidationSet {
             let prediction =
                 predict_image(net, &loaded.reference, &loaded.target, pair.side(), device)?;
             let sums = evaluate(&prediction, &loaded.gt, loaded.noc.as_ref(), &THRESHOLDS)
-                .map_err(|e| TrainError::data(&pair.pair.truth.disparity, e))?;
+                .map_err(|e| TrainError::data(&pair.truth.disparity, e))?;
             pooled.merge(&sums);
         }
         Ok(ValidationMetrics {
             pairs: self.pairs.len(),
-            all: pooled.all.metrics(),
-            noc: pooled.noc.as_ref().map(|s| s.metrics()),
-            occ: pooled.occ.as_ref().map(|s| s.metrics()),
+            pooled,
         })
     }
 }
@@ -143,21 +148,18 @@ impl ValidationSet {
 pub struct ValidationMetrics {
     /// Pairs scored.
     pub pairs: usize,
-    /// Over every valid GT pixel.
-    pub all: Metrics,
-    /// Over non-occluded pixels, when masks exist.
-    pub noc: Option<Metrics>,
-    /// Over occluded pixels, when masks exist.
-    pub occ: Option<Metrics>,
+    /// The error sums of every region, over all pairs' pixels.
+    pub pooled: RegionSums,
 }
 
 impl ValidationMetrics {
-    /// The metrics of `region`, if tracked.
-    pub fn region(&self, region: Region) -> Option<&Metrics> {
-        match region {
-            Region::All => Some(&self.all),
-            Region::Noc => self.noc.as_ref(),
-            Region::Occ => self.occ.as_ref(),
-        }
+    /// The metrics of `region`, if tracked (NOC and OCC need masks).
+    pub fn region(&self, region: Region) -> Option<Metrics> {
+        self.pooled.get(region).map(ErrorSums::metrics)
+    }
+
+    /// The metrics over every valid ground-truth pixel.
+    pub fn all(&self) -> Metrics {
+        self.pooled.all.metrics()
     }
 }

@@ -155,7 +155,7 @@ impl Interval {
 
 /// A `val.jsonl` line.
 pub fn validation_json(steps: usize, metrics: &ValidationMetrics) -> Value {
-    let region = |m: Option<&Metrics>| {
+    let region = |m: Option<Metrics>| {
         m.map(|m| {
             json!({
                 "pixels": m.pixels,

@@ -2,7 +2,7 @@
 
 use rayon::prelude::*;
 
-use crate::{MaskImage, RgbImage};
+use mbs_core::{MaskImage, RgbImage};
 
 /// Peak signal-to-noise ratio (dB, peak 255) between two RGB images over the
 /// pixels where `mask` is set (non-zero), or over all pixels when `mask` is

@@ -4,7 +4,7 @@
 
 use rayon::prelude::*;
 
-use crate::{FloatImage, MaskImage, RgbImage, Side};
+use mbs_core::{FloatImage, MaskImage, RgbImage, Side};
 
 /// Samples `target` at the match of each reference pixel, `x + side.shift(d)`,
 /// with linear interpolation. Returns the reconstructed reference view and a

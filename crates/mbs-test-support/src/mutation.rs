@@ -3,30 +3,15 @@
 //! numbers written over a header's numbers. A seed gives the same cases on
 //! every machine, so a failure found in CI replays anywhere.
 
-/// A small seeded generator (SplitMix64): enough to choose mutations, no
-/// statistical claims.
-#[derive(Debug, Clone)]
-pub struct SplitMix64(u64);
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 
-impl SplitMix64 {
-    /// A generator from `seed`.
-    pub fn new(seed: u64) -> Self {
-        Self(seed)
-    }
+/// The generator mutations are drawn from: seeded, the same on every machine.
+pub type MutationRng = ChaCha8Rng;
 
-    /// The next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// A number in `0..n` (`n` > 0).
-    pub fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n.max(1) as u64) as usize
-    }
+/// A number in `0..n` (0 when `n` is 0).
+fn below(rng: &mut MutationRng, n: usize) -> usize {
+    rng.random_range(0..n.max(1))
 }
 
 /// Numbers that break naive size arithmetic when written into a header.
@@ -44,29 +29,29 @@ const ABSURD_NUMBERS: [&str; 8] = [
 /// One mutation of `valid`, chosen by `rng`. Header-number mutations
 /// replace one ASCII digit run in the first 64 bytes; binary headers get
 /// their first bytes overwritten with `0xFF` runs instead.
-pub fn mutate(valid: &[u8], rng: &mut SplitMix64) -> Vec<u8> {
+pub fn mutate(valid: &[u8], rng: &mut MutationRng) -> Vec<u8> {
     let mut bytes = valid.to_vec();
     let len = bytes.len().max(1);
-    match rng.below(6) {
+    match below(rng, 6) {
         0 => {
-            for _ in 0..1 + rng.below(8) {
-                let at = rng.below(len).min(bytes.len().saturating_sub(1));
+            for _ in 0..1 + below(rng, 8) {
+                let at = below(rng, len).min(bytes.len().saturating_sub(1));
                 if let Some(b) = bytes.get_mut(at) {
-                    *b ^= 1 << rng.below(8);
+                    *b ^= 1 << below(rng, 8);
                 }
             }
         }
-        1 => bytes.truncate(rng.below(len)),
+        1 => bytes.truncate(below(rng, len)),
         2 => {
-            let at = rng.below(len + 1).min(bytes.len());
-            let inserted: Vec<u8> = (0..1 + rng.below(32))
-                .map(|_| rng.next_u64() as u8)
+            let at = below(rng, len + 1).min(bytes.len());
+            let inserted: Vec<u8> = (0..1 + below(rng, 32))
+                .map(|_| rng.random::<u8>())
                 .collect();
             bytes.splice(at..at, inserted);
         }
         3 => {
-            let start = rng.below(len).min(bytes.len());
-            let end = (start + 1 + rng.below(64)).min(bytes.len());
+            let start = below(rng, len).min(bytes.len());
+            let end = (start + 1 + below(rng, 64)).min(bytes.len());
             let span = bytes[start..end].to_vec();
             bytes.splice(start..start, span);
         }
@@ -74,19 +59,19 @@ pub fn mutate(valid: &[u8], rng: &mut SplitMix64) -> Vec<u8> {
             let head = bytes.len().min(64);
             let runs: Vec<(usize, usize)> = digit_runs(&bytes[..head]);
             if runs.is_empty() {
-                let at = rng.below(head.max(1)).min(bytes.len());
+                let at = below(rng, head.max(1)).min(bytes.len());
                 let end = (at + 4).min(bytes.len());
                 bytes[at..end].fill(0xFF);
             } else {
-                let (start, end) = runs[rng.below(runs.len())];
-                let number = ABSURD_NUMBERS[rng.below(ABSURD_NUMBERS.len())];
+                let (start, end) = runs[below(rng, runs.len())];
+                let number = ABSURD_NUMBERS[below(rng, ABSURD_NUMBERS.len())];
                 bytes.splice(start..end, number.bytes());
             }
         }
         _ => {
-            let at = rng.below(len).min(bytes.len());
-            let end = (at + 1 + rng.below(16)).min(bytes.len());
-            bytes[at..end].fill(if rng.below(2) == 0 { 0 } else { 0xFF });
+            let at = below(rng, len).min(bytes.len());
+            let end = (at + 1 + below(rng, 16)).min(bytes.len());
+            bytes[at..end].fill(if below(rng, 2) == 0 { 0 } else { 0xFF });
         }
     }
     bytes
@@ -113,7 +98,7 @@ pub fn fuzz_reader<E: std::fmt::Display>(
     (cases, seed): (usize, u64),
     read: impl Fn(&std::path::Path) -> std::result::Result<(), E>,
 ) -> std::io::Result<FuzzSummary> {
-    let mut rng = SplitMix64::new(seed);
+    let mut rng = MutationRng::seed_from_u64(seed);
     let mut summary = FuzzSummary::default();
     for case in 0..cases {
         let name = format!("case-{case}.{ext}");
@@ -160,7 +145,7 @@ mod tests {
     #[test]
     fn mutations_are_deterministic_and_change_the_bytes() {
         let valid = b"Pf\n4 3\n-1.0\n0123456789abcdef".to_vec();
-        let (mut a, mut b) = (SplitMix64::new(7), SplitMix64::new(7));
+        let (mut a, mut b) = (MutationRng::seed_from_u64(7), MutationRng::seed_from_u64(7));
         let mut changed = 0;
         for _ in 0..200 {
             let m = mutate(&valid, &mut a);

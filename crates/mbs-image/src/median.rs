@@ -5,7 +5,7 @@
 
 use rayon::prelude::*;
 
-use crate::FloatImage;
+use mbs_core::FloatImage;
 
 /// Median of the finite values in the `(2 radius + 1)`-pixel square around
 /// each pixel (clipped at the borders; of an even count, the upper of the
