@@ -81,6 +81,31 @@ fn single_pair_to_pfm_then_eval_with_gt_scale() {
     ]);
     let stdout = String::from_utf8_lossy(&table.stdout);
     assert!(stdout.contains("pooled") && stdout.contains("Out-2") && stdout.contains("7.95%"));
+
+    // The pair itself, predicted by the same matcher inside eval, scores the same.
+    let direct = json_of(&run(&[
+        "eval",
+        "--left",
+        teddy("im2.png").to_str().unwrap(),
+        "--right",
+        teddy("im6.png").to_str().unwrap(),
+        "--max-disparity",
+        "64",
+        "--gt",
+        teddy("disp2.png").to_str().unwrap(),
+        "--gt-scale",
+        "4",
+        "--json",
+    ]));
+    assert_eq!(direct["pooled"], report["pooled"], "{direct:#}");
+    // --gt without a prediction file or a pair says what it scores.
+    let lone = run(&["eval", "--gt", teddy("disp2.png").to_str().unwrap()]);
+    assert!(!lone.status.success());
+    assert!(
+        text(&lone).contains("--gt scores one prediction file (PREDICTIONS) or one pair"),
+        "{}",
+        text(&lone)
+    );
 }
 
 /// Teddy as KITTI 2015 `training`: views, disp_occ_0 and a disp_noc_0 that

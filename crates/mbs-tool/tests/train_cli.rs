@@ -49,6 +49,18 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
             .iter()
             .all(|l| l["loss"].as_f64().unwrap().is_finite())
     );
+    // How much supervision the steps had: shares in [0, 1], an ordered range.
+    for line in &train {
+        let s = &line["supervision"];
+        for share in ["student_mask", "teacher_mask", "outside"] {
+            let v = s[share].as_f64().unwrap();
+            assert!((0.0..=1.0).contains(&v), "{share} {v}");
+        }
+        let d = &s["disparity"];
+        let (min, mean, max) = (d["min"].as_f64(), d["mean"].as_f64(), d["max"].as_f64());
+        assert!(min <= mean && mean <= max, "{s}");
+    }
+    assert!(train.iter().all(|l| l.get("warning").is_none()));
     let val = lines(&out.join("val.jsonl"));
     let steps: Vec<u64> = val.iter().map(|l| l["step"].as_u64().unwrap()).collect();
     assert_eq!(steps, vec![0, 3, 6]);
@@ -424,4 +436,41 @@ fn bad_settings_and_inputs_are_named() {
         stderr.contains("is 64x128") && stderr.contains("smaller than the 384x512 crop"),
         "{stderr}"
     );
+}
+
+#[test]
+fn vanished_supervision_is_warned_about_while_training() {
+    // tau = 1e-6: no photometric error passes the threshold, so both masks
+    // are empty from the first step, as in a collapsed run.
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = synth(&dir.path().join("data"));
+    let out = dir.path().join("run");
+    let out_s = out.display().to_string();
+    let mut args = vec![
+        "train",
+        &manifest,
+        "--out",
+        &out_s,
+        "--steps",
+        "12",
+        "--val-every",
+        "12",
+        "--set",
+        "trainer.loss.tau=0.000001",
+    ];
+    args.extend(SMALL);
+    let output = run(&args);
+    assert!(output.status.success(), "{}", text(&output));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("warning: step 10: supervision has nearly vanished for 10 steps"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("student mask 0.0%"), "{stderr}");
+    let train = lines(&out.join("train.jsonl"));
+    let warnings: Vec<&str> = train.iter().filter_map(|l| l["warning"].as_str()).collect();
+    assert_eq!(warnings.len(), 1, "{train:?}");
+    assert!(warnings[0].starts_with("step 10: supervision has nearly vanished"));
+    let share = train[0]["supervision"]["student_mask"].as_f64().unwrap();
+    assert!(share < 1e-3, "{share}");
 }

@@ -257,6 +257,7 @@ fn breakdown(
         totals[1] += millis(start);
         let start = Instant::now();
         let out = loss.compute(LossInputs {
+            geometry_weight: 1.0,
             reference: batch.reference,
             student_target: batch.student_target,
             teacher_target: batch.teacher_target,

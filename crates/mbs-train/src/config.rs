@@ -17,7 +17,7 @@ use crate::error::TrainError;
 use crate::losses::LossConfig;
 use crate::schedule::OneCycleConfig;
 use crate::step::TrainerConfig;
-use mbs_nets::{NetworkConfig, ranges};
+use mbs_nets::{BackboneKind, NetworkConfig, ranges};
 
 /// The training configuration JSON Schema text.
 pub const TRAIN_CONFIG_SCHEMA: &str = include_str!("../../../schemas/train-config.schema.json");
@@ -111,10 +111,28 @@ impl RunConfig {
         if !issues.is_empty() {
             return Err(TrainError::Config(issues.join("; ")));
         }
-        let config: RunConfig = serde_json::from_value(document.clone())
+        let mut config: RunConfig = serde_json::from_value(document.clone())
             .map_err(|e| TrainError::Config(e.to_string()))?;
+        config
+            .trainer
+            .geometry_warmup
+            .get_or_insert(Self::geometry_warmup(config.network.backbone));
         config.validate()?;
         Ok(config)
+    }
+
+    /// The geometry term's warm-up (`trainer.geometry_warmup`) a run of
+    /// `backbone` gets unless it sets one: half the run for RAFT-Stereo
+    /// and IGEV-Stereo, whose iterative updates can take the disparities
+    /// anywhere and which the paper's loss lets collapse from random
+    /// weights (README, "S3 from random weights"); none (the paper) for the
+    /// compact network, whose soft-argmin stays in its range and which
+    /// learns best with the geometry term from the start.
+    pub fn geometry_warmup(backbone: BackboneKind) -> f64 {
+        match backbone {
+            BackboneKind::Compact => 0.0,
+            BackboneKind::RaftStereo | BackboneKind::Igev => 0.5,
+        }
     }
 
     /// Checks every part's ranges.
@@ -201,6 +219,22 @@ mod tests {
             (config.data.crop_height, config.data.crop_width),
             (384, 512)
         );
+    }
+
+    #[test]
+    fn the_geometry_warmup_is_picked_by_backbone_unless_set() {
+        let warmup = |overrides: &[&str]| {
+            let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+            RunConfig::layered(None, &overrides)
+                .expect("valid")
+                .trainer
+                .geometry_warmup
+        };
+        assert_eq!(warmup(&[]), Some(0.0), "compact keeps the paper's loss");
+        assert_eq!(warmup(&["network.backbone=raft-stereo"]), Some(0.5));
+        assert_eq!(warmup(&["network.backbone=igev"]), Some(0.5));
+        let set = warmup(&["network.backbone=igev", "trainer.geometry_warmup=0.2"]);
+        assert_eq!(set, Some(0.2));
     }
 
     #[test]

@@ -33,6 +33,7 @@ pub mod run;
 pub mod sampling;
 pub mod schedule;
 pub mod step;
+pub mod supervision;
 pub mod tensorboard;
 
 pub use config::RunConfig;

@@ -15,6 +15,7 @@ use crate::losses::{LossConfig, LossInputs, LossOutput, S3Loss};
 use crate::optimizer::OptimizerConfig;
 use crate::precision::{LossScale, Precision, cast_network};
 use crate::schedule::{CosineMomentum, OneCycle, OneCycleConfig};
+use crate::supervision::{Supervision, measure};
 use mbs_nets::NetError;
 use mbs_nets::host::{read_all, read_scalar};
 use mbs_nets::ranges;
@@ -30,6 +31,14 @@ pub struct TrainerConfig {
     /// EMA momentum at step 0; it rises to 1 on a cosine.
     #[config(default = 0.996)]
     pub ema_base: f64,
+    /// Share of the run's steps over which the geometry term's weight rises
+    /// linearly from 0 to 1, so that the student learns from the
+    /// photometric term before it is distilled from a teacher that is
+    /// still random; 0 weighs it fully from the first step (the paper).
+    /// `None` (the default) is 0 here; a training run picks it by backbone
+    /// ([`crate::RunConfig::geometry_warmup`]).
+    #[config(default = "None")]
+    pub geometry_warmup: Option<f64>,
     /// Update the teacher by EMA; `false` keeps the initial teacher fixed
     /// (paper Table 3, row (D)*).
     #[config(default = true)]
@@ -84,6 +93,8 @@ pub struct StepReport {
     pub loss: f32,
     /// The loss terms before their weights (`None` when switched off).
     pub terms: LossTerms,
+    /// How much supervision the step had (masks, disparity range).
+    pub supervision: Supervision,
     /// Global gradient norm before clipping; not finite when an f16 step's
     /// gradients overflowed and the step was skipped.
     pub grad_norm: f64,
@@ -104,6 +115,8 @@ pub struct LossTerms {
     pub photometric: Option<f32>,
     /// `L_s`.
     pub smoothness: Option<f32>,
+    /// The range term (`None` when its weight is 0).
+    pub range: Option<f32>,
 }
 
 /// Maps of one batch for inspection (all `[B, 1, H, W]` row-major), taken
@@ -132,6 +145,8 @@ pub struct S3Trainer<B: Backbone> {
     grad_clip_norm: f64,
     /// The loss scale of an f16 run (`None` otherwise).
     loss_scale: Option<LossScale>,
+    /// Steps of the geometry term's warm-up.
+    geometry_warmup_steps: usize,
     step: usize,
 }
 
@@ -144,6 +159,8 @@ struct Objective {
     sequence_gamma: f64,
     final_prediction_only: bool,
     precision: Precision,
+    /// The geometry term's weight at the step being taken.
+    geometry_weight: f64,
 }
 
 /// The loss values of a batch (or of a share of one), read back.
@@ -151,6 +168,7 @@ struct Objective {
 struct LossValues {
     total: f32,
     terms: LossTerms,
+    supervision: Supervision,
 }
 
 impl TrainerConfig {
@@ -159,6 +177,9 @@ impl TrainerConfig {
         self.loss.validate()?;
         self.lr.init()?;
         ranges::unit("ema_base", self.ema_base)?;
+        if let Some(warmup) = self.geometry_warmup {
+            ranges::unit("geometry_warmup", warmup)?;
+        }
         ranges::unit("sequence_gamma", self.sequence_gamma)?;
         self.optimizer.validate()?;
         ranges::positive("initial_loss_scale", self.initial_loss_scale)?;
@@ -176,7 +197,7 @@ impl Objective {
         teacher: &B,
         student: &B,
         batch: StepBatch,
-    ) -> Result<LossOutput, TrainError> {
+    ) -> Result<(LossOutput, Tensor<1>), TrainError> {
         match self.precision.compute_dtype() {
             None => self.forward_in(teacher, student, batch, None),
             Some(dtype) => self.forward_in(
@@ -190,14 +211,15 @@ impl Objective {
 
     /// [`Self::forward`] with networks whose parameters are in `dtype`
     /// (`None`: f32): their inputs are cast to it and their predictions
-    /// back to f32.
+    /// back to f32. With the loss, the step's supervision statistics
+    /// ([`measure`]) on the device.
     fn forward_in<B: Backbone>(
         &self,
         teacher: &B,
         student: &B,
         batch: StepBatch,
         dtype: Option<FloatDType>,
-    ) -> Result<LossOutput, TrainError> {
+    ) -> Result<(LossOutput, Tensor<1>), TrainError> {
         let input = |image: Tensor<4>| match dtype {
             Some(dtype) => image.cast(dtype),
             None => image,
@@ -242,6 +264,8 @@ impl Objective {
         let student_disparity = predictions
             .pop()
             .ok_or_else(|| TrainError::Shape("the student returned no prediction".into()))?;
+        let final_prediction = student_disparity.clone();
+        let sides = student_sides.clone();
         let inputs = LossInputs {
             reference,
             student_target,
@@ -251,6 +275,7 @@ impl Objective {
             student_sides,
             teacher_sides,
             ratios,
+            geometry_weight: self.geometry_weight,
         };
         // The final prediction's terms are the ones reported; the earlier
         // predictions add their weighted totals.
@@ -259,7 +284,14 @@ impl Objective {
             .zip(weights)
             .filter(|(_, weight)| *weight > 0.0)
             .collect();
-        self.loss.compute_sequence(inputs, earlier)
+        let out = self.loss.compute_sequence(inputs, earlier)?;
+        let measured = measure(
+            final_prediction,
+            &sides,
+            out.student_mask.clone(),
+            out.teacher_mask.clone(),
+        );
+        Ok((out, measured))
     }
 
     /// The gradients of `weight` times the loss of `batch` for `student`
@@ -273,7 +305,7 @@ impl Objective {
         batch: StepBatch,
         weight: f64,
     ) -> Result<(GradientsParams, LossValues), TrainError> {
-        let out = self.forward(teacher, student, batch)?;
+        let (out, measured) = self.forward(teacher, student, batch)?;
         let read = |term: Option<Tensor<1>>, what| term.map(|t| read_scalar(t, what)).transpose();
         let values = LossValues {
             total: read_scalar(out.total.clone(), "the loss")?,
@@ -281,7 +313,9 @@ impl Objective {
                 geometry: read(out.geometry, "the geometry term")?,
                 photometric: read(out.photometric, "the photometric term")?,
                 smoothness: read(out.smoothness, "the smoothness term")?,
+                range: read(out.range, "the range term")?,
             },
+            supervision: Supervision::read(measured)?,
         };
         let total = if weight == 1.0 {
             out.total
@@ -310,7 +344,14 @@ impl LossValues {
                 geometry: sum(|v| v.terms.geometry),
                 photometric: sum(|v| v.terms.photometric),
                 smoothness: sum(|v| v.terms.smoothness),
+                range: sum(|v| v.terms.range),
             },
+            supervision: Supervision::combine(
+                &shares
+                    .iter()
+                    .map(|(values, weight)| (values.supervision, *weight))
+                    .collect::<Vec<_>>(),
+            ),
         }
     }
 }
@@ -332,6 +373,7 @@ impl<B: Backbone> S3Trainer<B> {
                 sequence_gamma: config.sequence_gamma,
                 final_prediction_only: config.final_prediction_only,
                 precision: config.precision,
+                geometry_weight: 1.0,
             },
             lr,
             momentum: CosineMomentum {
@@ -342,6 +384,9 @@ impl<B: Backbone> S3Trainer<B> {
             grad_clip_norm: config.grad_clip_norm,
             loss_scale: (config.precision == Precision::F16)
                 .then(|| LossScale::starting_at(config.initial_loss_scale)),
+            geometry_warmup_steps: (config.geometry_warmup.unwrap_or(0.0)
+                * config.lr.total_steps as f64)
+                .round() as usize,
             step: 0,
         })
     }
@@ -389,7 +434,7 @@ impl<B: Backbone> S3Trainer<B> {
     /// The maps of `batch` (predictions and masks) without a gradient step.
     pub fn diagnose(&self, batch: StepBatch) -> Result<Diagnosis, TrainError> {
         let student = self.student.valid();
-        let out = self
+        let (out, _) = self
             .objective
             .forward(&self.teacher, &student, batch.clone())?;
         let teacher = predict(
@@ -420,6 +465,7 @@ impl<B: Backbone> S3Trainer<B> {
 
     /// Takes one optimisation step on `batch` (on the student's device).
     pub fn step(&mut self, batch: StepBatch) -> Result<StepReport, TrainError> {
+        self.objective.geometry_weight = self.geometry_weight();
         let (grads, values) =
             self.objective
                 .gradients(&self.teacher, &self.student, batch, self.scale())?;
@@ -453,6 +499,7 @@ impl<B: Backbone> S3Trainer<B> {
             )));
         }
         let shares = batch.split(devices.len());
+        self.objective.geometry_weight = self.geometry_weight();
         let objective = &self.objective;
         let results = std::thread::scope(|scope| {
             let workers: Vec<_> = shares
@@ -493,6 +540,15 @@ impl<B: Backbone> S3Trainer<B> {
             shares.push((values, weight));
         }
         self.apply(sum.grads(), LossValues::weighted_sum(&shares))
+    }
+
+    /// The geometry term's weight at the current step: rising linearly
+    /// from 0 over the warm-up, then 1.
+    pub fn geometry_weight(&self) -> f64 {
+        match self.geometry_warmup_steps {
+            0 => 1.0,
+            steps => (self.step as f64 / steps as f64).min(1.0),
+        }
     }
 
     /// The loss scale of an f16 run; 1 otherwise.
@@ -539,6 +595,7 @@ impl<B: Backbone> S3Trainer<B> {
             step: self.step,
             loss: values.total,
             terms: values.terms,
+            supervision: values.supervision,
             grad_norm,
             loss_scale,
             lr,

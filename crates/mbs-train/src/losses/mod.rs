@@ -1,9 +1,12 @@
 //! The S3 loss (paper eq. 7):
 //! `L = mean(A |d_s - r d_t|) + lambda_p mean(M_s P_s) + lambda_s L_s`,
-//! with a switch for every term and every mask part (paper Tables 3 and 4).
+//! with a switch for every term and every mask part (paper Tables 3 and 4),
+//! plus `lambda_r` times the range term, zero for any plausible prediction
+//! (see [`range`]; `range_weight = 0` is the paper's loss exactly).
 
 pub mod geometry;
 pub mod photometric;
+pub mod range;
 pub mod smoothness;
 pub mod warp;
 
@@ -16,6 +19,7 @@ use crate::mask::{MaskParts, validity_mask, weight_map};
 use geometry::geometry_consistency;
 use mbs_nets::ranges;
 use photometric::photometric_map;
+use range::out_of_range;
 use smoothness::edge_aware_smoothness;
 use warp::warp_to_reference;
 
@@ -70,6 +74,21 @@ pub struct LossConfig {
     /// network's range (`network.max_disparity`) for such backbones.
     #[config(default = 0.0)]
     pub max_target_disparity: f64,
+    /// Weight `lambda_r` of the range term, the mean distance (px) of the
+    /// student's disparities outside `[0, W - 1]`: zero for plausible
+    /// predictions, a way back for a network whose disparities have left
+    /// the image (where the paper's terms lose their gradient and training
+    /// collapses). 0 is the paper's loss.
+    #[config(default = 1.0)]
+    pub range_weight: f64,
+    /// Rescale each item's geometry target `r d_t` to the student's
+    /// weighted mean before comparing ([`geometry::match_scale`]), so the
+    /// geometry term supervises the shape of the disparities and the
+    /// photometric term their scale; `false` (the default) is the paper's
+    /// term. It stops a runaway of the disparities' scale but slows
+    /// learning (README, "S3 from random weights").
+    #[config(default = false)]
+    pub geometry_scale_match: bool,
 }
 
 impl LossConfig {
@@ -103,6 +122,7 @@ impl LossConfig {
         ranges::non_negative("lambda_s_ratio", self.lambda_s_ratio)?;
         ranges::unit("alpha", self.alpha)?;
         ranges::non_negative("max_target_disparity", self.max_target_disparity)?;
+        ranges::non_negative("range_weight", self.range_weight)?;
         ranges::require(
             self.ssim_window % 2 == 1,
             "ssim_window",
@@ -141,6 +161,10 @@ pub struct LossInputs {
     pub teacher_sides: Vec<Side>,
     /// Baseline ratio `r = B_s / B_t` of each batch item.
     pub ratios: Vec<f64>,
+    /// The weight of the geometry term at this step: 1 as the paper, less
+    /// during the trainer's warm-up
+    /// ([`crate::step::TrainerConfig::geometry_warmup`]).
+    pub geometry_weight: f64,
 }
 
 /// The loss and its parts. Terms that are switched off are `None`.
@@ -154,6 +178,8 @@ pub struct LossOutput {
     pub photometric: Option<Tensor<1>>,
     /// `L_s`, before `lambda_s`.
     pub smoothness: Option<Tensor<1>>,
+    /// The range term, before `lambda_r` (`None` when its weight is 0).
+    pub range: Option<Tensor<1>>,
     /// Student validity mask `M_s` (0/1), when the photometric or geometry term is on.
     pub student_mask: Option<Tensor<4>>,
     /// Teacher validity mask `M_t` (0/1), when the geometry term is on.
@@ -267,6 +293,7 @@ impl S3Loss {
             geometry: None,
             photometric: None,
             smoothness: None,
+            range: None,
             student_mask: None,
             teacher_mask: None,
             weight_map: None,
@@ -291,13 +318,19 @@ impl S3Loss {
                     &inputs.ratios,
                     a.clone(),
                     (config.max_target_disparity > 0.0).then_some(config.max_target_disparity),
+                    config.geometry_scale_match,
                 );
-                total = total + term.clone();
+                total = total + term.clone() * inputs.geometry_weight;
                 out.geometry = Some(term);
                 out.teacher_mask = Some(m_t.clone());
                 out.weight_map = Some(a);
             }
             out.student_mask = Some(m_s);
+        }
+        if config.range_weight > 0.0 {
+            let term = out_of_range(student.clone());
+            total = total + term.clone() * config.range_weight;
+            out.range = Some(term);
         }
         if config.smoothness {
             let term = edge_aware_smoothness(

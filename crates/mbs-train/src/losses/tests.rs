@@ -26,6 +26,7 @@ fn rows(row: [f32; 4]) -> Vec<f32> {
 fn inputs(device: &Device) -> LossInputs {
     let shape = [1, 1, 2, 4];
     LossInputs {
+        geometry_weight: 1.0,
         reference: tensor4(&rows([0.0, 0.2, 0.4, 0.6]), shape, device),
         student_target: tensor4(&rows([0.2, 0.45, 0.6, 0.8]), shape, device),
         teacher_target: tensor4(&rows([0.4, 0.6, 0.8, 1.0]), shape, device),
@@ -37,8 +38,12 @@ fn inputs(device: &Device) -> LossInputs {
     }
 }
 
+/// L1 photometric error and the paper's geometry term, for hand values.
 fn l1_config() -> LossConfig {
-    LossConfig::new().with_alpha(0.0).with_ssim_window(1)
+    LossConfig::new()
+        .with_alpha(0.0)
+        .with_ssim_window(1)
+        .with_geometry_scale_match(false)
 }
 
 fn scalar(tensor: Option<Tensor<1>>) -> f32 {
@@ -197,4 +202,33 @@ fn a_sequence_adds_each_earlier_prediction_weighted() {
         loss.compute_sequence(inputs(&device), vec![(wrong, 1.0)])
             .is_err()
     );
+}
+
+#[test]
+fn a_collapsed_prediction_is_pulled_back_by_the_range_term_only() {
+    // Teacher and student at -200 px: every warp reads the target's border,
+    // which matches worse than no warp, so both masks are empty; the
+    // paper's terms then give no gradient at all (the smoothness of a flat
+    // map is zero too), and only the range term leads back.
+    let device = Device::flex().autodiff();
+    let gradient = |range_weight: f64| {
+        let mut batch = inputs(&device);
+        batch.student_disparity = Tensor::full([1, 1, 2, 4], -200.0, &device).require_grad();
+        batch.teacher_disparity = Tensor::full([1, 1, 2, 4], -200.0, &device);
+        let student = batch.student_disparity.clone();
+        let out = S3Loss::new(l1_config().with_range_weight(range_weight))
+            .expect("valid")
+            .compute(batch)
+            .expect("shapes match");
+        assert_close(&values(out.student_mask.expect("on")), &[0.0; 8], 0.0);
+        assert_close(&values(out.teacher_mask.expect("on")), &[0.0; 8], 0.0);
+        values(
+            student
+                .grad(&out.total.backward())
+                .expect("student requires grad"),
+        )
+    };
+    assert_close(&gradient(0.0), &[0.0; 8], 0.0);
+    // d(mean(-d))/dd = -1/8 per pixel: gradient descent raises every pixel.
+    assert_close(&gradient(1.0), &[-0.125; 8], 1e-6);
 }

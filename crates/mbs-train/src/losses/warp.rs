@@ -18,14 +18,7 @@ pub fn warp_to_reference(target: Tensor<4>, disparity: Tensor<4>, sides: &[Side]
     let [batch, channels, height, width] = target.dims();
     assert!(width >= 2, "warp needs an image at least 2 pixels wide");
     assert_eq!(sides.len(), batch, "one side per batch item");
-    let device = disparity.device();
-    let columns = Tensor::<1, Int>::arange(0..width as i64, &device)
-        .float()
-        .reshape([1, 1, 1, width]);
-    let signs: Vec<f32> = sides.iter().map(|side| side_sign(*side)).collect();
-    let signs =
-        Tensor::<1>::from_data(TensorData::new(signs, [batch]), &device).reshape([batch, 1, 1, 1]);
-    let x = (columns - disparity * signs).clamp(0.0, (width - 1) as f64);
+    let x = sample_columns(disparity, sides).clamp(0.0, (width - 1) as f64);
     // The left sample column is constant for the gradient; the interpolation
     // weight carries the derivative in d.
     let left = x.clone().detach().floor().clamp_max((width - 2) as f64);
@@ -35,6 +28,31 @@ pub fn warp_to_reference(target: Tensor<4>, disparity: Tensor<4>, sides: &[Side]
     let left_values = target.clone().gather(3, left);
     let right_values = target.gather(3, right);
     left_values * (weight.clone().neg() + 1.0) + right_values * weight
+}
+
+/// The column each reference pixel samples in its target, `x - d` (target
+/// on the right) or `x + d` (on the left), before any clamping; `disparity`
+/// is `[B, 1, H, W]` and `sides.len() == B`.
+pub fn sample_columns(disparity: Tensor<4>, sides: &[Side]) -> Tensor<4> {
+    let [batch, _, _, width] = disparity.dims();
+    let device = disparity.device();
+    let columns = Tensor::<1, Int>::arange(0..width as i64, &device)
+        .float()
+        .reshape([1, 1, 1, width]);
+    let signs: Vec<f32> = sides.iter().map(|side| side_sign(*side)).collect();
+    let signs =
+        Tensor::<1>::from_data(TensorData::new(signs, [batch]), &device).reshape([batch, 1, 1, 1]);
+    columns - disparity * signs
+}
+
+/// The share of pixels whose sample column lies outside the target image
+/// (no gradient): warps that read the border instead of a match.
+pub fn outside_share(disparity: Tensor<4>, sides: &[Side]) -> Tensor<1> {
+    let width = disparity.dims()[3];
+    let columns = sample_columns(disparity.detach(), sides);
+    let before = columns.clone().lower_elem(0.0).float();
+    let after = columns.greater_elem((width - 1) as f64).float();
+    (before + after).mean()
 }
 
 /// +1 for a target on the right (sample at `x - d`), -1 on the left (`x + d`).

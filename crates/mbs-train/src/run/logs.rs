@@ -81,6 +81,13 @@ pub(crate) struct Interval {
     geometry: f64,
     photometric: f64,
     smoothness: f64,
+    range: f64,
+    student_mask: f64,
+    teacher_mask: f64,
+    outside: f64,
+    disparity_mean: f64,
+    disparity_min: f32,
+    disparity_max: f32,
     data_wait: Duration,
     last: Option<StepReport>,
 }
@@ -94,6 +101,13 @@ impl Interval {
             geometry: 0.0,
             photometric: 0.0,
             smoothness: 0.0,
+            range: 0.0,
+            student_mask: 0.0,
+            teacher_mask: 0.0,
+            outside: 0.0,
+            disparity_mean: 0.0,
+            disparity_min: f32::INFINITY,
+            disparity_max: f32::NEG_INFINITY,
             data_wait: Duration::ZERO,
             last: None,
         }
@@ -110,6 +124,14 @@ impl Interval {
         self.geometry += f64::from(report.terms.geometry.unwrap_or(0.0));
         self.photometric += f64::from(report.terms.photometric.unwrap_or(0.0));
         self.smoothness += f64::from(report.terms.smoothness.unwrap_or(0.0));
+        self.range += f64::from(report.terms.range.unwrap_or(0.0));
+        let supervision = &report.supervision;
+        self.student_mask += f64::from(supervision.student_mask.unwrap_or(0.0));
+        self.teacher_mask += f64::from(supervision.teacher_mask.unwrap_or(0.0));
+        self.outside += f64::from(supervision.outside);
+        self.disparity_mean += f64::from(supervision.disparity_mean);
+        self.disparity_min = self.disparity_min.min(supervision.disparity_min);
+        self.disparity_max = self.disparity_max.max(supervision.disparity_max);
         self.last = Some(*report);
     }
 
@@ -128,6 +150,7 @@ impl Interval {
             step: steps,
             loss: 0.0,
             terms: Default::default(),
+            supervision: Default::default(),
             grad_norm: 0.0,
             loss_scale: None,
             lr: 0.0,
@@ -140,6 +163,17 @@ impl Interval {
             "geometry": term(last.terms.geometry, self.geometry),
             "photometric": term(last.terms.photometric, self.photometric),
             "smoothness": term(last.terms.smoothness, self.smoothness),
+            "range": term(last.terms.range, self.range),
+            "supervision": {
+                "student_mask": term(last.supervision.student_mask, self.student_mask),
+                "teacher_mask": term(last.supervision.teacher_mask, self.teacher_mask),
+                "outside": self.outside / n,
+                "disparity": {
+                    "min": self.disparity_min,
+                    "mean": self.disparity_mean / n,
+                    "max": self.disparity_max,
+                },
+            },
             "lr": last.lr,
             "momentum": last.momentum,
             "grad_norm": last.grad_norm,

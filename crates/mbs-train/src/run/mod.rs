@@ -36,6 +36,7 @@ use crate::data::{BatchLoader, TrainingSamples, ValidationSet};
 use crate::error::TrainError;
 use crate::precision::check_support;
 use crate::step::{S3Trainer, StepReport};
+use crate::supervision::CollapseWatch;
 use mbs_nets::StereoNetwork;
 use mbs_nets::checkpoint::TrainedNetworks;
 use mbs_nets::host::image_tensor;
@@ -69,6 +70,10 @@ pub trait Observer {
     /// When a picture or TensorBoard event could not be written: training
     /// goes on.
     fn on_warning(&mut self, _warning: &TrainError) {}
+    /// When training itself looks wrong (supervision has vanished, see
+    /// [`crate::supervision::CollapseWatch`]); the message is also in
+    /// `train.jsonl` under `warning`.
+    fn on_alert(&mut self, _message: &str) {}
     /// After each checkpoint.
     fn on_checkpoint(&mut self, _steps: usize, _dir: &Path) {}
 }
@@ -328,6 +333,8 @@ impl TrainingRun {
         );
         let mut log = open_log(&self.out.join(TRAIN_LOG))?;
         let mut interval = Interval::new();
+        let mut watch = CollapseWatch::default();
+        let mut alert = None;
         let mut metrics = None;
         if first == 0 {
             metrics = self.validate(observer)?;
@@ -344,8 +351,15 @@ impl TrainingRun {
             let taken = report.step + 1;
             interval.add(&report);
             observer.on_step(&report, interval.samples_per_second(data.batch_size));
+            if let Some(message) = watch.observe(report.step, &report.supervision) {
+                observer.on_alert(&message);
+                alert = Some(message);
+            }
             if taken % self.config.log_every == 0 || taken == total {
-                let line = interval.json(taken, data.batch_size);
+                let mut line = interval.json(taken, data.batch_size);
+                if let Some(message) = alert.take() {
+                    line["warning"] = message.into();
+                }
                 write_line(&mut log, &self.out.join(TRAIN_LOG), &line)?;
                 let logged = self.report.log_line("train", &line);
                 warn(observer, logged);

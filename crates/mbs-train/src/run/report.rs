@@ -165,17 +165,34 @@ impl RunReport {
             .filter(|s| !s.points.is_empty())
             .collect();
         if !out3.is_empty() {
+            // Beside the scores, how much the training steps were
+            // supervised: a collapse shows as the masks falling to 0 (and
+            // the warps leaving the image) while Out-3 rises.
+            let supervision = [
+                ("student mask (training)", "student_mask"),
+                ("teacher mask (training)", "teacher_mask"),
+                ("warps leaving the image (training)", "outside"),
+            ]
+            .iter()
+            .map(|(name, key)| percent(series(&train, name, &["supervision", key])))
+            .filter(|s| !s.points.is_empty());
             LineChart {
-                title: "Validation: teacher Out-3 on held-out pairs".into(),
+                title: "Teacher Out-3 on held-out pairs, and the supervision of training".into(),
                 x_label: "training step".into(),
-                y_label: "Out-3 (% of pixels)".into(),
+                y_label: "% of pixels".into(),
                 log_y: false,
-                series: out3,
+                series: out3.into_iter().chain(supervision).collect(),
             }
             .write_png(&self.out.join(VAL_PLOT))?;
         }
         Ok(())
     }
+}
+
+/// A series of shares (0 to 1) in percent.
+fn percent(mut series: Series) -> Series {
+    series.points.iter_mut().for_each(|(_, v)| *v *= 100.0);
+    series
 }
 
 /// `(step, value at path)` of every log line that has a number there.

@@ -95,12 +95,18 @@ impl Observer for Report {
             value.map_or(String::new(), |v| format!(" {name} {v:.3}"))
         };
         self.bar.set_position(report.step as u64 + 1);
+        let share = |name: &str, value: Option<f32>| {
+            value.map_or(String::new(), |v| format!(" {name} {:.0}%", 100.0 * v))
+        };
+        let supervision = &report.supervision;
         self.bar.set_message(format!(
-            "loss {:.3} ({}{}{} ) {:.1} samples/s{}",
+            "loss {:.3} ({}{}{} ) masks{}{} {:.1} samples/s{}",
             report.loss,
             term("g", report.terms.geometry).trim_start(),
             term("p", report.terms.photometric),
             term("s", report.terms.smoothness),
+            share("s", supervision.student_mask),
+            share("t", supervision.teacher_mask),
             samples_per_second,
             self.validation,
         ));
@@ -124,6 +130,10 @@ impl Observer for Report {
             out3("OCC")
         ));
         self.validation = format!(" | val Out-3 {}", out3("ALL"));
+    }
+
+    fn on_alert(&mut self, message: &str) {
+        self.line(&format!("warning: {message}"));
     }
 
     fn on_warning(&mut self, warning: &TrainError) {
