@@ -5,6 +5,7 @@
 
 mod common;
 
+use std::path::Path;
 use std::process::Stdio;
 use std::time::{Duration, Instant};
 
@@ -12,23 +13,32 @@ use common::{SMALL, lines, mbs_tool, run, synth, text};
 use mbs_test_support::events::{EventValue, read_events};
 use serde_json::Value;
 
+/// The arguments of a small training run on a synthetic set written into
+/// `dir/data`: `train MANIFEST --out OUT --steps S --val-every V`, `extra`,
+/// then the small settings.
+fn small_run(dir: &Path, out: &Path, [steps, val_every]: [&str; 2], extra: &[&str]) -> Vec<String> {
+    let manifest = synth(&dir.join("data"));
+    let mut args: Vec<String> = vec![
+        "train".into(),
+        manifest,
+        "--out".into(),
+        out.display().to_string(),
+        "--steps".into(),
+        steps.into(),
+        "--val-every".into(),
+        val_every.into(),
+    ];
+    args.extend(extra.iter().chain(&SMALL).map(|a| a.to_string()));
+    args
+}
+
 #[test]
 fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     let dir = tempfile::tempdir().unwrap();
-    let manifest = synth(&dir.path().join("data"));
     let out = dir.path().join("run");
-    let out_s = out.display().to_string();
-    let mut args = vec![
-        "train",
-        &manifest,
-        "--out",
-        &out_s,
-        "--steps",
-        "6",
-        "--val-every",
-        "3",
-    ];
-    args.extend(SMALL);
+    let owned = small_run(dir.path(), &out, ["6", "3"], &[]);
+    let args: Vec<&str> = owned.iter().map(String::as_str).collect();
+    let (manifest, out_s) = (owned[1].clone(), owned[3].clone());
     let output = run(&args);
     assert!(output.status.success(), "{}", text(&output));
     let stderr = String::from_utf8_lossy(&output.stderr);
@@ -284,22 +294,9 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
 #[test]
 fn ctrl_c_saves_a_checkpoint_and_the_same_command_resumes() {
     let dir = tempfile::tempdir().unwrap();
-    let manifest = synth(&dir.path().join("data"));
     let out = dir.path().join("run");
-    let out_s = out.display().to_string();
-    let mut args = vec![
-        "train",
-        &manifest,
-        "--out",
-        &out_s,
-        "--steps",
-        "400",
-        "--val-every",
-        "1000",
-        "--set",
-        "log_every=1",
-    ];
-    args.extend(SMALL);
+    let args = small_run(dir.path(), &out, ["400", "1000"], &["--set", "log_every=1"]);
+    let out_s = &args[3];
     let child = mbs_tool()
         .args(&args)
         .stdout(Stdio::null())
@@ -341,7 +338,7 @@ fn ctrl_c_saves_a_checkpoint_and_the_same_command_resumes() {
 
     // The same command resumes at that step (here with fewer total steps
     // refused: the schedule would change).
-    let mut shorter = args.clone();
+    let mut shorter: Vec<&str> = args.iter().map(String::as_str).collect();
     shorter[5] = "300";
     let refused = run(&shorter);
     assert!(!refused.status.success());
@@ -443,23 +440,10 @@ fn vanished_supervision_is_warned_about_while_training() {
     // tau = 1e-6: no photometric error passes the threshold, so both masks
     // are empty from the first step, as in a collapsed run.
     let dir = tempfile::tempdir().unwrap();
-    let manifest = synth(&dir.path().join("data"));
     let out = dir.path().join("run");
-    let out_s = out.display().to_string();
-    let mut args = vec![
-        "train",
-        &manifest,
-        "--out",
-        &out_s,
-        "--steps",
-        "12",
-        "--val-every",
-        "12",
-        "--set",
-        "trainer.loss.tau=0.000001",
-    ];
-    args.extend(SMALL);
-    let output = run(&args);
+    let tiny_tau = ["--set", "trainer.loss.tau=0.000001"];
+    let owned = small_run(dir.path(), &out, ["12", "12"], &tiny_tau);
+    let output = run(&owned.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(output.status.success(), "{}", text(&output));
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(
