@@ -1,7 +1,6 @@
 //! Parallel batches over files: a progress bar, per-item errors that do not
 //! stop the batch, and a summary (done / skipped / failed, items per second).
 
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::cli::report_error::describe_item;
@@ -88,7 +87,6 @@ where
 {
     let start = Instant::now();
     let bar = progress_bar(items.len(), label);
-    let failed = AtomicUsize::new(0);
     let results: Vec<Option<R>> = items
         .par_iter()
         .map(|item| {
@@ -97,13 +95,12 @@ where
             result
                 .map_err(|e| {
                     bar.suspend(|| eprintln!("error: {}", describe_item(&name(item), &e)));
-                    failed.fetch_add(1, Ordering::Relaxed);
                 })
                 .ok()
         })
         .collect();
     bar.finish_and_clear();
-    let failed = failed.into_inner();
+    let failed = results.iter().filter(|r| r.is_none()).count();
     let summary = Summary {
         done: items.len() - failed,
         skipped: 0,

@@ -186,15 +186,16 @@ fn items(pairs: Vec<StereoPair>, predictions: Option<&Path>) -> Vec<Item> {
         .into_iter()
         .filter_map(|mut pair| {
             let truth = pair.truth.take()?;
+            let name = pair.id.clone();
             let prediction = match predictions {
-                Some(folder) => find_map(folder, &pair.id).map_or_else(
+                Some(folder) => find_map(folder, &name).map_or_else(
                     || Prediction::Missing(folder.to_path_buf()),
                     Prediction::File,
                 ),
-                None => Prediction::Pair(pair.clone()),
+                None => Prediction::Pair(pair),
             };
             Some(Item {
-                name: pair.id,
+                name,
                 prediction,
                 truth,
             })
