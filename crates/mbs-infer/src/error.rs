@@ -31,6 +31,15 @@ pub enum InferError {
         /// What is accepted.
         expected: &'static str,
     },
+    /// The matcher's map is not a prediction (NaN values, or no finite
+    /// value at all).
+    #[error("{matcher} gave no usable disparity: {problem} (are its weights broken?)")]
+    NoPrediction {
+        /// The matcher's name.
+        matcher: String,
+        /// What is wrong with the map.
+        problem: String,
+    },
     /// A model backend (ONNX Runtime) failed; the message names the model.
     #[error("{0}")]
     Backend(String),

@@ -53,11 +53,32 @@ pub trait StereoMatcher: Send + Sync {
         target: &RgbImage,
         side: Side,
     ) -> Result<Disparity> {
-        match side {
+        let prediction = match side {
             Side::Right => self.predict(reference, target),
             Side::Left => self.predict_right(target, reference),
-        }
+        }?;
+        check_values(self.name(), &prediction.disparity)?;
+        Ok(prediction)
     }
+}
+
+/// An [`InferError::NoPrediction`] when `disparity` holds a NaN or no
+/// finite value at all (a network with broken weights, a diverged run):
+/// such a map must never be written as a result.
+pub fn check_values(matcher: &str, disparity: &FloatImage) -> Result<()> {
+    let nan = disparity.iter().filter(|d| d.is_nan()).count();
+    let finite = disparity.iter().filter(|d| d.is_finite()).count();
+    let problem = if nan > 0 {
+        format!("{nan} of its {} values are NaN", disparity.len())
+    } else if finite == 0 {
+        "it has no finite value".to_string()
+    } else {
+        return Ok(());
+    };
+    Err(InferError::NoPrediction {
+        matcher: matcher.to_string(),
+        problem,
+    })
 }
 
 /// The `right` view's disparity by `matcher`: both views mirrored, their
@@ -94,4 +115,26 @@ pub fn luma(image: &RgbImage) -> Vec<u8> {
             ((77 * r + 150 * g + 29 * b + 128) >> 8) as u8
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_map_with_nan_or_nothing_finite_is_not_a_prediction() {
+        let map = |values: Vec<f32>| FloatImage::from_raw(2, 2, values).unwrap();
+        assert!(check_values("m", &map(vec![1.0, f32::INFINITY, 0.0, 2.5])).is_ok());
+        let err = check_values("net", &map(vec![1.0, f32::NAN, f32::NAN, 2.5]))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("net gave no usable disparity: 2 of its 4 values are NaN"),
+            "{err}"
+        );
+        let err = check_values("net", &map(vec![f32::INFINITY; 4]))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("it has no finite value"), "{err}");
+    }
 }

@@ -16,6 +16,7 @@ use serde_json::Value;
 
 use crate::error::NetError;
 use crate::network::{NetworkConfig, StereoNetwork};
+use crate::official::first_non_finite_parameter;
 
 /// `format` of `state.json`.
 pub const FORMAT: &str = "mbs-checkpoint/1";
@@ -104,6 +105,12 @@ pub fn load_module<M: Module>(mut module: M, path: &Path) -> Result<M, NetError>
     module
         .load_from(&mut store)
         .map_err(|e| NetError::checkpoint(path, e))?;
+    if let Some((name, count)) = first_non_finite_parameter(&module) {
+        return Err(NetError::checkpoint(
+            path,
+            format!("parameter {name} holds {count} non-finite values (NaN or infinite)"),
+        ));
+    }
     Ok(module)
 }
 
@@ -138,6 +145,11 @@ impl TrainedNetworks {
             steps: state.steps,
             network,
         })
+    }
+
+    /// The files this checkpoint is read from.
+    pub fn files(&self) -> [PathBuf; 3] {
+        [STATE_FILE, TEACHER_FILE, STUDENT_FILE].map(|name| self.dir.join(name))
     }
 
     /// The teacher (the network used for inference) on `device`.

@@ -15,7 +15,7 @@ use std::path::Path;
 
 use burn::module::{Module, ModuleMapper, ModuleVisitor, Param};
 use burn::tensor::{Tensor, TensorData};
-use mbs_core::atomic::partial_path;
+use mbs_core::atomic::write_bytes_atomic;
 use safetensors::{Dtype, SafeTensors};
 
 use crate::error::NetError;
@@ -70,6 +70,16 @@ impl StateDict {
         if dict.tensors.is_empty() {
             return Err(NetError::weights(path, "holds no float tensors"));
         }
+        if let Some((key, count)) = dict.first_non_finite() {
+            return Err(NetError::weights(
+                path,
+                format!(
+                    "tensor {key} holds {count} non-finite values (NaN or infinite) of {}; \
+                     these weights cannot predict",
+                    dict.tensors[&key].values.len()
+                ),
+            ));
+        }
         if dict
             .tensors
             .keys()
@@ -81,6 +91,15 @@ impl StateDict {
                 .collect();
         }
         Ok(dict)
+    }
+
+    /// The first tensor (in key order) holding a NaN or an infinity, with
+    /// how many it holds.
+    pub fn first_non_finite(&self) -> Option<(String, usize)> {
+        self.tensors.iter().find_map(|(key, tensor)| {
+            let count = tensor.values.iter().filter(|v| !v.is_finite()).count();
+            (count > 0).then(|| (key.clone(), count))
+        })
     }
 
     fn read_safetensors(path: &Path) -> Result<Self, NetError> {
@@ -169,14 +188,13 @@ impl StateDict {
                 .map_err(|e| NetError::weights(path, e))?;
             views.push((key.clone(), view));
         }
-        let partial = partial_path(path);
         let metadata = Some(std::collections::HashMap::from([(
             "format".to_string(),
             "pt".to_string(),
         )]));
-        safetensors::serialize_to_file(views, metadata, &partial)
-            .map_err(|e| NetError::weights(path, e))?;
-        std::fs::rename(&partial, path).map_err(|e| NetError::weights(path, e))
+        let bytes =
+            safetensors::serialize(views, metadata).map_err(|e| NetError::weights(path, e))?;
+        write_bytes_atomic(path, &bytes).map_err(|e| NetError::weights(path, e))
     }
 }
 
@@ -277,6 +295,49 @@ fn listing(keys: &[String]) -> String {
         text.push_str(&format!(" and {} more", keys.len() - SHOWN));
     }
     text
+}
+
+/// The first parameter of `module` (by burn path, in visiting order)
+/// holding a NaN or an infinity, with how many it holds. Reads every
+/// parameter to the host.
+pub fn first_non_finite_parameter<M: Module>(module: &M) -> Option<(String, usize)> {
+    let mut finder = NonFiniteFinder {
+        path: Vec::new(),
+        found: None,
+    };
+    module.visit(&mut finder);
+    finder.found
+}
+
+struct NonFiniteFinder {
+    path: Vec<String>,
+    found: Option<(String, usize)>,
+}
+
+impl ModuleVisitor for NonFiniteFinder {
+    fn enter_module(&mut self, name: &str, _container_type: &str) {
+        self.path.push(name.to_string());
+    }
+
+    fn exit_module(&mut self, _name: &str, _container_type: &str) {
+        self.path.pop();
+    }
+
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+        if self.found.is_some() {
+            return;
+        }
+        let values = param
+            .val()
+            .into_data()
+            .convert::<f32>()
+            .try_into_vec::<f32>()
+            .unwrap_or_default();
+        let count = values.iter().filter(|v| !v.is_finite()).count();
+        if count > 0 {
+            self.found = Some((self.path.join("."), count));
+        }
+    }
 }
 
 struct Collector {

@@ -25,6 +25,8 @@ pub enum EventValue {
     Scalar(String, f32),
     /// An image with its tag, size (width, height) and PNG bytes.
     Image(String, (u32, u32), Vec<u8>),
+    /// A `SessionLog` START: a run resumed at this event's step.
+    SessionStart,
 }
 
 /// An event read back: its step and value.
@@ -141,6 +143,14 @@ fn decode_event(payload: &[u8]) -> Option<Vec<Event>> {
             Field::Bytes(3, v) => {
                 values.push(EventValue::FileVersion(String::from_utf8(v.to_vec()).ok()?))
             }
+            Field::Bytes(6, session_log) => {
+                let start = Reader::fields(session_log)?
+                    .iter()
+                    .any(|f| matches!(f, Field::Varint(1, 1)));
+                if start {
+                    values.push(EventValue::SessionStart);
+                }
+            }
             Field::Bytes(5, summary) => {
                 for entry in Reader::fields(summary)? {
                     if let Field::Bytes(1, value) = entry {
@@ -187,4 +197,19 @@ pub fn read_events(path: &Path) -> Result<Vec<Event>, String> {
         rest = &after[4..];
     }
     Ok(events)
+}
+
+/// The events TensorBoard shows for a run whose event `files` (each one's
+/// events, oldest file first) were written by successive sessions: a
+/// `SessionLog` START at step `s` discards every earlier point at step `s`
+/// or later, as TensorBoard's `EventAccumulator` purges a restarted run.
+pub fn as_tensorboard_shows(files: Vec<Vec<Event>>) -> Vec<Event> {
+    let mut shown: Vec<Event> = Vec::new();
+    for event in files.into_iter().flatten() {
+        if event.value == EventValue::SessionStart {
+            shown.retain(|earlier| earlier.step < event.step);
+        }
+        shown.push(event);
+    }
+    shown
 }

@@ -1,4 +1,5 @@
-//! Files on disk in tests: empty placeholders and whole-tree snapshots.
+//! Files on disk in tests: empty placeholders, whole-tree snapshots, and
+//! what can safely be looked at while another process is still writing.
 
 use std::path::{Path, PathBuf};
 
@@ -25,4 +26,26 @@ pub fn tree(root: &Path) -> Vec<(PathBuf, Vec<u8>)> {
         .collect();
     files.sort();
     files
+}
+
+/// How many files are under `root` now, without reading any: safe while
+/// another process writes there (an entry renamed or removed meanwhile is
+/// skipped, where [`tree`] would fail to read it).
+pub fn file_count(root: &Path) -> usize {
+    walkdir::WalkDir::new(root)
+        .into_iter()
+        .filter_map(Result::ok)
+        .filter(|e| e.file_type().is_file())
+        .count()
+}
+
+/// The complete lines of a text file another process appends to: none when
+/// it does not exist yet, and a last line without its newline (still being
+/// written) left out.
+pub fn complete_lines(path: &Path) -> Vec<String> {
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return Vec::new();
+    };
+    let complete = text.rfind('\n').map_or("", |end| &text[..end]);
+    complete.lines().map(str::to_string).collect()
 }

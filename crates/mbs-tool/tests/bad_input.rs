@@ -57,6 +57,11 @@ fn inputs(data: &Path) {
         b"Pf\n2147483648 2147483648\n-1.0\n\0\0\0\0",
     )
     .unwrap();
+    std::fs::write(
+        data.join("wrong_type.json"),
+        br#"{"data": {"batch_size": "two"}}"#,
+    )
+    .unwrap();
     std::fs::create_dir_all(data.join("preds")).unwrap();
     write_pfm_grey(&data.join("preds/s0.pfm"), &gt, Endian::Little).unwrap();
     let views = ["left.png", "right.png"];
@@ -253,6 +258,33 @@ const CASES: &[Case] = &[
         "predict --left {d}/left.png --right {d}/right.png --out {d}/gt.pfm",
         1,
         "exists and is not a folder",
+    ),
+    // 8. One meaning per flag, one exit code per kind of error (issue 26).
+    case(
+        "predict --left {d}/left.png --right {d}/right.png --out {o} --device bogus",
+        2,
+        "bogus",
+    ),
+    case(
+        "eval {d}/preds --manifest {d}/ok.json --device bogus",
+        2,
+        "bogus",
+    ),
+    case("train {d}/ok.json --out {o} --device cpu,bogus", 2, "bogus"),
+    case(
+        "predict --left {d}/left.png --right {d}/right.png --out {o} --device cuda",
+        1,
+        "the built-in matcher runs on the CPU",
+    ),
+    case(
+        "predict --left {d}/left.png --right {d}/right.png --out {o} --max-disparity 100000",
+        2,
+        "not an integer from 0 to 4096",
+    ),
+    case(
+        "train {d}/ok.json --out {o} --config {d}/wrong_type.json --batch-size 2",
+        1,
+        "the configuration file: /data/batch_size",
     ),
 ];
 

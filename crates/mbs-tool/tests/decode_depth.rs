@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use common::{run, text, write_carla_frames};
 use mbs_core::formats::{exr, pfm, png16};
-use mbs_test_support::files::tree;
+use mbs_test_support::files::{file_count, tree};
 
 #[test]
 fn decodes_depth_and_disparity_with_invalid_far_pixels() {
@@ -176,7 +176,9 @@ fn killed_run_resumes_to_byte_identical_outputs() {
     let killed = dir.path().join("killed");
     let mut child = common::mbs_tool().args(args(&killed)).spawn().unwrap();
     let start = Instant::now();
-    while tree(&killed).is_empty() && start.elapsed() < Duration::from_secs(20) {
+    // Only count files while the child writes: reading them could meet a
+    // temporary name just renamed.
+    while file_count(&killed) == 0 && start.elapsed() < Duration::from_secs(20) {
         std::thread::sleep(Duration::from_millis(2));
     }
     child.kill().unwrap();

@@ -10,7 +10,8 @@ use std::process::Stdio;
 use std::time::{Duration, Instant};
 
 use common::{SMALL, lines, mbs_tool, run, synth, text};
-use mbs_test_support::events::{EventValue, read_events};
+use mbs_test_support::events::{EventValue, as_tensorboard_shows, read_events};
+use mbs_test_support::files::complete_lines;
 use serde_json::Value;
 
 /// The arguments of a small training run on a synthetic set written into
@@ -191,6 +192,34 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     let exported_s = exported.display().to_string();
     let output = run(&["export", &out_s, "--out", &exported_s]);
     assert!(output.status.success(), "{}", text(&output));
+    assert_usual_permissions(&exported);
+
+    // export never writes over the checkpoint it reads: a name of another
+    // extension becomes a .safetensors name beside it, and a link to a
+    // checkpoint file (the same file under another name) is refused.
+    let checkpoint = mbs_nets::checkpoint::TrainedNetworks::open(&out).unwrap();
+    let teacher_file = checkpoint.dir.join("teacher.bpk");
+    let teacher_bytes = std::fs::read(&teacher_file).unwrap();
+    let output = run(&["export", &out_s, "--out", teacher_file.to_str().unwrap()]);
+    assert!(output.status.success(), "{}", text(&output));
+    assert!(
+        text(&output).contains("is not a .safetensors name; writing"),
+        "{}",
+        text(&output)
+    );
+    assert_eq!(std::fs::read(&teacher_file).unwrap(), teacher_bytes);
+    assert_usual_permissions(&checkpoint.dir.join("teacher.safetensors"));
+    let linked = dir.path().join("linked.safetensors");
+    std::fs::hard_link(checkpoint.dir.join("state.json"), &linked).unwrap();
+    let output = run(&["export", &out_s, "--out", linked.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(1), "{}", text(&output));
+    assert!(
+        text(&output).contains("would overwrite the checkpoint it exports")
+            && text(&output).contains("state.json"),
+        "{}",
+        text(&output)
+    );
+    assert_eq!(std::fs::read(&teacher_file).unwrap(), teacher_bytes);
     let pred_weights = dir.path().join("pred-weights");
     let weights_source = [
         "--backbone",
@@ -289,6 +318,65 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
         "{stderr}"
     );
     assert!(stderr.contains("keys missing: cnet."), "{stderr}");
+
+    // Weights holding a NaN are refused, naming the tensor, by every
+    // command that reads them; nothing is predicted or trained.
+    let poisoned = dir.path().join("poisoned.safetensors");
+    let mut dict = mbs_nets::official::StateDict::read(&exported).unwrap();
+    let (key, tensor) = dict.tensors.iter_mut().nth(3).unwrap();
+    let key = key.clone();
+    tensor.values[0] = f32::NAN;
+    dict.write_safetensors(&poisoned, &[]).unwrap();
+    let poisoned_s = poisoned.display().to_string();
+    let pred_poisoned = dir.path().join("pred-poisoned");
+    let mut args = vec!["predict", "--manifest", &manifest, "--pair", "1:0"];
+    args.extend(weights_source);
+    let at = args.iter().position(|a| *a == exported_s).unwrap();
+    args[at] = &poisoned_s;
+    args.extend(["--out", pred_poisoned.to_str().unwrap()]);
+    let refused_init = dir.path().join("poisoned-run");
+    let mut init_args = vec![
+        "train",
+        &manifest,
+        "--out",
+        refused_init.to_str().unwrap(),
+        "--init",
+        &poisoned_s,
+        "--steps",
+        "2",
+    ];
+    init_args.extend(SMALL);
+    for args in [args, init_args] {
+        let output = run(&args);
+        assert_eq!(output.status.code(), Some(1), "{}", text(&output));
+        let expected = format!("tensor {key} holds 1 non-finite values");
+        assert!(text(&output).contains(&expected), "{}", text(&output));
+    }
+    assert!(!pred_poisoned.join("Town10/ClearNoon/000000.pfm").exists());
+    assert!(!refused_init.join("checkpoints").exists());
+}
+
+#[test]
+fn a_diverging_run_stops_with_an_error_and_keeps_its_last_good_weights() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let owned = small_run(dir.path(), &out, ["6", "1000"], &["--lr", "1e8"]);
+    let args: Vec<&str> = owned.iter().map(String::as_str).collect();
+    let output = run(&args);
+    assert_eq!(output.status.code(), Some(1), "{}", text(&output));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("training diverged at step"), "{stderr}");
+    assert!(
+        stderr.contains("lower the learning rate (--lr)"),
+        "{stderr}"
+    );
+    // Every checkpoint left behind loads: its weights are finite.
+    let checkpoint = mbs_nets::checkpoint::TrainedNetworks::open(&out);
+    if let Ok(checkpoint) = checkpoint {
+        let device = burn::tensor::Device::flex();
+        checkpoint.teacher(&device).unwrap();
+        checkpoint.student(&device).unwrap();
+    }
 }
 
 #[test]
@@ -305,7 +393,9 @@ fn ctrl_c_saves_a_checkpoint_and_the_same_command_resumes() {
         .unwrap();
     // Wait for a few logged steps, then interrupt as Ctrl-C does.
     let start = Instant::now();
-    while !out.join("train.jsonl").is_file() || lines(&out.join("train.jsonl")).len() < 3 {
+    // While a run writes its log, only its complete lines are read.
+    let logged = || complete_lines(&out.join("train.jsonl")).len();
+    while logged() < 3 {
         assert!(
             start.elapsed() < Duration::from_secs(120),
             "no training progress"
@@ -354,7 +444,7 @@ fn ctrl_c_saves_a_checkpoint_and_the_same_command_resumes() {
         .spawn()
         .unwrap();
     let start = Instant::now();
-    while lines(&out.join("train.jsonl")).len() <= stopped as usize + 1 {
+    while logged() <= stopped as usize + 1 {
         assert!(
             start.elapsed() < Duration::from_secs(120),
             "no progress after resuming"
@@ -376,6 +466,52 @@ fn ctrl_c_saves_a_checkpoint_and_the_same_command_resumes() {
         steps[..stopped as usize + 1],
         (1..=stopped + 1).collect::<Vec<_>>()[..]
     );
+
+    // That session was killed (-9) past its checkpoint; a third session
+    // logs those steps again, and TensorBoard, which drops what earlier
+    // files logged from a session's start on, shows each step once.
+    let mut third = mbs_tool()
+        .args(&args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while logged() <= steps.len() + 2 {
+        assert!(start.elapsed() < Duration::from_secs(120), "no progress");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    third.kill().unwrap();
+    third.wait().unwrap();
+    let mut files: Vec<_> = std::fs::read_dir(out.join("tensorboard"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    files.sort();
+    assert_eq!(files.len(), 3, "{files:?}");
+    let per_file: Vec<_> = files.iter().map(|f| read_events(f).unwrap()).collect();
+    let logged: Vec<u64> = per_file
+        .iter()
+        .flatten()
+        .filter_map(|e| {
+            matches!(&e.value, EventValue::Scalar(t, _) if t == "train/loss").then_some(e.step)
+        })
+        .collect();
+    assert!(
+        logged.len()
+            > logged
+                .iter()
+                .collect::<std::collections::BTreeSet<_>>()
+                .len(),
+        "the killed session logged no step twice, so this checks nothing: {logged:?}"
+    );
+    let shown: Vec<u64> = as_tensorboard_shows(per_file)
+        .into_iter()
+        .filter_map(|e| {
+            matches!(&e.value, EventValue::Scalar(t, _) if t == "train/loss").then_some(e.step)
+        })
+        .collect();
+    assert_eq!(shown, (1..=shown.len() as u64).collect::<Vec<_>>());
 }
 
 #[test]
@@ -457,4 +593,21 @@ fn vanished_supervision_is_warned_about_while_training() {
     assert!(warnings[0].starts_with("step 10: supervision has nearly vanished"));
     let share = train[0]["supervision"]["student_mask"].as_f64().unwrap();
     assert!(share < 1e-3, "{share}");
+}
+
+/// `path` has the permissions of a file this process creates (the umask
+/// applied to 0666), like every other output.
+fn assert_usual_permissions(path: &Path) {
+    use std::os::unix::fs::PermissionsExt;
+    let probe = path.with_extension("probe");
+    std::fs::write(&probe, b"").unwrap();
+    let usual = std::fs::metadata(&probe).unwrap().permissions().mode() & 0o777;
+    std::fs::remove_file(&probe).unwrap();
+    let mode = std::fs::metadata(path).unwrap().permissions().mode() & 0o777;
+    assert_eq!(
+        mode,
+        usual,
+        "{}: {mode:o}, expected {usual:o}",
+        path.display()
+    );
 }

@@ -29,6 +29,7 @@ use mbs_nets::checkpoint::{
     CHECKPOINTS_DIR, FORMAT, STATE_FILE, STUDENT_FILE, TEACHER_FILE, TrainedNetworks, completed,
     folder_name, latest, locate, read_state,
 };
+use mbs_nets::official::first_non_finite_parameter;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
@@ -69,6 +70,17 @@ pub fn save<B: Backbone>(
     keep: usize,
 ) -> Result<PathBuf, TrainError> {
     let steps = trainer.steps_taken();
+    for (which, network) in [
+        ("student", trainer.student()),
+        ("teacher", trainer.teacher()),
+    ] {
+        if let Some((name, count)) = first_non_finite_parameter(network) {
+            return Err(TrainError::Diverged {
+                step: steps,
+                what: format!("the {which}'s {name} holds {count} non-finite values"),
+            });
+        }
+    }
     let root = run.join(CHECKPOINTS_DIR);
     let done = root.join(folder_name(steps));
     let partial = partial_path(&done);

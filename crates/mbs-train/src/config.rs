@@ -89,6 +89,10 @@ impl RunConfig {
         let mut document = Self::paper().to_json()?;
         if let Some(file) = file {
             layered::merge(&mut document, file);
+            // Checked before the overrides, which could hide a wrong value.
+            check_schema(&document).map_err(|issues| {
+                TrainError::Config(format!("the configuration file: {issues}"))
+            })?;
         }
         layered::apply_overrides(&mut document, overrides).map_err(TrainError::Config)?;
         Self::from_document(&document)
@@ -97,20 +101,7 @@ impl RunConfig {
     /// A complete configuration document (as saved in a checkpoint),
     /// checked against the schema and the ranges.
     pub fn from_document(document: &Value) -> Result<Self, TrainError> {
-        let issues: Vec<String> = SCHEMA
-            .issues(document)
-            .into_iter()
-            .map(|issue| {
-                if issue.pointer.is_empty() {
-                    issue.message
-                } else {
-                    format!("{}: {}", issue.pointer, issue.message)
-                }
-            })
-            .collect();
-        if !issues.is_empty() {
-            return Err(TrainError::Config(issues.join("; ")));
-        }
+        check_schema(document).map_err(TrainError::Config)?;
         let mut config: RunConfig = serde_json::from_value(document.clone())
             .map_err(|e| TrainError::Config(e.to_string()))?;
         config
@@ -149,6 +140,25 @@ impl RunConfig {
             ranges::at_least_one(name, value)?;
         }
         Ok(self.network.validate()?)
+    }
+}
+
+/// `document`'s schema issues, each with its JSON pointer, joined.
+fn check_schema(document: &Value) -> Result<(), String> {
+    let issues: Vec<String> = SCHEMA
+        .issues(document)
+        .into_iter()
+        .map(|issue| {
+            if issue.pointer.is_empty() {
+                issue.message
+            } else {
+                format!("{}: {}", issue.pointer, issue.message)
+            }
+        })
+        .collect();
+    match issues.is_empty() {
+        true => Ok(()),
+        false => Err(issues.join("; ")),
     }
 }
 

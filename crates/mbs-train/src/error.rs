@@ -29,6 +29,19 @@ pub enum TrainError {
         /// What is wrong with it.
         reason: String,
     },
+    /// The loss or the gradients stopped being finite; the step was not
+    /// taken, so the weights are those of the step before.
+    #[error(
+        "training diverged at step {step}: {what}. The weights of the steps before are kept \
+         (the run's newest checkpoint); lower the learning rate (--lr) or check the data, \
+         and start again (--restart)"
+    )]
+    Diverged {
+        /// The step (0-based) whose loss or gradients were not finite.
+        step: usize,
+        /// What stopped being finite.
+        what: String,
+    },
     /// A network could not be built, loaded or run, a checkpoint written or
     /// read, or a device used.
     #[error(transparent)]

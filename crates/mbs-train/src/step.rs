@@ -147,8 +147,14 @@ pub struct S3Trainer<B: Backbone> {
     loss_scale: Option<LossScale>,
     /// Steps of the geometry term's warm-up.
     geometry_warmup_steps: usize,
+    /// f16 steps skipped in a row for overflowing gradients.
+    skipped_in_a_row: usize,
     step: usize,
 }
+
+/// f16 steps skipped in a row (each halving the loss scale, so the scale
+/// has fallen by 2^-30 and more) after which a run counts as diverged.
+pub const MAX_SKIPPED_STEPS: usize = 30;
 
 /// What the student minimises: the S3 loss of its final prediction plus
 /// the weighted losses of its earlier ones. Plain settings, shared by the
@@ -387,6 +393,7 @@ impl<B: Backbone> S3Trainer<B> {
             geometry_warmup_steps: (config.geometry_warmup.unwrap_or(0.0)
                 * config.lr.total_steps as f64)
                 .round() as usize,
+            skipped_in_a_row: 0,
             step: 0,
         })
     }
@@ -573,13 +580,35 @@ impl<B: Backbone> S3Trainer<B> {
         let loss_scale = self.loss_scale.map(|s| s.scale);
         let grad_norm =
             unscale_and_clip(&self.student, &mut grads, self.grad_clip_norm, self.scale())?;
+        let diverged = |what: String| TrainError::Diverged {
+            step: self.step,
+            what,
+        };
         let skipped = match &mut self.loss_scale {
             Some(scale) => {
                 scale.update(grad_norm.is_finite());
                 !grad_norm.is_finite()
             }
+            None if !values.total.is_finite() => {
+                return Err(diverged(format!("the loss is {}", values.total)));
+            }
+            None if !grad_norm.is_finite() => {
+                return Err(diverged(format!("the gradient norm is {grad_norm}")));
+            }
             None => false,
         };
+        self.skipped_in_a_row = if skipped {
+            self.skipped_in_a_row + 1
+        } else {
+            0
+        };
+        if self.skipped_in_a_row >= MAX_SKIPPED_STEPS {
+            return Err(diverged(format!(
+                "the f16 gradients overflowed {MAX_SKIPPED_STEPS} steps in a row \
+                 (loss scale now {})",
+                self.scale()
+            )));
+        }
         if !skipped {
             self.student = self.optimizer.step(lr, self.student.clone(), grads);
         }

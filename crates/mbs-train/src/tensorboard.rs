@@ -18,6 +18,8 @@ use crate::error::TrainError;
 
 /// The version string of the first event of every file.
 const FILE_VERSION: &str = "brain.Event:2";
+/// `SessionLog.SessionStatus.START`.
+const SESSION_START: u64 = 1;
 /// TensorBoard's CRC mask constant.
 const MASK_DELTA: u32 = 0xa282_ead8;
 
@@ -124,6 +126,19 @@ impl EventWriter {
             .map_err(|e| TrainError::data(&self.path, e))
     }
 
+    /// Marks a resumed run: a `SessionLog` START event at `step`, on
+    /// which TensorBoard discards the points of earlier files at `step`
+    /// and after (those a killed run logged past its last checkpoint, which
+    /// the resumed run logs again).
+    pub fn session_start(&mut self, step: u64) -> Result<(), TrainError> {
+        let payload = event(step, |out| {
+            let mut session_log = Vec::new();
+            varint_field(&mut session_log, 1, SESSION_START);
+            bytes_field(out, 6, &session_log);
+        });
+        self.record(&payload)
+    }
+
     /// Logs `value` under `tag` at `step`.
     pub fn scalar(&mut self, tag: &str, step: u64, value: f32) -> Result<(), TrainError> {
         let payload = event(step, |out| {
@@ -187,6 +202,7 @@ mod tests {
         writer
             .image("val/sheet", 20, (3, 2), b"\x89PNG fake")
             .unwrap();
+        writer.session_start(21).unwrap();
         writer.flush().unwrap();
         let name = writer
             .path()
@@ -214,6 +230,10 @@ mod tests {
                 Event {
                     step: 20,
                     value: EventValue::Image("val/sheet".into(), (3, 2), b"\x89PNG fake".to_vec())
+                },
+                Event {
+                    step: 21,
+                    value: EventValue::SessionStart
                 },
             ]
         );

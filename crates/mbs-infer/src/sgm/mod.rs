@@ -96,6 +96,9 @@ impl Default for SgmConfig {
     }
 }
 
+/// The most disparities the matcher searches (its costs fit in `i16`).
+pub const MAX_DISPARITY: u32 = 4096;
+
 impl SgmConfig {
     /// The default settings with `max_disparity` disparities.
     pub fn with_max_disparity(max_disparity: u32) -> Self {
@@ -111,7 +114,7 @@ impl SgmConfig {
             value,
             expected,
         };
-        if self.max_disparity > 4096 {
+        if self.max_disparity > MAX_DISPARITY {
             return Err(invalid(
                 "max_disparity",
                 self.max_disparity.to_string(),

@@ -11,7 +11,7 @@ pub struct OnnxArgs {
     /// trained networks, vulkan[:N] for trained networks (--checkpoint,
     /// --weights). CUDA needs a build with `--features cuda`, and for ONNX
     /// models the onnxruntime-gpu library (tools/setup-ort.sh --gpu).
-    #[arg(long, default_value = "cpu", value_parser = parse_device)]
+    #[arg(long, default_value = "cpu", value_parser = crate::cli::values::device)]
     pub device: String,
     /// The ONNX Runtime library [default: $ORT_DYLIB_PATH, then
     /// .ort/onnxruntime/capi/libonnxruntime.so.* above the current folder or
@@ -21,14 +21,6 @@ pub struct OnnxArgs {
     /// Run on the CPU when --device cannot be used, instead of failing.
     #[arg(long)]
     pub allow_cpu_fallback: bool,
-}
-
-/// A device name that some network can run on (see
-/// [`mbs_nets::device::DeviceName`]), checked before any work starts.
-fn parse_device(name: &str) -> Result<String, String> {
-    name.parse::<mbs_nets::device::DeviceName>()
-        .map(|_| name.to_string())
-        .map_err(|e| e.to_string())
 }
 
 impl OnnxArgs {

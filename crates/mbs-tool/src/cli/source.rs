@@ -62,10 +62,10 @@ pub struct StereoSourceArgs {
         help_heading = "Disparity source"
     )]
     pub set: Vec<String>,
-    /// Number of disparities the built-in matcher searches (0 = estimate
-    /// per pair, up to 256) [default: the command's]; with a network, the
-    /// top of --color's scale (0 = each map's maximum).
-    #[arg(long, value_name = "N", help_heading = "Disparity source")]
+    /// Number of disparities the built-in matcher searches, up to 4096 (0 =
+    /// estimate per pair, at most 256) [default: the command's]; with a
+    /// network, the top of --color's scale (0 = each map's maximum).
+    #[arg(long, value_name = "N", value_parser = crate::cli::values::sgm_disparities, help_heading = "Disparity source")]
     pub max_disparity: Option<u32>,
     /// Aggregation paths of the built-in matcher [default: the command's].
     #[arg(long, value_enum, help_heading = "Disparity source")]
@@ -126,6 +126,13 @@ impl StereoSourceArgs {
             return Ok(StereoSource::Network(Box::new(
                 NetworkMatcher::with_weights(&config, weights, device)?,
             )));
+        }
+        if self.runtime.device != "cpu" {
+            anyhow::bail!(
+                "--device {}: the built-in matcher runs on the CPU; --device is for networks \
+                 (--model, --checkpoint, --weights)",
+                self.runtime.device
+            );
         }
         Ok(StereoSource::BuiltIn(SgmConfig {
             max_disparity: self.max_disparity.unwrap_or(preset.max_disparity),

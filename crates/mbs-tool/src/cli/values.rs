@@ -31,6 +31,27 @@ fn bounded(text: &str, min: u64, max: u64) -> Result<u64, String> {
         .ok_or_else(|| format!("{text:?} is not an integer from {min} to {max}"))
 }
 
+/// Disparities the built-in matcher searches: 0 (estimate per pair) up to
+/// [`mbs_infer::sgm::MAX_DISPARITY`].
+pub fn sgm_disparities(text: &str) -> Result<u32, String> {
+    bounded(text, 0, u64::from(mbs_infer::sgm::MAX_DISPARITY)).map(|v| v as u32)
+}
+
+/// A device name some network can run on (see
+/// [`mbs_nets::device::DeviceName`]), checked before any work starts.
+pub fn device(text: &str) -> Result<String, String> {
+    text.parse::<mbs_nets::device::DeviceName>()
+        .map(|_| text.to_string())
+        .map_err(|e| e.to_string())
+}
+
+/// A comma-separated list of [`device`] names (data-parallel training).
+pub fn devices(text: &str) -> Result<String, String> {
+    text.split(',')
+        .try_for_each(|name| device(name.trim()).map(drop))?;
+    Ok(text.to_string())
+}
+
 /// Worker threads: 0 (one per core) up to [`MAX_JOBS`].
 pub fn jobs(text: &str) -> Result<usize, String> {
     bounded(text, 0, MAX_JOBS as u64).map(|v| v as usize)

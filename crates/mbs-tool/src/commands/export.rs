@@ -2,11 +2,12 @@
 //! official implementation's keys, for the official PyTorch code and its
 //! ONNX export recipes (`tools/onnx/EXPORT.md`).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use burn::tensor::Device;
 use clap::Parser;
+use mbs_core::confine::refuse_overwriting_inputs;
 use mbs_nets::checkpoint::TrainedNetworks;
 
 /// Arguments of `export`.
@@ -37,27 +38,41 @@ pub struct Args {
 
 /// Runs `export`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if args.out.is_dir() {
-        bail!("--out {} is a folder; give a file name", args.out.display());
+    let out = safetensors_name(&args.out);
+    if out.is_dir() {
+        bail!("--out {} is a folder; give a file name", out.display());
     }
     let checkpoint = TrainedNetworks::open(&args.run)?;
+    refuse_overwriting_inputs(&out, checkpoint.files().iter().map(PathBuf::as_path))
+        .context("--out would overwrite the checkpoint it exports")?;
     let device = Device::flex();
     let (which, net) = if args.student {
         ("student", checkpoint.student(&device)?)
     } else {
         ("teacher", checkpoint.teacher(&device)?)
     };
-    if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent)
-            .with_context(|| format!("cannot create {}", parent.display()))?;
-    }
-    net.export(&args.out)?;
+    net.export(&out)?;
     let backbone = checkpoint.network.backbone;
     eprintln!(
         "export: the {which} of {} ({backbone}, step {}) -> {}",
         checkpoint.dir.display(),
         checkpoint.steps,
-        args.out.display()
+        out.display()
     );
     Ok(())
+}
+
+/// `out` with the `.safetensors` extension the file format needs (the
+/// official loaders and ONNX recipes go by it); says so when it differs.
+fn safetensors_name(out: &Path) -> PathBuf {
+    if out.extension().is_some_and(|ext| ext == "safetensors") {
+        return out.to_path_buf();
+    }
+    let named = out.with_extension("safetensors");
+    eprintln!(
+        "export: --out {} is not a .safetensors name; writing {}",
+        out.display(),
+        named.display()
+    );
+    named
 }

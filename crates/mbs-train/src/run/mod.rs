@@ -257,7 +257,11 @@ impl TrainingRun {
             .map_err(|e| TrainError::Config(e.to_string()))?;
         let config_path = out.join(CONFIG_FILE);
         write_bytes_atomic(&config_path, &config_json)?;
-        let report = RunReport::new(out, config.network.max_disparity as f32);
+        let resumed_after = match &start {
+            Start::Resumed(steps) => Some(*steps),
+            Start::Fresh => None,
+        };
+        let report = RunReport::new(out, config.network.max_disparity as f32, resumed_after);
         Ok((
             Self {
                 report,

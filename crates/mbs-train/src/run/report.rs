@@ -35,6 +35,8 @@ pub(crate) struct RunReport {
     /// Created with the first event, so a run that logs nothing (already
     /// complete) leaves no empty event file.
     events: Option<EventWriter>,
+    /// Steps taken before this session, for a resumed run.
+    resumed_after: Option<usize>,
 }
 
 /// The numbers of a log line as `(prefix/key, value)`, nested objects
@@ -65,12 +67,15 @@ fn scalars(prefix: &str, value: &Value, out: &mut Vec<(String, f32)>) {
 
 impl RunReport {
     /// The report of the run in `out`; its events go to a new file in
-    /// `out/tensorboard/`.
-    pub fn new(out: &Path, max_disparity: f32) -> Self {
+    /// `out/tensorboard/`. A run resumed after `resumed_after` steps starts
+    /// its file with a session start at the next logged step, so that
+    /// TensorBoard drops what a killed session logged past its checkpoint.
+    pub fn new(out: &Path, max_disparity: f32, resumed_after: Option<usize>) -> Self {
         Self {
             out: out.to_path_buf(),
             max_disparity,
             events: None,
+            resumed_after,
         }
     }
 
@@ -78,7 +83,14 @@ impl RunReport {
     fn events(&mut self) -> Result<&mut EventWriter, TrainError> {
         match &mut self.events {
             Some(events) => Ok(events),
-            slot => Ok(slot.insert(EventWriter::create(&self.out.join(TENSORBOARD_DIR))?)),
+            slot => {
+                let mut events = EventWriter::create(&self.out.join(TENSORBOARD_DIR))?;
+                if let Some(steps) = self.resumed_after {
+                    // Steps are logged 1-based: the first new one is steps + 1.
+                    events.session_start(steps as u64 + 1)?;
+                }
+                Ok(slot.insert(events))
+            }
         }
     }
 

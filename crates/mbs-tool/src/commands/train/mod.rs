@@ -96,7 +96,7 @@ pub struct Args {
     /// GPUs), or cuda[:N] in a build with `--features cuda`. A comma-separated
     /// list (cuda:0,cuda:1) trains data parallel: each device takes a share of
     /// every batch and the gradients are summed on the first one.
-    #[arg(long, default_value = "cpu")]
+    #[arg(long, default_value = "cpu", value_parser = crate::cli::values::devices)]
     pub device: String,
     /// The format the networks compute in (trainer.precision): f32, or mixed
     /// precision with bf16 or f16 (weights, optimiser state and losses stay
