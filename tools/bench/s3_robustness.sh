@@ -8,8 +8,9 @@
 #   bash tools/bench/s3_robustness.sh [MBS_TOOL] [OUT_DIR] [-- EXTRA --set FLAGS...]
 #
 # MBS_TOOL defaults to target/release/mbs-tool; extra flags after `--` go to
-# every run (e.g. `-- --set trainer.geometry_warmup=0 --set
-# trainer.loss.range_weight=0` for the paper's plain loss).
+# every run (e.g. `-- --set trainer.geometry_start=0 --set
+# trainer.geometry_warmup=0 --set trainer.loss.range_weight=0 --set
+# trainer.loss.out_of_view_invalid=false` for the paper's plain loss).
 set -euo pipefail
 tool=${1:-target/release/mbs-tool}
 out=${2:-s3-robustness}

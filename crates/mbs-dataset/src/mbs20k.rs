@@ -60,15 +60,27 @@ pub fn depth_images_in_folder(
     out: Option<&Path>,
 ) -> Result<Vec<DepthImage>, DatasetError> {
     let mut images = Vec::new();
+    let mut not_a_file = None;
     // walkdir follows linked towns and stops at link cycles.
     for entry in walkdir::WalkDir::new(root)
         .follow_links(true)
         .sort_by_file_name()
     {
-        let entry = entry.map_err(|e| DatasetError::Io {
-            path: e.path().unwrap_or(root).to_path_buf(),
-            source: e.into(),
-        })?;
+        let entry = match entry {
+            Ok(entry) => entry,
+            // A link back to a folder above holds nothing the walk does
+            // not reach by its real path.
+            Err(e) if e.loop_ancestor().is_some() => continue,
+            Err(e) => {
+                return Err(DatasetError::Io {
+                    path: e.path().unwrap_or(root).to_path_buf(),
+                    source: e.into(),
+                });
+            }
+        };
+        if entry.file_name() == DEPTH_FILE && !entry.file_type().is_file() {
+            not_a_file.get_or_insert_with(|| entry.path().to_path_buf());
+        }
         if entry.file_type().is_file() && entry.file_name() == DEPTH_FILE {
             let dir = entry.path().parent().unwrap_or(root);
             let relative = dir.strip_prefix(root).unwrap_or(Path::new(""));
@@ -79,9 +91,15 @@ pub fn depth_images_in_folder(
         }
     }
     if images.is_empty() {
-        return Err(DatasetError::Layout {
-            path: root.to_path_buf(),
-            message: format!("no {DEPTH_FILE} found in this folder or below"),
+        return Err(match not_a_file {
+            Some(path) => DatasetError::Layout {
+                path,
+                message: format!("is named {DEPTH_FILE} but is not a file"),
+            },
+            None => DatasetError::Layout {
+                path: root.to_path_buf(),
+                message: format!("no {DEPTH_FILE} found in this folder or below"),
+            },
         });
     }
     Ok(images)
@@ -480,6 +498,31 @@ mod tests {
             .to_string();
         assert!(
             err.contains("Clear:Noon") && err.contains("rename the folder"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn depth_images_walk_past_link_loops_and_name_a_folder_posing_as_one() {
+        let dir = tempfile::tempdir().unwrap();
+        let frame = dir.path().join("Town01/ClearNoon/000000");
+        touch(&frame.join(DEPTH_FILE));
+        std::os::unix::fs::symlink(dir.path(), frame.join("loop")).unwrap();
+        let images = depth_images_in_folder(dir.path(), None).unwrap();
+        assert_eq!(images.len(), 1);
+        assert_eq!(images[0].encoded, frame.join(DEPTH_FILE));
+
+        let empty = tempfile::tempdir().unwrap();
+        std::fs::create_dir_all(empty.path().join("a").join(DEPTH_FILE)).unwrap();
+        let err = depth_images_in_folder(empty.path(), None)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("is named depth_0.png but is not a file"),
+            "{err}"
+        );
+        assert!(
+            err.contains(&empty.path().join("a").display().to_string()),
             "{err}"
         );
     }

@@ -29,6 +29,15 @@ pub enum ExtrapolateError {
         /// What is wrong with it.
         message: String,
     },
+    /// Every pixel of a new view is masked, so inpainting has nothing to
+    /// fill from.
+    #[error("{view}: every pixel is masked, nothing is left to inpaint from: {cause}")]
+    AllMasked {
+        /// The new view: `image_1` or `image_4`.
+        view: &'static str,
+        /// What masked them: the warp or the dilation.
+        cause: String,
+    },
     /// Inpainting one of the new views failed.
     #[error("inpainting {view}: {source}")]
     Inpaint {

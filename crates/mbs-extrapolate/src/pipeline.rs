@@ -1,7 +1,7 @@
 //! The extrapolation of one pair in memory: each view warped outwards by
 //! its own disparity, its holes masked (and dilated), then inpainted.
 
-use mbs_core::{MaskImage, RgbImage, Side};
+use mbs_core::{FloatImage, MaskImage, RgbImage, Side};
 use mbs_infer::inpaint::Inpainter;
 use mbs_warp::{Dilation, extrapolate_view};
 
@@ -51,6 +51,9 @@ impl Extrapolator {
     ) -> Result<NewViews, ExtrapolateError> {
         let one = |view: &RgbImage, disparity, side, name| {
             let warped = extrapolate_view(view, disparity, side, self.dilation)?;
+            if warped.mask.iter().all(|&m| m > 0) {
+                return Err(all_masked(name, &warped.holes, disparity, self.dilation));
+            }
             let filled = self
                 .inpainter
                 .inpaint(&warped.image, &warped.mask, Some(&warped.disparity))
@@ -74,5 +77,67 @@ impl Extrapolator {
             holes_1,
             holes_4,
         })
+    }
+}
+
+/// Why every pixel of a new view is masked: the warp already left no pixel
+/// (disparities about as wide as the view), or the dilation covered the
+/// rest.
+fn all_masked(
+    view: &'static str,
+    holes: &MaskImage,
+    disparity: &FloatImage,
+    dilation: Dilation,
+) -> ExtrapolateError {
+    let width = disparity.width();
+    let cause = if holes.iter().all(|&h| h > 0) {
+        let largest = disparity
+            .iter()
+            .copied()
+            .filter(|d| d.is_finite())
+            .fold(0.0f32, f32::max);
+        format!(
+            "the warp carries every pixel out of the {width} px wide view (disparities up to \
+             {largest} px): check the disparities' scale"
+        )
+    } else {
+        format!(
+            "the mask dilation {dilation:?} (radius in pixels) covers the whole {width} px wide view"
+        )
+    };
+    ExtrapolateError::AllMasked { view, cause }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mbs_infer::inpaint::BackgroundFill;
+
+    #[test]
+    fn a_view_with_nothing_left_to_inpaint_from_says_why() {
+        let (width, height) = (32, 8);
+        let view = RgbImage::from_fn(width, height, |x, _| image::Rgb([(x * 8) as u8, 0, 0]));
+        let disparities = |d: f32| Disparities {
+            left: FloatImage::from_pixel(width, height, image::Luma([d])),
+            right: FloatImage::from_pixel(width, height, image::Luma([d])),
+        };
+        let extrapolate = |dilation, d| {
+            Extrapolator::new(dilation, Box::new(BackgroundFill::default()))
+                .extrapolate(&view, &view, &disparities(d))
+                .map(drop)
+                .map_err(|e| e.to_string())
+        };
+        assert!(extrapolate(Dilation::None, 2.0).is_ok());
+        let err = extrapolate(Dilation::None, 1e30).unwrap_err();
+        assert!(
+            err.starts_with("image_1: every pixel is masked")
+                && err.contains("carries every pixel out of the 32 px wide view"),
+            "{err}"
+        );
+        let err = extrapolate(Dilation::Square(100_000), 2.0).unwrap_err();
+        assert!(
+            err.contains("the mask dilation Square(100000) (radius in pixels) covers"),
+            "{err}"
+        );
     }
 }

@@ -39,15 +39,16 @@ impl CostVolumeNetConfig {
     /// and the layer widths.
     pub fn validate(&self, max_disparity: usize) -> Result<(), NetError> {
         ranges::require(
-            max_disparity >= 4 && max_disparity % 4 == 0,
+            max_disparity >= 4 && max_disparity % 4 == 0 && max_disparity <= ranges::MAX_DISPARITY,
             "max_disparity",
             max_disparity,
-            "a positive multiple of 4",
+            "a multiple of 4 from 4 to 1024",
         )?;
-        for (name, value) in [("features", self.features), ("hidden", self.hidden)] {
-            ranges::require(value >= 2, name, value, "at least 2")?;
-        }
-        Ok(())
+        let channels = (2, ranges::CHANNELS.1);
+        ranges::integers_in(&[
+            ("features", self.features, channels),
+            ("hidden", self.hidden, channels),
+        ])
     }
 
     /// Builds the network for disparities up to `max_disparity` (a multiple

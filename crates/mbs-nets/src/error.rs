@@ -15,7 +15,7 @@ pub enum NetError {
         /// The rejected value, printed.
         value: String,
         /// What a valid value looks like.
-        reason: &'static str,
+        reason: String,
     },
     /// Tensors or images handed to a network do not have the expected shapes.
     #[error("shape mismatch: {0}")]

@@ -126,11 +126,10 @@ impl NetworkConfig {
 
     /// Checks the chosen backbone's settings.
     pub fn validate(&self) -> Result<(), NetError> {
-        ranges::require(
-            self.max_disparity >= 1,
+        ranges::integer_in(
             "max_disparity",
             self.max_disparity,
-            "at least 1",
+            (1, ranges::MAX_DISPARITY),
         )?;
         match self.backbone {
             BackboneKind::Compact => self.compact.validate(self.max_disparity),

@@ -9,7 +9,7 @@ pub fn require(
     ok: bool,
     name: &'static str,
     value: impl ToString,
-    allowed: &'static str,
+    allowed: impl Into<String>,
 ) -> Result<(), NetError> {
     if ok {
         Ok(())
@@ -17,9 +17,25 @@ pub fn require(
         Err(NetError::InvalidSetting {
             name,
             value: value.to_string(),
-            reason: allowed,
+            reason: allowed.into(),
         })
     }
+}
+
+/// An integer in `min..=max`: every size and count of a network or a batch
+/// has an upper bound too, so that no setting asks for more memory or time
+/// than a machine has before anything is allocated.
+pub fn integer_in(
+    name: &'static str,
+    value: usize,
+    (min, max): (usize, usize),
+) -> Result<(), NetError> {
+    require(
+        (min..=max).contains(&value),
+        name,
+        value,
+        format!("an integer from {min} to {max}"),
+    )
 }
 
 /// A number in `[0, 1]`.
@@ -57,12 +73,25 @@ pub fn at_least_one(name: &'static str, value: usize) -> Result<(), NetError> {
     require(value >= 1, name, value, "at least 1")
 }
 
-/// Every named count is at least 1.
-pub fn counts(named: &[(&'static str, usize)]) -> Result<(), NetError> {
+/// Every named value is in its `(min, max)` range ([`integer_in`]).
+pub fn integers_in(named: &[(&'static str, usize, (usize, usize))]) -> Result<(), NetError> {
     named
         .iter()
-        .try_for_each(|&(name, value)| at_least_one(name, value))
+        .try_for_each(|&(name, value, range)| integer_in(name, value, range))
 }
+
+/// Channels of a network's feature and hidden layers (the official
+/// networks use 128 to 256).
+pub const CHANNELS: (usize, usize) = (1, 1024);
+/// Iterations of an iterative network's update (the official ones use up
+/// to 32).
+pub const ITERATIONS: (usize, usize) = (1, 256);
+/// Levels of a correlation pyramid.
+pub const CORRELATION_LEVELS: (usize, usize) = (1, 6);
+/// Radius of a correlation lookup.
+pub const CORRELATION_RADIUS: (usize, usize) = (0, 16);
+/// Largest disparity a network's cost volume covers.
+pub const MAX_DISPARITY: usize = 1024;
 
 #[cfg(test)]
 mod tests {
@@ -79,5 +108,12 @@ mod tests {
         assert!(non_negative("omega", f64::INFINITY).is_err());
         let err = at_least_one("workers", 0).unwrap_err().to_string();
         assert_eq!(err, "invalid setting `workers` = 0: at least 1");
+        let err = integer_in("hidden_dim", 100_000, CHANNELS)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            err,
+            "invalid setting `hidden_dim` = 100000: an integer from 1 to 1024"
+        );
     }
 }

@@ -611,3 +611,47 @@ fn assert_usual_permissions(path: &Path) {
         path.display()
     );
 }
+
+#[test]
+fn a_training_image_with_corrupt_pixels_is_skipped_and_listed() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let owned = small_run(dir.path(), &out, ["6", "1000"], &["--set", "log_every=1"]);
+    let args: Vec<&str> = owned.iter().map(String::as_str).collect();
+    let manifest: Value =
+        serde_json::from_str(&std::fs::read_to_string(&owned[1]).unwrap()).unwrap();
+    let sample = manifest["samples"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["split"] == "train")
+        .unwrap();
+    let root = Path::new(&owned[1]).parent().unwrap();
+    let corrupt = root.join(sample["views"][2].as_str().unwrap());
+    // The header and the trailer stay whole; the compressed pixels do not.
+    let mut bytes = std::fs::read(&corrupt).unwrap();
+    let middle = bytes.len() / 2;
+    for byte in &mut bytes[middle..middle + 32] {
+        *byte ^= 0x5a;
+    }
+    std::fs::write(&corrupt, &bytes).unwrap();
+    let validated = run(&["validate", &owned[1]]);
+    assert!(validated.status.success(), "{}", text(&validated));
+
+    let output = run(&args);
+    assert!(output.status.success(), "{}", text(&output));
+    let name = corrupt.display().to_string();
+    assert!(
+        text(&output).contains("skipping an unusable image") && text(&output).contains(&name),
+        "{}",
+        text(&output)
+    );
+    let logged = lines(&out.join("train.jsonl"));
+    let listed: Vec<&Value> = logged
+        .iter()
+        .filter(|l| l.get("skipped").is_some())
+        .collect();
+    assert_eq!(listed.len(), 1, "listed once: {logged:?}");
+    assert!(listed[0]["skipped"][0].as_str().unwrap().contains(&name));
+    assert_eq!(logged.last().unwrap()["skipped_images"], 1);
+}

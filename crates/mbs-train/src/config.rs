@@ -104,25 +104,26 @@ impl RunConfig {
         check_schema(document).map_err(TrainError::Config)?;
         let mut config: RunConfig = serde_json::from_value(document.clone())
             .map_err(|e| TrainError::Config(e.to_string()))?;
-        config
-            .trainer
-            .geometry_warmup
-            .get_or_insert(Self::geometry_warmup(config.network.backbone));
+        let (start, warmup) = Self::geometry_schedule(config.network.backbone);
+        let trainer = &mut config.trainer;
+        trainer.geometry_start.get_or_insert(start);
+        trainer.geometry_warmup.get_or_insert(warmup);
         config.validate()?;
         Ok(config)
     }
 
-    /// The geometry term's warm-up (`trainer.geometry_warmup`) a run of
-    /// `backbone` gets unless it sets one: half the run for RAFT-Stereo
-    /// and IGEV-Stereo, whose iterative updates can take the disparities
-    /// anywhere and which the paper's loss lets collapse from random
-    /// weights (README, "S3 from random weights"); none (the paper) for the
-    /// compact network, whose soft-argmin stays in its range and which
-    /// learns best with the geometry term from the start.
-    pub fn geometry_warmup(backbone: BackboneKind) -> f64 {
+    /// When the geometry term comes in for a run of `backbone` that does
+    /// not set it (`trainer.geometry_start`, `trainer.geometry_warmup`):
+    /// for RAFT-Stereo and IGEV-Stereo, whose iterative updates can take
+    /// the disparities anywhere and which the paper's loss lets run away
+    /// from random weights (README, "S3 from random weights"), off for the
+    /// first 30 % of the run and then rising over the next half; from the
+    /// first step (the paper) for the compact network, whose soft-argmin
+    /// stays in its range and which learns best that way.
+    pub fn geometry_schedule(backbone: BackboneKind) -> (f64, f64) {
         match backbone {
-            BackboneKind::Compact => 0.0,
-            BackboneKind::RaftStereo | BackboneKind::Igev => 0.5,
+            BackboneKind::Compact => (0.0, 0.0),
+            BackboneKind::RaftStereo | BackboneKind::Igev => (0.3, 0.5),
         }
     }
 
@@ -185,8 +186,8 @@ mod tests {
         }
     }
 
-    /// Every property path the schema declares, dotted.
-    fn schema_keys(schema: &Value, prefix: &str, out: &mut Vec<String>) {
+    /// Every property the schema declares, with its dotted path.
+    fn schema_properties<'a>(schema: &'a Value, prefix: &str, out: &mut Vec<(String, &'a Value)>) {
         if let Some(Value::Object(properties)) = schema.get("properties") {
             for (key, child) in properties {
                 let path = if prefix.is_empty() {
@@ -194,8 +195,8 @@ mod tests {
                 } else {
                     format!("{prefix}.{key}")
                 };
-                out.push(path.clone());
-                schema_keys(child, &path, out);
+                out.push((path.clone(), child));
+                schema_properties(child, &path, out);
             }
         }
     }
@@ -209,8 +210,9 @@ mod tests {
             &mut config_keys,
         );
         let schema: Value = serde_json::from_str(TRAIN_CONFIG_SCHEMA).expect("schema is JSON");
-        let mut declared = Vec::new();
-        schema_keys(&schema, "", &mut declared);
+        let mut properties = Vec::new();
+        schema_properties(&schema, "", &mut properties);
+        let mut declared: Vec<String> = properties.into_iter().map(|(path, _)| path).collect();
         config_keys.sort();
         declared.sort();
         assert_eq!(config_keys, declared);
@@ -232,19 +234,62 @@ mod tests {
     }
 
     #[test]
-    fn the_geometry_warmup_is_picked_by_backbone_unless_set() {
-        let warmup = |overrides: &[&str]| {
+    fn the_code_bounds_every_size_as_the_schema_does() {
+        // Checked without the schema, as a network's --set in predict is.
+        let schema: Value = serde_json::from_str(TRAIN_CONFIG_SCHEMA).expect("schema is JSON");
+        let mut properties = Vec::new();
+        schema_properties(&schema, "", &mut properties);
+        let sizes: Vec<(String, u64)> = properties
+            .into_iter()
+            .filter(|(path, _)| path.starts_with("network.") || path.starts_with("data."))
+            .filter(|(_, node)| node.get("type").and_then(Value::as_str) == Some("integer"))
+            .filter_map(|(path, node)| Some((path, node.get("maximum")?.as_u64()?)))
+            .collect();
+        assert!(sizes.len() >= 18, "{sizes:?}");
+        for (path, max) in sizes {
+            let backbone = match path.split('.').nth(1) {
+                Some("raft_stereo") => "raft-stereo",
+                Some("igev") => "igev",
+                _ => "compact",
+            };
+            for (value, ok) in [(max, true), (max + 1, false)] {
+                let mut document = RunConfig::paper().to_json().expect("serialises");
+                let keys = |p: &str| p.split('.').map(str::to_owned).collect::<Vec<_>>();
+                layered::set_path(&mut document, &keys("network.backbone"), json!(backbone))
+                    .expect("a key");
+                layered::set_path(&mut document, &keys(&path), json!(value)).expect("a key");
+                let config: RunConfig = serde_json::from_value(document).expect("well typed");
+                assert_eq!(config.validate().is_ok(), ok, "{path} = {value}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_geometry_schedule_is_picked_by_backbone_unless_set() {
+        let schedule = |overrides: &[&str]| {
             let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
-            RunConfig::layered(None, &overrides)
-                .expect("valid")
-                .trainer
-                .geometry_warmup
+            let trainer = RunConfig::layered(None, &overrides).expect("valid").trainer;
+            (trainer.geometry_start, trainer.geometry_warmup)
         };
-        assert_eq!(warmup(&[]), Some(0.0), "compact keeps the paper's loss");
-        assert_eq!(warmup(&["network.backbone=raft-stereo"]), Some(0.5));
-        assert_eq!(warmup(&["network.backbone=igev"]), Some(0.5));
-        let set = warmup(&["network.backbone=igev", "trainer.geometry_warmup=0.2"]);
-        assert_eq!(set, Some(0.2));
+        let paper = (Some(0.0), Some(0.0));
+        assert_eq!(schedule(&[]), paper, "compact keeps the paper's loss");
+        assert_eq!(
+            schedule(&["network.backbone=raft-stereo"]),
+            (Some(0.3), Some(0.5))
+        );
+        assert_eq!(schedule(&["network.backbone=igev"]), (Some(0.3), Some(0.5)));
+        let set = schedule(&["network.backbone=igev", "trainer.geometry_warmup=0.2"]);
+        assert_eq!(set, (Some(0.3), Some(0.2)));
+        let err = RunConfig::layered(
+            None,
+            &[
+                "trainer.geometry_start=0.7".into(),
+                "trainer.geometry_warmup=0.5".into(),
+            ],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("would not reach its full weight"), "{err}");
     }
 
     #[test]

@@ -31,12 +31,17 @@ pub struct TrainerConfig {
     /// EMA momentum at step 0; it rises to 1 on a cosine.
     #[config(default = 0.996)]
     pub ema_base: f64,
-    /// Share of the run's steps over which the geometry term's weight rises
-    /// linearly from 0 to 1, so that the student learns from the
-    /// photometric term before it is distilled from a teacher that is
-    /// still random; 0 weighs it fully from the first step (the paper).
-    /// `None` (the default) is 0 here; a training run picks it by backbone
-    /// ([`crate::RunConfig::geometry_warmup`]).
+    /// Share of the run's steps before the geometry term is switched on,
+    /// so that the student (and the EMA teacher with it) learns from the
+    /// photometric term before a teacher that is still random supervises
+    /// it; 0 supervises from the first step (the paper). `None` (the
+    /// default) is 0 here; a training run picks it by backbone
+    /// ([`crate::RunConfig::geometry_schedule`]).
+    #[config(default = "None")]
+    pub geometry_start: Option<f64>,
+    /// Share of the run's steps over which the geometry term's weight then
+    /// rises linearly from 0 to 1; 0 weighs it fully at once (the paper).
+    /// `None` as [`TrainerConfig::geometry_start`].
     #[config(default = "None")]
     pub geometry_warmup: Option<f64>,
     /// Update the teacher by EMA; `false` keeps the initial teacher fixed
@@ -145,7 +150,9 @@ pub struct S3Trainer<B: Backbone> {
     grad_clip_norm: f64,
     /// The loss scale of an f16 run (`None` otherwise).
     loss_scale: Option<LossScale>,
-    /// Steps of the geometry term's warm-up.
+    /// Steps before the geometry term is on.
+    geometry_start_steps: usize,
+    /// Steps of the geometry term's warm-up after that.
     geometry_warmup_steps: usize,
     /// f16 steps skipped in a row for overflowing gradients.
     skipped_in_a_row: usize,
@@ -183,8 +190,16 @@ impl TrainerConfig {
         self.loss.validate()?;
         self.lr.init()?;
         ranges::unit("ema_base", self.ema_base)?;
-        if let Some(warmup) = self.geometry_warmup {
-            ranges::unit("geometry_warmup", warmup)?;
+        let start = self.geometry_start.unwrap_or(0.0);
+        let warmup = self.geometry_warmup.unwrap_or(0.0);
+        ranges::unit("geometry_start", start)?;
+        ranges::unit("geometry_warmup", warmup)?;
+        if start + warmup > 1.0 {
+            return Err(TrainError::Config(format!(
+                "geometry_start + geometry_warmup is {}: the geometry term would not reach its \
+                 full weight within the run (at most 1)",
+                start + warmup
+            )));
         }
         ranges::unit("sequence_gamma", self.sequence_gamma)?;
         self.optimizer.validate()?;
@@ -370,6 +385,9 @@ impl<B: Backbone> S3Trainer<B> {
         let loss = S3Loss::new(config.loss.clone())?;
         let lr = config.lr.init()?;
         let optimizer = config.optimizer.init();
+        let share_of_steps = |share: Option<f64>| {
+            (share.unwrap_or(0.0) * config.lr.total_steps as f64).round() as usize
+        };
         Ok(Self {
             teacher: student.valid(),
             student,
@@ -390,9 +408,8 @@ impl<B: Backbone> S3Trainer<B> {
             grad_clip_norm: config.grad_clip_norm,
             loss_scale: (config.precision == Precision::F16)
                 .then(|| LossScale::starting_at(config.initial_loss_scale)),
-            geometry_warmup_steps: (config.geometry_warmup.unwrap_or(0.0)
-                * config.lr.total_steps as f64)
-                .round() as usize,
+            geometry_start_steps: share_of_steps(config.geometry_start),
+            geometry_warmup_steps: share_of_steps(config.geometry_warmup),
             skipped_in_a_row: 0,
             step: 0,
         })
@@ -549,12 +566,15 @@ impl<B: Backbone> S3Trainer<B> {
         self.apply(sum.grads(), LossValues::weighted_sum(&shares))
     }
 
-    /// The geometry term's weight at the current step: rising linearly
-    /// from 0 over the warm-up, then 1.
+    /// The geometry term's weight at the current step: 0 before its
+    /// start, then rising linearly from 0 over the warm-up, then 1.
     pub fn geometry_weight(&self) -> f64 {
+        let Some(since) = self.step.checked_sub(self.geometry_start_steps) else {
+            return 0.0;
+        };
         match self.geometry_warmup_steps {
             0 => 1.0,
-            steps => (self.step as f64 / steps as f64).min(1.0),
+            steps => (since as f64 / steps as f64).min(1.0),
         }
     }
 

@@ -78,16 +78,19 @@ impl IgevStereoConfig {
             "1, 2 or 3",
         )?;
         ranges::require(
-            self.max_disp >= 32 && self.max_disp % 32 == 0,
+            self.max_disp >= 32
+                && self.max_disp % 32 == 0
+                && self.max_disp <= ranges::MAX_DISPARITY,
             "max_disp",
             self.max_disp,
-            "a positive multiple of 32",
+            "a multiple of 32 from 32 to 1024",
         )?;
-        ranges::counts(&[
-            ("hidden_dim", self.hidden_dim),
-            ("corr_levels", self.corr_levels),
-            ("train_iters", self.train_iters),
-            ("test_iters", self.test_iters),
+        ranges::integers_in(&[
+            ("hidden_dim", self.hidden_dim, ranges::CHANNELS),
+            ("corr_levels", self.corr_levels, ranges::CORRELATION_LEVELS),
+            ("corr_radius", self.corr_radius, ranges::CORRELATION_RADIUS),
+            ("train_iters", self.train_iters, ranges::ITERATIONS),
+            ("test_iters", self.test_iters, ranges::ITERATIONS),
         ])
     }
 

@@ -81,11 +81,12 @@ impl RaftStereoConfig {
             self.n_downsample,
             "1, 2 or 3",
         )?;
-        ranges::counts(&[
-            ("hidden_dim", self.hidden_dim),
-            ("corr_levels", self.corr_levels),
-            ("train_iters", self.train_iters),
-            ("test_iters", self.test_iters),
+        ranges::integers_in(&[
+            ("hidden_dim", self.hidden_dim, ranges::CHANNELS),
+            ("corr_levels", self.corr_levels, ranges::CORRELATION_LEVELS),
+            ("corr_radius", self.corr_radius, ranges::CORRELATION_RADIUS),
+            ("train_iters", self.train_iters, ranges::ITERATIONS),
+            ("test_iters", self.test_iters, ranges::ITERATIONS),
         ])
     }
 

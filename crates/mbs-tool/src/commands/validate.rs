@@ -21,7 +21,9 @@ Exit status 0 only when no problem is found (use it in CI).")]
 pub struct Args {
     /// The manifest to check.
     pub manifest: PathBuf,
-    /// Decode every pixel of every file (slower) instead of headers and trailers.
+    /// Decode every pixel of every file (slower) instead of headers and
+    /// trailers. Without it a file whose header is fine but whose pixels are
+    /// corrupt passes as clean (`train` skips such images and lists them).
     #[arg(long)]
     pub deep: bool,
     /// Print a machine-readable JSON report on stdout instead of lines.

@@ -3,14 +3,14 @@
 //! of an [`StepBatch`] (with the student's augmentation) on the training
 //! thread.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use burn::tensor::{Device, Tensor};
 use mbs_core::formats::rgb::read_rgb;
 use mbs_core::{RgbImage, Side};
 use rand::Rng;
 
-use super::samples::TrainingSamples;
+use super::samples::{TrainingSamples, ViewPaths};
 use super::{Stream, step_rng};
 use crate::augment::AugmentConfig;
 use crate::error::TrainError;
@@ -38,7 +38,14 @@ pub struct HostBatch {
     pub ratios: Vec<f64>,
     /// The sample id of each item.
     pub sample_ids: Vec<String>,
+    /// Images that could not be used, each with the error (which names
+    /// it); their items were drawn again.
+    pub skipped: Vec<(PathBuf, String)>,
 }
+
+/// Draws of an item after which a batch gives up on unreadable images: the
+/// data is then broken, not one file of it.
+pub const MAX_DRAWS_PER_ITEM: usize = 8;
 
 /// Draws and decodes the batch of `step`: for each item a sample, a triplet
 /// and a crop window, all from [`step_rng`]`(seed, step, Batch)`.
@@ -61,43 +68,68 @@ pub fn load_batch(
         triplets: Vec::with_capacity(batch_size),
         ratios: Vec::with_capacity(batch_size),
         sample_ids: Vec::with_capacity(batch_size),
+        skipped: Vec::new(),
     };
     for _ in 0..batch_size {
-        let sample = &samples.samples[rng.random_range(0..samples.samples.len())];
-        let triplet = draw_triplet(samples.rig.num_views, &mut rng);
-        let (image_width, image_height) = (sample.size.0 as usize, sample.size.1 as usize);
-        let top = rng.random_range(0..=image_height.saturating_sub(height));
-        let left = rng.random_range(0..=image_width.saturating_sub(width));
-        let window = Window {
-            top,
-            left,
-            height,
-            width,
+        let mut draws = 0;
+        let item = loop {
+            let sample = &samples.samples[rng.random_range(0..samples.samples.len())];
+            let triplet = draw_triplet(samples.rig.num_views, &mut rng);
+            let (image_width, image_height) = (sample.size.0 as usize, sample.size.1 as usize);
+            let top = rng.random_range(0..=image_height.saturating_sub(height));
+            let left = rng.random_range(0..=image_width.saturating_sub(width));
+            let window = Window {
+                top,
+                left,
+                height,
+                width,
+            };
+            draws += 1;
+            match decode_item(sample, triplet) {
+                Ok(views) => break (sample, triplet, window, views),
+                // A file whose header is fine and pixels are not (validate
+                // --deep finds them) costs its items, not the run.
+                Err(skipped) if draws < MAX_DRAWS_PER_ITEM => batch.skipped.push(skipped),
+                Err((_, error)) => {
+                    return Err(TrainError::Input(format!(
+                        "{error} ({MAX_DRAWS_PER_ITEM} draws of one item in a row met unusable \
+                         images; check the data with `mbs-tool validate --deep`)"
+                    )));
+                }
+            }
         };
-        let decode = |view: usize| {
-            let path = &sample.views[view];
-            let image = read_rgb(path)?;
-            check_size(path, &image, sample.size)?;
-            Ok::<_, TrainError>(image)
-        };
-        append_chw(&window, &decode(triplet.reference)?, &mut batch.reference);
-        let student = decode(triplet.student)?;
+        let (sample, triplet, window, [reference, student, teacher]) = item;
+        append_chw(&window, &reference, &mut batch.reference);
         append_chw(&window, &student, &mut batch.student_target);
-        // Targets are drawn with replacement: the same view is decoded once.
-        if triplet.teacher == triplet.student {
-            append_chw(&window, &student, &mut batch.teacher_target);
-        } else {
-            append_chw(
-                &window,
-                &decode(triplet.teacher)?,
-                &mut batch.teacher_target,
-            );
-        }
+        append_chw(&window, &teacher, &mut batch.teacher_target);
         batch.ratios.push(triplet.ratio(&samples.rig));
         batch.triplets.push(triplet);
         batch.sample_ids.push(sample.id.clone());
     }
     Ok(batch)
+}
+
+/// The reference, student and teacher views of an item, or the first image
+/// that cannot be used with the reason.
+fn decode_item(
+    sample: &ViewPaths,
+    triplet: Triplet,
+) -> Result<[std::sync::Arc<RgbImage>; 3], (PathBuf, String)> {
+    let decode = |view: usize| {
+        let path = &sample.views[view];
+        let image = read_rgb(path).map_err(|e| (path.clone(), e.to_string()))?;
+        check_size(path, &image, sample.size).map_err(|e| (path.clone(), e.to_string()))?;
+        Ok(std::sync::Arc::new(image))
+    };
+    let reference = decode(triplet.reference)?;
+    let student = decode(triplet.student)?;
+    // Targets are drawn with replacement: the same view is decoded once.
+    let teacher = if triplet.teacher == triplet.student {
+        std::sync::Arc::clone(&student)
+    } else {
+        decode(triplet.teacher)?
+    };
+    Ok([reference, student, teacher])
 }
 
 /// An error unless `image` has the size the manifest promised.
@@ -220,6 +252,69 @@ impl StepBatch {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Two samples of three 32x16 views in `dir`; the views of sample 1
+    /// are `corrupt` (a PNG whose pixels do not decode) when asked.
+    fn samples(dir: &Path, corrupt: &[usize]) -> TrainingSamples {
+        let image = RgbImage::from_fn(32, 16, |x, y| image::Rgb([x as u8 * 8, y as u8 * 16, 0]));
+        let samples = (0..2)
+            .map(|s| {
+                let views = (0..3)
+                    .map(|v| {
+                        let path = dir.join(format!("s{s}_v{v}.png"));
+                        image.save(&path).unwrap();
+                        if s == 1 && corrupt.contains(&v) {
+                            let mut bytes = std::fs::read(&path).unwrap();
+                            let middle = bytes.len() / 2;
+                            bytes[middle..middle + 8].fill(0xee);
+                            std::fs::write(&path, bytes).unwrap();
+                        }
+                        path
+                    })
+                    .collect();
+                ViewPaths {
+                    id: format!("s{s}"),
+                    views,
+                    size: (32, 16),
+                }
+            })
+            .collect();
+        TrainingSamples {
+            rig: mbs_core::Rig::centred(3, 0.1, 100.0, 32, 16),
+            samples,
+        }
+    }
+
+    #[test]
+    fn items_meeting_an_unusable_image_are_drawn_again_within_a_bound() {
+        let dir = tempfile::tempdir().unwrap();
+        let clean = load_batch(&samples(dir.path(), &[]), 8, (16, 16), 5, 0).unwrap();
+        assert!(clean.skipped.is_empty());
+        let broken = samples(dir.path(), &[1]);
+        let batch = load_batch(&broken, 8, (16, 16), 5, 0).unwrap();
+        assert_eq!(batch.triplets.len(), 8);
+        assert!(!batch.skipped.is_empty());
+        assert!(
+            batch
+                .skipped
+                .iter()
+                .all(|(path, _)| path.ends_with("s1_v1.png"))
+        );
+        // Every item that met the broken view was drawn again: none uses it.
+        let uses_broken = |i: usize| {
+            let t = batch.triplets[i];
+            batch.sample_ids[i] == "s1" && [t.reference, t.student, t.teacher].contains(&1)
+        };
+        assert!((0..8).all(|i| !uses_broken(i)));
+        // With every image of one sample broken and the other gone, the
+        // data is broken, not one file: the batch gives up, saying so.
+        let mut hopeless = samples(dir.path(), &[0, 1, 2]);
+        hopeless.samples.remove(0);
+        let err = load_batch(&hopeless, 2, (16, 16), 5, 0)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("8 draws of one item in a row"), "{err}");
+    }
 
     #[test]
     fn split_shares_are_consecutive_and_differ_by_at_most_one_item() {

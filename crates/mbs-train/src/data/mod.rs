@@ -18,6 +18,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use crate::error::TrainError;
+use mbs_core::limits::{MAX_IMAGE_SIDE, MAX_JOBS};
 use mbs_nets::ranges;
 
 pub use batch::{HostBatch, StepBatch};
@@ -56,6 +57,9 @@ pub struct DataConfig {
     pub val_split: Option<Split>,
 }
 
+/// The largest batch (the paper trains with 16).
+pub const MAX_BATCH_SIZE: usize = 1024;
+
 impl DataConfig {
     /// The number of loading threads: `workers`, or one per core for 0.
     pub fn loading_threads(&self) -> usize {
@@ -67,14 +71,13 @@ impl DataConfig {
 
     /// Checks the ranges.
     pub fn validate(&self) -> Result<(), TrainError> {
-        ranges::at_least_one("batch_size", self.batch_size)?;
-        for (name, value) in [
-            ("crop_height", self.crop_height),
-            ("crop_width", self.crop_width),
-        ] {
-            ranges::require(value >= 16, name, value, "at least 16 pixels")?;
-        }
-        Ok(())
+        let side = (16, MAX_IMAGE_SIDE as usize);
+        Ok(ranges::integers_in(&[
+            ("batch_size", self.batch_size, (1, MAX_BATCH_SIZE)),
+            ("crop_height", self.crop_height, side),
+            ("crop_width", self.crop_width, side),
+            ("workers", self.workers, (0, MAX_JOBS)),
+        ])?)
     }
 }
 

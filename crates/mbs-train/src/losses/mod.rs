@@ -21,7 +21,7 @@ use mbs_nets::ranges;
 use photometric::photometric_map;
 use range::out_of_range;
 use smoothness::edge_aware_smoothness;
-use warp::warp_to_reference;
+use warp::{lands_inside, warp_to_reference};
 
 /// Hyper-parameters and ablation switches of the S3 loss; the defaults are
 /// the paper's.
@@ -89,6 +89,16 @@ pub struct LossConfig {
     /// learning (README, "S3 from random weights").
     #[config(default = false)]
     pub geometry_scale_match: bool,
+    /// Count pixels whose warp leaves the target image as invalid in both
+    /// masks. The warp clamps to the border column there, and a border
+    /// that happens to resemble the reference pixel would pass the paper's
+    /// tests (`P < tau`, `P < P_identity`): such false matches let a
+    /// teacher whose disparities are far too large supervise the student,
+    /// which then grows its own (README, "S3 from random weights"). The
+    /// paper leaves this open (PyTorch's `grid_sample` pads with zeros,
+    /// which mostly fails the tests); `false` keeps the border's verdict.
+    #[config(default = true)]
+    pub out_of_view_invalid: bool,
 }
 
 impl LossConfig {
@@ -227,6 +237,15 @@ impl S3Loss {
         )
     }
 
+    /// `mask` without the pixels whose warp by `disparity` leaves the
+    /// target, when [`LossConfig::out_of_view_invalid`] is on.
+    fn in_view(&self, mask: Tensor<4>, disparity: Tensor<4>, sides: &[Side]) -> Tensor<4> {
+        match self.config.out_of_view_invalid {
+            true => mask * lands_inside(disparity, sides),
+            false => mask,
+        }
+    }
+
     /// Computes `L` and its parts for one batch.
     pub fn compute(&self, inputs: LossInputs) -> Result<LossOutput, TrainError> {
         self.compute_sequence(inputs, Vec::new())
@@ -273,8 +292,9 @@ impl S3Loss {
                 Some((disparity.clone(), &inputs.teacher_sides)),
             );
             let identity = self.photometric(&inputs.reference, inputs.teacher_target.clone(), None);
+            let mask = validity_mask(warped, identity, config.mask_parts());
             (
-                validity_mask(warped, identity, config.mask_parts()),
+                self.in_view(mask, disparity.clone(), &inputs.teacher_sides),
                 disparity,
             )
         });
@@ -305,6 +325,7 @@ impl S3Loss {
                 Some((student.clone(), &inputs.student_sides)),
             );
             let m_s = validity_mask(p_s.clone(), identity.clone(), config.mask_parts());
+            let m_s = self.in_view(m_s, student.clone(), &inputs.student_sides);
             if config.photometric {
                 let term = (m_s.clone() * p_s).mean();
                 total = total + term.clone() * config.lambda_p;

@@ -232,3 +232,23 @@ fn a_collapsed_prediction_is_pulled_back_by_the_range_term_only() {
     // d(mean(-d))/dd = -1/8 per pixel: gradient descent raises every pixel.
     assert_close(&gradient(1.0), &[-0.125; 8], 1e-6);
 }
+
+#[test]
+fn a_warp_that_leaves_the_target_is_no_match() {
+    // Teacher target [0.15, 0.1, 0.8, 1.0] with d_t = 2: pixel 1 samples
+    // column -1, clamped to the border 0.15, which is within tau of the
+    // reference 0.2 and beats its identity error 0.1; the paper's tests
+    // accept it. Pixels 2 and 3 land inside and fail (0.25, 0.5 > tau).
+    let device = Device::flex();
+    let teacher_mask = |out_of_view_invalid: bool| {
+        let mut batch = inputs(&device);
+        batch.teacher_target = tensor4(&rows([0.15, 0.1, 0.8, 1.0]), [1, 1, 2, 4], &device);
+        let out = S3Loss::new(l1_config().with_out_of_view_invalid(out_of_view_invalid))
+            .expect("valid")
+            .compute(batch)
+            .expect("shapes match");
+        values(out.teacher_mask.expect("on"))
+    };
+    assert_close(&teacher_mask(false), &rows([0.0, 1.0, 0.0, 0.0]), 0.0);
+    assert_close(&teacher_mask(true), &rows([0.0; 4]), 0.0);
+}

@@ -45,14 +45,20 @@ pub fn sample_columns(disparity: Tensor<4>, sides: &[Side]) -> Tensor<4> {
     columns - disparity * signs
 }
 
-/// The share of pixels whose sample column lies outside the target image
-/// (no gradient): warps that read the border instead of a match.
-pub fn outside_share(disparity: Tensor<4>, sides: &[Side]) -> Tensor<1> {
+/// 1 where a pixel's sample column lies inside the target image, 0 where
+/// the warp leaves it and reads the clamped border instead of a match (no
+/// gradient); `[B, 1, H, W]`.
+pub fn lands_inside(disparity: Tensor<4>, sides: &[Side]) -> Tensor<4> {
     let width = disparity.dims()[3];
     let columns = sample_columns(disparity.detach(), sides);
-    let before = columns.clone().lower_elem(0.0).float();
-    let after = columns.greater_elem((width - 1) as f64).float();
-    (before + after).mean()
+    let after_start = columns.clone().greater_equal_elem(0.0).float();
+    let before_end = columns.lower_equal_elem((width - 1) as f64).float();
+    after_start * before_end
+}
+
+/// The share of pixels whose warp leaves the target image (no gradient).
+pub fn outside_share(disparity: Tensor<4>, sides: &[Side]) -> Tensor<1> {
+    (lands_inside(disparity, sides).neg() + 1.0).mean()
 }
 
 /// +1 for a target on the right (sample at `x - d`), -1 on the left (`x + d`).

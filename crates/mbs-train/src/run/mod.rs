@@ -71,8 +71,10 @@ pub trait Observer {
     /// goes on.
     fn on_warning(&mut self, _warning: &TrainError) {}
     /// When training itself looks wrong (supervision has vanished, see
-    /// [`crate::supervision::CollapseWatch`]); the message is also in
-    /// `train.jsonl` under `warning`.
+    /// [`crate::supervision::CollapseWatch`]; the message is also in
+    /// `train.jsonl` under `warning`), or a training image cannot be used
+    /// and is skipped (`train.jsonl` lists it under `skipped` and counts
+    /// them under `skipped_images`).
     fn on_alert(&mut self, _message: &str) {}
     /// After each checkpoint.
     fn on_checkpoint(&mut self, _steps: usize, _dir: &Path) {}
@@ -337,6 +339,10 @@ impl TrainingRun {
         );
         let mut log = open_log(&self.out.join(TRAIN_LOG))?;
         let mut interval = Interval::new();
+        let mut skipped = std::collections::BTreeSet::new();
+        let mut newly_skipped = Vec::new();
+        let images = self.samples.samples.len() * self.samples.rig.num_views;
+        let skip_limit = (images / 100).max(10);
         let mut watch = CollapseWatch::default();
         let mut alert = None;
         let mut metrics = None;
@@ -349,8 +355,23 @@ impl TrainingRun {
                 break;
             };
             interval.add_data_wait(asked.elapsed());
+            let batch = batch?;
+            for (path, error) in &batch.skipped {
+                if skipped.insert(path.clone()) {
+                    observer.on_alert(&format!("skipping an unusable image: {error}"));
+                    newly_skipped.push(error.clone());
+                }
+            }
+            if skipped.len() > skip_limit {
+                return Err(TrainError::Input(format!(
+                    "{} training images could not be used, more than the {skip_limit} a run \
+                     skips (1 % of its images, at least 10); check the data with \
+                     `mbs-tool validate --deep`",
+                    skipped.len()
+                )));
+            }
             let batch =
-                batch?.into_step_batch(&self.devices[0], &self.config.augment, self.config.seed);
+                batch.into_step_batch(&self.devices[0], &self.config.augment, self.config.seed);
             let report = self.trainer.step_parallel(batch, &self.devices)?;
             let taken = report.step + 1;
             interval.add(&report);
@@ -363,6 +384,12 @@ impl TrainingRun {
                 let mut line = interval.json(taken, data.batch_size);
                 if let Some(message) = alert.take() {
                     line["warning"] = message.into();
+                }
+                if !skipped.is_empty() {
+                    line["skipped_images"] = skipped.len().into();
+                }
+                if !newly_skipped.is_empty() {
+                    line["skipped"] = std::mem::take(&mut newly_skipped).into();
                 }
                 write_line(&mut log, &self.out.join(TRAIN_LOG), &line)?;
                 let logged = self.report.log_line("train", &line);

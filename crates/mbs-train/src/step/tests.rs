@@ -313,6 +313,35 @@ fn table3_row_a_trains_without_the_teacher() {
 }
 
 #[test]
+fn the_geometry_term_is_off_then_ramps_then_full() {
+    let device = Device::flex();
+    let train_device = device.clone().autodiff();
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let scenes = vec![scene(&mut rng)];
+    let net = CostVolumeNetConfig::new().with_features(4).with_hidden(4);
+    // 10 steps: off for 3, rising over 4 (0, 1/4, 2/4, 3/4), then 1.
+    let config = TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(1e-3, 10))
+        .with_geometry_start(Some(0.3))
+        .with_geometry_warmup(Some(0.4));
+    let mut trainer =
+        S3Trainer::new(net.init(16, &train_device).expect("valid"), &config).expect("valid");
+    let triplets = [Triplet {
+        reference: 1,
+        student: 0,
+        teacher: 2,
+    }];
+    let mut weights = Vec::new();
+    for _ in 0..10 {
+        weights.push(trainer.geometry_weight());
+        trainer
+            .step(batch(&scenes, &triplets, &rig(), &device))
+            .expect("step runs");
+    }
+    let expected = [0.0, 0.0, 0.0, 0.0, 0.25, 0.5, 0.75, 1.0, 1.0, 1.0];
+    assert_eq!(weights, expected);
+}
+
+#[test]
 fn sequence_weights_follow_the_official_adjusted_gamma() {
     use crate::step::sequence_weights;
     // 16 iterations: gamma' = 0.9^(15/15) = 0.9; weights 0.9^15 ... 0.9, 1.
