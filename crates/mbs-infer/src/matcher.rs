@@ -53,18 +53,17 @@ pub trait StereoMatcher: Send + Sync {
         target: &RgbImage,
         side: Side,
     ) -> Result<Disparity> {
-        let prediction = match side {
+        match side {
             Side::Right => self.predict(reference, target),
             Side::Left => self.predict_right(target, reference),
-        }?;
-        check_values(self.name(), &prediction.disparity)?;
-        Ok(prediction)
+        }
     }
 }
 
-/// An [`InferError::NoPrediction`] when `disparity` holds a NaN or no
-/// finite value at all (a network with broken weights, a diverged run):
-/// such a map must never be written as a result.
+/// An [`InferError::NoPrediction`] when a network's map `disparity` holds
+/// a NaN or no finite value at all (broken weights, a diverged run): such
+/// a map must never be written as a result. (The built-in matcher may
+/// rightly find no match at all on a featureless pair.)
 pub fn check_values(matcher: &str, disparity: &FloatImage) -> Result<()> {
     let nan = disparity.iter().filter(|d| d.is_nan()).count();
     let finite = disparity.iter().filter(|d| d.is_finite()).count();

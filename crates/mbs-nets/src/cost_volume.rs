@@ -42,7 +42,7 @@ impl CostVolumeNetConfig {
             max_disparity >= 4 && max_disparity % 4 == 0 && max_disparity <= ranges::MAX_DISPARITY,
             "max_disparity",
             max_disparity,
-            "a multiple of 4 from 4 to 1024",
+            format!("a multiple of 4 from 4 to {}", ranges::MAX_DISPARITY),
         )?;
         let channels = (2, ranges::CHANNELS.1);
         ranges::integers_in(&[

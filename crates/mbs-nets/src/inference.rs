@@ -92,6 +92,7 @@ impl StereoMatcher for NetworkMatcher {
     fn predict(&self, left: &RgbImage, right: &RgbImage) -> Result<Disparity, InferError> {
         let disparity = predict_image(&self.net, left, right, Side::Right, &self.device)
             .map_err(|e| InferError::Backend(e.to_string()))?;
+        mbs_infer::matcher::check_values(self.name(), &disparity)?;
         let valid =
             MaskImage::from_pixel(disparity.width(), disparity.height(), image::Luma([255]));
         Ok(Disparity { disparity, valid })

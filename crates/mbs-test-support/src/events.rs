@@ -143,7 +143,7 @@ fn decode_event(payload: &[u8]) -> Option<Vec<Event>> {
             Field::Bytes(3, v) => {
                 values.push(EventValue::FileVersion(String::from_utf8(v.to_vec()).ok()?))
             }
-            Field::Bytes(6, session_log) => {
+            Field::Bytes(7, session_log) => {
                 let start = Reader::fields(session_log)?
                     .iter()
                     .any(|f| matches!(f, Field::Varint(1, 1)));

@@ -192,7 +192,12 @@ fn unusable_devices_are_one_clear_error_and_write_nothing() {
         }
         let output = command.output().unwrap();
         let stderr = String::from_utf8_lossy(&output.stderr);
-        assert_eq!(output.status.code(), Some(status), "{device}: {}", text(&output));
+        assert_eq!(
+            output.status.code(),
+            Some(status),
+            "{device}: {}",
+            text(&output)
+        );
         let first = stderr.lines().next().unwrap_or_default();
         assert!(first.contains(expected), "{device}: {stderr}");
         assert!(first.contains("device `"), "{device}: {stderr}");

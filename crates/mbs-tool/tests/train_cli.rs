@@ -370,13 +370,17 @@ fn a_diverging_run_stops_with_an_error_and_keeps_its_last_good_weights() {
         stderr.contains("lower the learning rate (--lr)"),
         "{stderr}"
     );
-    // Every checkpoint left behind loads: its weights are finite.
-    let checkpoint = mbs_nets::checkpoint::TrainedNetworks::open(&out);
-    if let Ok(checkpoint) = checkpoint {
-        let device = burn::tensor::Device::flex();
-        checkpoint.teacher(&device).unwrap();
-        checkpoint.student(&device).unwrap();
-    }
+    // The checkpoint left behind holds the steps before the divergence,
+    // and loads: its weights are finite.
+    let checkpoint = mbs_nets::checkpoint::TrainedNetworks::open(&out).unwrap();
+    assert!(checkpoint.steps >= 1, "{}", checkpoint.steps);
+    assert!(
+        stderr.contains(&format!("diverged at step {}", checkpoint.steps + 1)),
+        "{stderr}"
+    );
+    let device = burn::tensor::Device::flex();
+    checkpoint.teacher(&device).unwrap();
+    checkpoint.student(&device).unwrap();
 }
 
 #[test]

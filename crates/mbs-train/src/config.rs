@@ -99,11 +99,27 @@ impl RunConfig {
     }
 
     /// A complete configuration document (as saved in a checkpoint),
-    /// checked against the schema and the ranges.
+    /// checked against the schema and the ranges. A key added since the
+    /// document was written takes the value runs had before it existed
+    /// (the S3 safeguards were all off), so an older checkpoint resumes as
+    /// it was trained.
     pub fn from_document(document: &Value) -> Result<Self, TrainError> {
-        check_schema(document).map_err(TrainError::Config)?;
-        let mut config: RunConfig = serde_json::from_value(document.clone())
-            .map_err(|e| TrainError::Config(e.to_string()))?;
+        let mut document = document.clone();
+        for (path, value) in legacy_values() {
+            let keys: Vec<&str> = path.split('.').collect();
+            let Some((key, parents)) = keys.split_last() else {
+                continue;
+            };
+            let parent = parents
+                .iter()
+                .try_fold(&mut document, |node, key| node.get_mut(*key));
+            if let Some(Value::Object(section)) = parent {
+                section.entry(*key).or_insert(value);
+            }
+        }
+        check_schema(&document).map_err(TrainError::Config)?;
+        let mut config: RunConfig =
+            serde_json::from_value(document).map_err(|e| TrainError::Config(e.to_string()))?;
         let (start, warmup) = Self::geometry_schedule(config.network.backbone);
         let trainer = &mut config.trainer;
         trainer.geometry_start.get_or_insert(start);
@@ -142,6 +158,18 @@ impl RunConfig {
         }
         Ok(self.network.validate()?)
     }
+}
+
+/// The settings added after the first checkpoints were written whose
+/// default differs from what runs did before them: the S3 safeguards
+/// (README, "S3 from random weights"), all off before they existed.
+fn legacy_values() -> [(&'static str, Value); 4] {
+    [
+        ("trainer.geometry_start", Value::from(0.0)),
+        ("trainer.geometry_warmup", Value::from(0.0)),
+        ("trainer.loss.range_weight", Value::from(0.0)),
+        ("trainer.loss.out_of_view_invalid", Value::from(false)),
+    ]
 }
 
 /// `document`'s schema issues, each with its JSON pointer, joined.
@@ -239,20 +267,26 @@ mod tests {
         let schema: Value = serde_json::from_str(TRAIN_CONFIG_SCHEMA).expect("schema is JSON");
         let mut properties = Vec::new();
         schema_properties(&schema, "", &mut properties);
-        let sizes: Vec<(String, u64)> = properties
+        // (path, maximum, the step between allowed values)
+        let sizes: Vec<(String, u64, u64)> = properties
             .into_iter()
             .filter(|(path, _)| path.starts_with("network.") || path.starts_with("data."))
             .filter(|(_, node)| node.get("type").and_then(Value::as_str) == Some("integer"))
-            .filter_map(|(path, node)| Some((path, node.get("maximum")?.as_u64()?)))
+            .filter_map(|(path, node)| {
+                let step = node.get("multipleOf").and_then(Value::as_u64).unwrap_or(1);
+                Some((path, node.get("maximum")?.as_u64()?, step))
+            })
             .collect();
         assert!(sizes.len() >= 18, "{sizes:?}");
-        for (path, max) in sizes {
+        for (path, max, step) in sizes {
             let backbone = match path.split('.').nth(1) {
                 Some("raft_stereo") => "raft-stereo",
                 Some("igev") => "igev",
                 _ => "compact",
             };
-            for (value, ok) in [(max, true), (max + 1, false)] {
+            // The next allowed value past the maximum: refused by the bound
+            // alone, not by the multiple.
+            for (value, ok) in [(max, true), (max + step, false)] {
                 let mut document = RunConfig::paper().to_json().expect("serialises");
                 let keys = |p: &str| p.split('.').map(str::to_owned).collect::<Vec<_>>();
                 layered::set_path(&mut document, &keys("network.backbone"), json!(backbone))
@@ -262,6 +296,32 @@ mod tests {
                 assert_eq!(config.validate().is_ok(), ok, "{path} = {value}");
             }
         }
+    }
+
+    #[test]
+    fn a_document_from_before_the_safeguards_keeps_them_off() {
+        let overrides = ["network.backbone=raft-stereo".to_string()];
+        let mut document = RunConfig::layered(None, &overrides)
+            .expect("valid")
+            .to_json()
+            .expect("serialises");
+        let trainer = document["trainer"].as_object_mut().expect("an object");
+        trainer.remove("geometry_start");
+        trainer.remove("geometry_warmup");
+        let loss = trainer["loss"].as_object_mut().expect("an object");
+        loss.remove("range_weight");
+        loss.remove("out_of_view_invalid");
+        let old = RunConfig::from_document(&document).expect("valid");
+        assert_eq!(
+            (old.trainer.geometry_start, old.trainer.geometry_warmup),
+            (Some(0.0), Some(0.0))
+        );
+        assert_eq!(old.trainer.loss.range_weight, 0.0);
+        assert!(!old.trainer.loss.out_of_view_invalid);
+        // A document that has the keys keeps them.
+        let new = RunConfig::layered(None, &overrides).expect("valid");
+        assert_eq!(new.trainer.geometry_start, Some(0.3));
+        assert!(new.trainer.loss.out_of_view_invalid);
     }
 
     #[test]

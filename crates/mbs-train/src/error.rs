@@ -29,15 +29,16 @@ pub enum TrainError {
         /// What is wrong with it.
         reason: String,
     },
-    /// The loss or the gradients stopped being finite; the step was not
-    /// taken, so the weights are those of the step before.
+    /// The loss, the gradients or the weights stopped being finite; the
+    /// step was not taken (or its weights not saved), so the run keeps those
+    /// of the step before.
     #[error(
         "training diverged at step {step}: {what}. The weights of the steps before are kept \
          (the run's newest checkpoint); lower the learning rate (--lr) or check the data, \
          and start again (--restart)"
     )]
     Diverged {
-        /// The step (0-based) whose loss or gradients were not finite.
+        /// The step, numbered from 1 as in `train.jsonl`.
         step: usize,
         /// What stopped being finite.
         what: String,

@@ -159,8 +159,9 @@ pub struct S3Trainer<B: Backbone> {
     step: usize,
 }
 
-/// f16 steps skipped in a row (each halving the loss scale, so the scale
-/// has fallen by 2^-30 and more) after which a run counts as diverged.
+/// f16 steps skipped in a row after which a run counts as diverged: each
+/// skip halves the loss scale (down to 1), so by then the gradients
+/// overflow at any scale.
 pub const MAX_SKIPPED_STEPS: usize = 30;
 
 /// What the student minimises: the S3 loss of its final prediction plus
@@ -385,9 +386,11 @@ impl<B: Backbone> S3Trainer<B> {
         let loss = S3Loss::new(config.loss.clone())?;
         let lr = config.lr.init()?;
         let optimizer = config.optimizer.init();
-        let share_of_steps = |share: Option<f64>| {
-            (share.unwrap_or(0.0) * config.lr.total_steps as f64).round() as usize
-        };
+        // Rounded at the start and at the end of the warm-up, so that the
+        // term reaches its full weight within the run.
+        let step_at = |share: f64| (share * config.lr.total_steps as f64).round() as usize;
+        let start = config.geometry_start.unwrap_or(0.0);
+        let warmup_end = step_at(start + config.geometry_warmup.unwrap_or(0.0));
         Ok(Self {
             teacher: student.valid(),
             student,
@@ -408,8 +411,8 @@ impl<B: Backbone> S3Trainer<B> {
             grad_clip_norm: config.grad_clip_norm,
             loss_scale: (config.precision == Precision::F16)
                 .then(|| LossScale::starting_at(config.initial_loss_scale)),
-            geometry_start_steps: share_of_steps(config.geometry_start),
-            geometry_warmup_steps: share_of_steps(config.geometry_warmup),
+            geometry_start_steps: step_at(start),
+            geometry_warmup_steps: warmup_end - step_at(start),
             skipped_in_a_row: 0,
             step: 0,
         })
@@ -601,7 +604,7 @@ impl<B: Backbone> S3Trainer<B> {
         let grad_norm =
             unscale_and_clip(&self.student, &mut grads, self.grad_clip_norm, self.scale())?;
         let diverged = |what: String| TrainError::Diverged {
-            step: self.step,
+            step: self.step + 1,
             what,
         };
         let skipped = match &mut self.loss_scale {

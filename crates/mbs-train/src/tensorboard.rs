@@ -134,7 +134,7 @@ impl EventWriter {
         let payload = event(step, |out| {
             let mut session_log = Vec::new();
             varint_field(&mut session_log, 1, SESSION_START);
-            bytes_field(out, 6, &session_log);
+            bytes_field(out, 7, &session_log); // Event.session_log
         });
         self.record(&payload)
     }

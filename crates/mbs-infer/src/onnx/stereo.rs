@@ -220,7 +220,8 @@ impl StereoMatcher for OnnxStereo {
         left: &RgbImage,
         right: &RgbImage,
     ) -> std::result::Result<Disparity, InferError> {
-        let mut out = self.predict_batch(&[(left, right)])?;
-        Ok(out.remove(0))
+        let prediction = self.predict_batch(&[(left, right)])?.remove(0);
+        crate::matcher::check_values(&self.name, &prediction.disparity)?;
+        Ok(prediction)
     }
 }

@@ -83,7 +83,7 @@ impl IgevStereoConfig {
                 && self.max_disp <= ranges::MAX_DISPARITY,
             "max_disp",
             self.max_disp,
-            "a multiple of 32 from 32 to 1024",
+            format!("a multiple of 32 from 32 to {}", ranges::MAX_DISPARITY),
         )?;
         ranges::integers_in(&[
             ("hidden_dim", self.hidden_dim, ranges::CHANNELS),

@@ -127,13 +127,6 @@ impl StereoSourceArgs {
                 NetworkMatcher::with_weights(&config, weights, device)?,
             )));
         }
-        if self.runtime.device != "cpu" {
-            anyhow::bail!(
-                "--device {}: the built-in matcher runs on the CPU; --device is for networks \
-                 (--model, --checkpoint, --weights)",
-                self.runtime.device
-            );
-        }
         Ok(StereoSource::BuiltIn(SgmConfig {
             max_disparity: self.max_disparity.unwrap_or(preset.max_disparity),
             paths: match self.paths {
@@ -144,6 +137,21 @@ impl StereoSourceArgs {
             fill: preset.fill && !self.no_fill,
             ..preset
         }))
+    }
+
+    /// Refuses a `--device` that nothing would use: the built-in matcher
+    /// runs on the CPU. For commands whose `--device` serves only the
+    /// disparity source (`extrapolate`'s also serves an ONNX inpainter).
+    pub fn refuse_unused_device(&self) -> anyhow::Result<()> {
+        let network = self.model.is_some() || self.checkpoint.is_some() || self.weights.is_some();
+        if !network && self.runtime.device != "cpu" {
+            anyhow::bail!(
+                "--device {}: the built-in matcher runs on the CPU; --device is for networks \
+                 (--model, --checkpoint, --weights)",
+                self.runtime.device
+            );
+        }
+        Ok(())
     }
 
     /// The chosen source as a matcher (see [`StereoSourceArgs::open`]).

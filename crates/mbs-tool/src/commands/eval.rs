@@ -119,7 +119,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .iter()
         .any(|i| matches!(i.prediction, Prediction::Pair(_)))
     {
-        true => Some(args.source.matcher(SgmConfig::default())?),
+        true => {
+            args.source.refuse_unused_device()?;
+            Some(args.source.matcher(SgmConfig::default())?)
+        }
         false => None,
     };
     let (results, summary) = batch::map(

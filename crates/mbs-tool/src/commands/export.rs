@@ -38,6 +38,9 @@ pub struct Args {
 
 /// Runs `export`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.out.is_dir() {
+        bail!("--out {} is a folder; give a file name", args.out.display());
+    }
     let out = safetensors_name(&args.out);
     if out.is_dir() {
         bail!("--out {} is a folder; give a file name", out.display());

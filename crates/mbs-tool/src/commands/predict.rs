@@ -73,6 +73,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(shard) => shard.select(pairs),
         None => pairs,
     };
+    args.source.refuse_unused_device()?;
     let matcher = args.source.matcher(SgmConfig::default())?;
     crate::cli::prepare_out(&args.out)?;
     let summary = batch::run(

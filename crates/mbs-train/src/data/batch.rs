@@ -4,10 +4,11 @@
 //! thread.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use burn::tensor::{Device, Tensor};
 use mbs_core::formats::rgb::read_rgb;
-use mbs_core::{RgbImage, Side};
+use mbs_core::{FormatError, RgbImage, Side};
 use rand::Rng;
 
 use super::samples::{TrainingSamples, ViewPaths};
@@ -87,10 +88,13 @@ pub fn load_batch(
             draws += 1;
             match decode_item(sample, triplet) {
                 Ok(views) => break (sample, triplet, window, views),
+                Err(Unusable::Fatal(error)) => return Err(error),
                 // A file whose header is fine and pixels are not (validate
                 // --deep finds them) costs its items, not the run.
-                Err(skipped) if draws < MAX_DRAWS_PER_ITEM => batch.skipped.push(skipped),
-                Err((_, error)) => {
+                Err(Unusable::Undecodable(path, error)) if draws < MAX_DRAWS_PER_ITEM => {
+                    batch.skipped.push((path, error));
+                }
+                Err(Unusable::Undecodable(_, error)) => {
                     return Err(TrainError::Input(format!(
                         "{error} ({MAX_DRAWS_PER_ITEM} draws of one item in a row met unusable \
                          images; check the data with `mbs-tool validate --deep`)"
@@ -109,23 +113,32 @@ pub fn load_batch(
     Ok(batch)
 }
 
-/// The reference, student and teacher views of an item, or the first image
-/// that cannot be used with the reason.
-fn decode_item(
-    sample: &ViewPaths,
-    triplet: Triplet,
-) -> Result<[std::sync::Arc<RgbImage>; 3], (PathBuf, String)> {
+/// Why an item's views cannot be used.
+enum Unusable {
+    /// An image's content does not decode (the file, the error): the item
+    /// is drawn again.
+    Undecodable(PathBuf, String),
+    /// The system refused a file, or an image is not the size the manifest
+    /// says: not a matter of one corrupt file, so the run stops.
+    Fatal(TrainError),
+}
+
+/// The reference, student and teacher views of an item, or why not.
+fn decode_item(sample: &ViewPaths, triplet: Triplet) -> Result<[Arc<RgbImage>; 3], Unusable> {
     let decode = |view: usize| {
         let path = &sample.views[view];
-        let image = read_rgb(path).map_err(|e| (path.clone(), e.to_string()))?;
-        check_size(path, &image, sample.size).map_err(|e| (path.clone(), e.to_string()))?;
-        Ok(std::sync::Arc::new(image))
+        let image = read_rgb(path).map_err(|e| match e {
+            FormatError::Io { .. } => Unusable::Fatal(e.into()),
+            undecodable => Unusable::Undecodable(path.clone(), undecodable.to_string()),
+        })?;
+        check_size(path, &image, sample.size).map_err(Unusable::Fatal)?;
+        Ok(Arc::new(image))
     };
     let reference = decode(triplet.reference)?;
     let student = decode(triplet.student)?;
     // Targets are drawn with replacement: the same view is decoded once.
     let teacher = if triplet.teacher == triplet.student {
-        std::sync::Arc::clone(&student)
+        Arc::clone(&student)
     } else {
         decode(triplet.teacher)?
     };

@@ -2,7 +2,9 @@
 //! `L = mean(A |d_s - r d_t|) + lambda_p mean(M_s P_s) + lambda_s L_s`,
 //! with a switch for every term and every mask part (paper Tables 3 and 4),
 //! plus `lambda_r` times the range term, zero for any plausible prediction
-//! (see [`range`]; `range_weight = 0` is the paper's loss exactly).
+//! (see [`range`]), and masks that count warps leaving the target as
+//! invalid ([`LossConfig::out_of_view_invalid`]); `range_weight = 0` and
+//! `out_of_view_invalid = false` are the paper's loss exactly.
 
 pub mod geometry;
 pub mod photometric;
@@ -24,7 +26,8 @@ use smoothness::edge_aware_smoothness;
 use warp::{lands_inside, warp_to_reference};
 
 /// Hyper-parameters and ablation switches of the S3 loss; the defaults are
-/// the paper's.
+/// the paper's but for the two safeguards `range_weight` and
+/// `out_of_view_invalid` (README, "S3 from random weights").
 #[derive(Config, Debug, PartialEq)]
 pub struct LossConfig {
     /// Photometric threshold `tau` of the validity masks.
@@ -171,9 +174,9 @@ pub struct LossInputs {
     pub teacher_sides: Vec<Side>,
     /// Baseline ratio `r = B_s / B_t` of each batch item.
     pub ratios: Vec<f64>,
-    /// The weight of the geometry term at this step: 1 as the paper, less
-    /// during the trainer's warm-up
-    /// ([`crate::step::TrainerConfig::geometry_warmup`]).
+    /// The weight of the geometry term at this step: 1 as the paper, 0
+    /// before the trainer's geometry start and less during its warm-up
+    /// ([`crate::step::TrainerConfig::geometry_start`]).
     pub geometry_weight: f64,
 }
 
