@@ -162,9 +162,11 @@ impl RunConfig {
 
 /// The settings added after the first checkpoints were written whose
 /// default differs from what runs did before them: the S3 safeguards
-/// (README, "S3 from random weights"), all off before they existed.
-fn legacy_values() -> [(&'static str, Value); 4] {
+/// (README, "S3 from random weights"), all off before they existed, and
+/// the teacher's iterations.
+fn legacy_values() -> [(&'static str, Value); 5] {
     [
+        ("trainer.teacher_test_iters", Value::from(true)),
         ("trainer.geometry_start", Value::from(0.0)),
         ("trainer.geometry_warmup", Value::from(0.0)),
         ("trainer.loss.range_weight", Value::from(0.0)),
@@ -308,6 +310,7 @@ mod tests {
         let trainer = document["trainer"].as_object_mut().expect("an object");
         trainer.remove("geometry_start");
         trainer.remove("geometry_warmup");
+        trainer.remove("teacher_test_iters");
         let loss = trainer["loss"].as_object_mut().expect("an object");
         loss.remove("range_weight");
         loss.remove("out_of_view_invalid");
@@ -318,6 +321,7 @@ mod tests {
         );
         assert_eq!(old.trainer.loss.range_weight, 0.0);
         assert!(!old.trainer.loss.out_of_view_invalid);
+        assert!(old.trainer.teacher_test_iters);
         // A document that has the keys keeps them.
         let new = RunConfig::layered(None, &overrides).expect("valid");
         assert_eq!(new.trainer.geometry_start, Some(0.3));

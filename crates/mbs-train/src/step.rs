@@ -61,6 +61,15 @@ pub struct TrainerConfig {
     /// Supervise only an iterative student's final prediction.
     #[config(default = false)]
     pub final_prediction_only: bool,
+    /// An iterative teacher (RAFT-Stereo, IGEV-Stereo) makes its
+    /// pseudo-labels with the network's test iterations (`test_iters`);
+    /// `false` (the default) uses the training ones, the iterations the
+    /// update operator is trained for. From random weights the extra
+    /// iterations can diverge (a small IGEV-Stereo's teacher failed while
+    /// its student learned: README, "S3 from random weights"). Validation
+    /// and inference always use the test iterations.
+    #[config(default = false)]
+    pub teacher_test_iters: bool,
     /// The format the networks compute in: `f32`, or mixed precision with
     /// `bf16` or `f16` (f32 weights, optimiser and losses; see
     /// [`crate::precision`]).
@@ -175,6 +184,8 @@ struct Objective {
     precision: Precision,
     /// The geometry term's weight at the step being taken.
     geometry_weight: f64,
+    /// The teacher's pseudo-labels come from its test iterations.
+    teacher_test_iters: bool,
 }
 
 /// The loss values of a batch (or of a share of one), read back.
@@ -258,12 +269,13 @@ impl Objective {
         } = batch;
         // Only the geometry term reads the teacher (Table 3 (A) runs without it).
         let teacher_disparity = if self.loss.config().geometry {
-            predict(
-                teacher,
-                input(reference.clone()),
-                input(teacher_target.clone()),
-                &teacher_sides,
-            )
+            let (reference, target) = (input(reference.clone()), input(teacher_target.clone()));
+            match self.teacher_test_iters {
+                true => predict(teacher, reference, target, &teacher_sides),
+                false => predict_sequence(teacher, reference, target, &teacher_sides)
+                    .pop()
+                    .ok_or_else(|| TrainError::Shape("the teacher predicted nothing".into()))?,
+            }
             .cast(FloatDType::F32)
         } else {
             let [batch, _, height, width] = reference.dims();
@@ -401,6 +413,7 @@ impl<B: Backbone> S3Trainer<B> {
                 final_prediction_only: config.final_prediction_only,
                 precision: config.precision,
                 geometry_weight: 1.0,
+                teacher_test_iters: config.teacher_test_iters,
             },
             lr,
             momentum: CosineMomentum {
