@@ -131,7 +131,8 @@ fn negative_sign_cards_turn_flow_into_disparity() {
         .predict(&left, &right)
         .unwrap();
     assert_eq!(flipped, reference);
-    // Read with the wrong sign, every value is negative: all invalid.
+    // Read with the wrong sign, every value is negative, so invalid: a map
+    // with no value at all is refused, never handed on as a prediction.
     let mut wrong = card("stereo_negative.json");
     wrong.output.sign = 1.0;
     let wrong = OnnxStereo::open(
@@ -140,9 +141,11 @@ fn negative_sign_cards_turn_flow_into_disparity() {
         &RuntimeOptions::default(),
     )
     .unwrap();
-    let out = wrong.predict(&left, &right).unwrap();
-    assert!(out.disparity.iter().all(|d| *d == f32::INFINITY));
-    assert!(out.valid.iter().all(|&v| v == 0));
+    let err = wrong.predict(&left, &right).unwrap_err().to_string();
+    assert!(
+        err.contains("onnx:test-stereo-negative gave no usable disparity: it has no finite value"),
+        "{err}"
+    );
 }
 
 #[test]
