@@ -80,6 +80,23 @@ pub fn integers_in(named: &[(&'static str, usize, (usize, usize))]) -> Result<()
         .try_for_each(|&(name, value, range)| integer_in(name, value, range))
 }
 
+/// The sizes RAFT-Stereo and IGEV-Stereo share, each in its range: hidden
+/// channels, correlation pyramid (levels, radius) and update iterations
+/// (training, test).
+pub fn iterative_network(
+    hidden_dim: usize,
+    (corr_levels, corr_radius): (usize, usize),
+    (train_iters, test_iters): (usize, usize),
+) -> Result<(), NetError> {
+    integers_in(&[
+        ("hidden_dim", hidden_dim, CHANNELS),
+        ("corr_levels", corr_levels, CORRELATION_LEVELS),
+        ("corr_radius", corr_radius, CORRELATION_RADIUS),
+        ("train_iters", train_iters, ITERATIONS),
+        ("test_iters", test_iters, ITERATIONS),
+    ])
+}
+
 /// Channels of a network's feature and hidden layers (the official
 /// networks use 128 to 256).
 pub const CHANNELS: (usize, usize) = (1, 1024);

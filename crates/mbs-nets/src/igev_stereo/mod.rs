@@ -85,13 +85,11 @@ impl IgevStereoConfig {
             self.max_disp,
             format!("a multiple of 32 from 32 to {}", ranges::MAX_DISPARITY),
         )?;
-        ranges::integers_in(&[
-            ("hidden_dim", self.hidden_dim, ranges::CHANNELS),
-            ("corr_levels", self.corr_levels, ranges::CORRELATION_LEVELS),
-            ("corr_radius", self.corr_radius, ranges::CORRELATION_RADIUS),
-            ("train_iters", self.train_iters, ranges::ITERATIONS),
-            ("test_iters", self.test_iters, ranges::ITERATIONS),
-        ])
+        ranges::iterative_network(
+            self.hidden_dim,
+            (self.corr_levels, self.corr_radius),
+            (self.train_iters, self.test_iters),
+        )
     }
 
     /// Builds the network with fresh weights on `device`.

@@ -81,13 +81,11 @@ impl RaftStereoConfig {
             self.n_downsample,
             "1, 2 or 3",
         )?;
-        ranges::integers_in(&[
-            ("hidden_dim", self.hidden_dim, ranges::CHANNELS),
-            ("corr_levels", self.corr_levels, ranges::CORRELATION_LEVELS),
-            ("corr_radius", self.corr_radius, ranges::CORRELATION_RADIUS),
-            ("train_iters", self.train_iters, ranges::ITERATIONS),
-            ("test_iters", self.test_iters, ranges::ITERATIONS),
-        ])
+        ranges::iterative_network(
+            self.hidden_dim,
+            (self.corr_levels, self.corr_radius),
+            (self.train_iters, self.test_iters),
+        )
     }
 
     /// Builds the network with fresh weights on `device`.
