@@ -176,11 +176,42 @@ impl CollapseWatch {
     }
 }
 
+/// Percentage points by which held-out Out-3 ALL may rise above the
+/// untrained network's before [`worse_than_untrained`] warns.
+pub const WORSE_BY_POINTS: f64 = 10.0;
+
+/// A warning when validation at `step` scores the teacher's held-out Out-3
+/// ALL (`out3`, %) more than [`WORSE_BY_POINTS`] above the untrained
+/// network's (`untrained`): training is making it worse, the mark of a
+/// collapse that the masks need not show (some keep 2-8 % of their pixels).
+pub fn worse_than_untrained(step: usize, untrained: f64, out3: f64) -> Option<String> {
+    (out3 > untrained + WORSE_BY_POINTS).then(|| {
+        format!(
+            "step {step}: held-out Out-3 ALL is {out3:.1} %, worse than the untrained \
+             network's {untrained:.1} %: training is collapsing (README, \"S3 from random \
+             weights\"; lower --lr, or keep the geometry term off longer)"
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use burn::tensor::Device;
     use mbs_nets::test_util::tensor4;
+
+    #[test]
+    fn a_teacher_worse_than_untrained_is_warned_about() {
+        assert_eq!(worse_than_untrained(120, 64.7, 42.5), None);
+        assert_eq!(worse_than_untrained(120, 64.7, 74.7), None);
+        let warning = worse_than_untrained(120, 64.7, 96.2).expect("a warning");
+        assert!(
+            warning.starts_with(
+                "step 120: held-out Out-3 ALL is 96.2 %, worse than the untrained network's 64.7 %"
+            ),
+            "{warning}"
+        );
+    }
 
     #[test]
     fn statistics_are_measured_and_read_back() {

@@ -36,7 +36,7 @@ use crate::data::{BatchLoader, TrainingSamples, ValidationSet};
 use crate::error::TrainError;
 use crate::precision::check_support;
 use crate::step::{S3Trainer, StepReport};
-use crate::supervision::CollapseWatch;
+use crate::supervision::{CollapseWatch, worse_than_untrained};
 use mbs_nets::StereoNetwork;
 use mbs_nets::checkpoint::TrainedNetworks;
 use mbs_nets::host::image_tensor;
@@ -349,6 +349,11 @@ impl TrainingRun {
         if first == 0 {
             metrics = self.validate(observer)?;
         }
+        // The untrained network's score, from this session or the log.
+        let untrained_out3 = read_log(&self.out.join(VAL_LOG))
+            .ok()
+            .and_then(|lines| lines.into_iter().find(|l| l["step"] == 0))
+            .and_then(|line| line["ALL"]["out3"].as_f64());
         loop {
             let asked = Instant::now();
             let Some(batch) = loader.next_batch() else {
@@ -398,6 +403,13 @@ impl TrainingRun {
             }
             if taken % self.config.val_every == 0 || taken == total {
                 metrics = self.validate(observer)?;
+                let out3 = metrics.as_ref().and_then(|m| m.all().out(3.0));
+                if let (Some(untrained), Some(out3)) = (untrained_out3, out3)
+                    && let Some(message) = worse_than_untrained(taken, untrained, out3)
+                {
+                    observer.on_alert(&message);
+                    alert = Some(message);
+                }
             }
             let stopping = stop.load(Ordering::Relaxed);
             if taken % self.config.checkpoint_every == 0 || taken == total || stopping {
