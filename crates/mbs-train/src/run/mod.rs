@@ -385,6 +385,17 @@ impl TrainingRun {
                 observer.on_alert(&message);
                 alert = Some(message);
             }
+            // Validation first, so that its warning goes into this step's log line.
+            if taken % self.config.val_every == 0 || taken == total {
+                metrics = self.validate(observer)?;
+                let out3 = metrics.as_ref().and_then(|m| m.all().out(3.0));
+                if let (Some(untrained), Some(out3)) = (untrained_out3, out3)
+                    && let Some(message) = worse_than_untrained(taken, untrained, out3)
+                {
+                    observer.on_alert(&message);
+                    alert = Some(message);
+                }
+            }
             if taken % self.config.log_every == 0 || taken == total {
                 let mut line = interval.json(taken, data.batch_size);
                 if let Some(message) = alert.take() {
@@ -400,16 +411,6 @@ impl TrainingRun {
                 let logged = self.report.log_line("train", &line);
                 warn(observer, logged);
                 interval = Interval::new();
-            }
-            if taken % self.config.val_every == 0 || taken == total {
-                metrics = self.validate(observer)?;
-                let out3 = metrics.as_ref().and_then(|m| m.all().out(3.0));
-                if let (Some(untrained), Some(out3)) = (untrained_out3, out3)
-                    && let Some(message) = worse_than_untrained(taken, untrained, out3)
-                {
-                    observer.on_alert(&message);
-                    alert = Some(message);
-                }
             }
             let stopping = stop.load(Ordering::Relaxed);
             if taken % self.config.checkpoint_every == 0 || taken == total || stopping {
