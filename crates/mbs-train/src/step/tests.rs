@@ -366,7 +366,11 @@ fn sequence_weights_follow_the_official_adjusted_gamma() {
 /// gradient norm (Adam's update hides a scale).
 #[test]
 fn data_parallel_step_of_twins_matches_the_one_device_step() {
-    data_parallel_twins(Precision::F32, 1e-5);
+    // Summed in another order, the gradients differ in their last bits;
+    // three Adam steps (normalised by the gradients' size) at 1e-2 carry
+    // that to about 5e-5 in a weight on a loaded machine. A wrong share or
+    // weighting moves weights by about the learning rate.
+    data_parallel_twins(Precision::F32, 1e-4);
 }
 
 /// The same in f16, where each share's loss is scaled and the summed
