@@ -297,47 +297,17 @@ fn listing(keys: &[String]) -> String {
     text
 }
 
-/// The first parameter of `module` (by burn path, in visiting order)
+/// The first parameter of `module` (in the order of burn paths)
 /// holding a NaN or an infinity, with how many it holds. Reads every
 /// parameter to the host.
 pub fn first_non_finite_parameter<M: Module>(module: &M) -> Option<(String, usize)> {
-    let mut finder = NonFiniteFinder {
+    let mut collector = Collector {
         path: Vec::new(),
-        found: None,
+        key: |path| path.to_string(),
+        dict: StateDict::default(),
     };
-    module.visit(&mut finder);
-    finder.found
-}
-
-struct NonFiniteFinder {
-    path: Vec<String>,
-    found: Option<(String, usize)>,
-}
-
-impl ModuleVisitor for NonFiniteFinder {
-    fn enter_module(&mut self, name: &str, _container_type: &str) {
-        self.path.push(name.to_string());
-    }
-
-    fn exit_module(&mut self, _name: &str, _container_type: &str) {
-        self.path.pop();
-    }
-
-    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
-        if self.found.is_some() {
-            return;
-        }
-        let values = param
-            .val()
-            .into_data()
-            .convert::<f32>()
-            .try_into_vec::<f32>()
-            .unwrap_or_default();
-        let count = values.iter().filter(|v| !v.is_finite()).count();
-        if count > 0 {
-            self.found = Some((self.path.join("."), count));
-        }
-    }
+    module.visit(&mut collector);
+    collector.dict.first_non_finite()
 }
 
 struct Collector {
