@@ -10,7 +10,7 @@ use burn::nn::PaddingConfig2d;
 use burn::nn::conv::{Conv2d, Conv2dConfig};
 use burn::tensor::activation::{relu, softmax};
 use burn::tensor::ops::PadMode;
-use burn::tensor::{Device, Tensor};
+use burn::tensor::{Device, FloatDType, Tensor};
 
 use super::Backbone;
 use super::layers::counting;
@@ -104,9 +104,15 @@ impl CostVolumeNet {
     fn correlation(&self, left: Tensor<4>, right: Tensor<4>) -> Tensor<4> {
         let width = left.dims()[3];
         let unit = |features: Tensor<4>| {
-            let centred = features.clone() - features.mean_dims(&[2, 3]);
+            // In f16 the squares of features near their mean underflow to
+            // 0 (below 6e-8) while the features do not, and dividing by
+            // the 1e-6 guard alone gives "unit" vectors of length 100 and
+            // more, whose products overflow the logits. The norm is taken
+            // in f32 (a no-op for f32 networks).
+            let dtype = features.dtype();
+            let centred = (features.clone() - features.mean_dims(&[2, 3])).cast(FloatDType::F32);
             let norm = (centred.clone() * centred.clone()).sum_dim(1).sqrt() + 1e-6;
-            centred / norm
+            (centred / norm).cast(dtype)
         };
         let (left, right) = (unit(left), unit(right));
         let shift = self.candidates - 1;
@@ -189,5 +195,35 @@ mod tests {
     fn rejects_a_disparity_range_not_divisible_by_four() {
         let device = Device::flex();
         assert!(CostVolumeNetConfig::new().init(30, &device).is_err());
+    }
+
+    /// Features within 1e-4 of their mean: their squares underflow in f16,
+    /// and the correlation must still be a cosine (at most 1 in size) and
+    /// agree with the f32 one.
+    #[test]
+    fn f16_correlation_of_features_near_their_mean_is_a_cosine() {
+        let device = Device::flex();
+        let net = CostVolumeNetConfig::new()
+            .with_features(4)
+            .init(32, &device)
+            .expect("valid config");
+        let features = |phase: usize| {
+            let data: Vec<f32> = (0..4 * 2 * 16)
+                .map(|i| 1e-4 * (((i * 7 + phase) % 5) as f32 - 2.0))
+                .collect();
+            Tensor::<4>::from_data(burn::tensor::TensorData::new(data, [1, 4, 2, 16]), &device)
+        };
+        let f32_volume = values(net.correlation(features(0), features(3)));
+        let f16_volume = values(
+            net.correlation(
+                features(0).cast(FloatDType::F16),
+                features(3).cast(FloatDType::F16),
+            )
+            .cast(FloatDType::F32),
+        );
+        assert!(f32_volume.iter().all(|v| v.abs() <= 1.0 + 1e-5));
+        for (a, b) in f32_volume.iter().zip(&f16_volume) {
+            assert!((a - b).abs() < 2e-2, "f16 {b} against f32 {a}");
+        }
     }
 }
