@@ -103,6 +103,12 @@ fn open_vulkan(index: Option<usize>) -> Result<Device, String> {
         return Ok(device.clone());
     }
     let kind = index.map_or(DeviceKind::DefaultDevice, DeviceKind::DiscreteGpu);
+    // The driver and the loader's layers print to stderr while the device
+    // opens (Mesa's device-select layer: "error: XDG_RUNTIME_DIR is invalid
+    // or not set in the environment." on a machine without a desktop), so
+    // what they print is held and passed on labelled as theirs. `None` when
+    // stderr is already held elsewhere.
+    let driver_output = gag::BufferRedirect::stderr().ok();
     let device = Device::wgpu_options()
         .graphics_api(WgpuBackend::Vulkan)
         .device_kind(kind)
@@ -112,10 +118,35 @@ fn open_vulkan(index: Option<usize>) -> Result<Device, String> {
                 "no usable Vulkan device ({e}); install the GPU's Vulkan driver, or Mesa's \
                  lavapipe to run on the CPU (Debian: apt-get install mesa-vulkan-drivers)"
             )
-        })?;
-    run_probe(&device)?;
+        })
+        .and_then(|device| run_probe(&device).map(|()| device));
+    if let Some(held) = driver_output {
+        pass_on_driver_output(held);
+    }
+    let device = device?;
     opened.push((index, device.clone()));
     Ok(device)
+}
+
+/// Prints each distinct line the Vulkan driver printed while it was held,
+/// once, as a note naming its source.
+#[cfg(feature = "vulkan")]
+fn pass_on_driver_output(mut held: gag::BufferRedirect) {
+    use std::io::Read;
+
+    let mut text = String::new();
+    let read = held.read_to_string(&mut text);
+    drop(held);
+    if read.is_err() {
+        return;
+    }
+    let mut seen = Vec::new();
+    for line in text.lines().map(str::trim).filter(|line| !line.is_empty()) {
+        if !seen.contains(&line) {
+            eprintln!("note: the Vulkan driver printed: {line}");
+            seen.push(line);
+        }
+    }
 }
 
 #[cfg(not(feature = "vulkan"))]

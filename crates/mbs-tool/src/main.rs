@@ -47,7 +47,26 @@ enum Command {
     Export(commands::export::Args),
 }
 
+/// burn's default device, where it places what it creates without being
+/// given a device. burn picks a GPU backend by default when one is built
+/// in (Vulkan is), and so a CPU `train` that resumed (burn restores the
+/// optimizer's state there before moving it to each parameter's device)
+/// probed every Vulkan driver, which can print errors of its own. mbs
+/// always names its devices, so the default is the CPU unless the user set
+/// `BURN_DEVICE`.
+fn default_to_the_cpu() {
+    if std::env::var_os("BURN_DEVICE").is_none() {
+        // SAFETY: the first statement of `main`, before any other thread
+        // exists, so nothing reads the environment while it changes.
+        #[allow(unsafe_code)]
+        unsafe {
+            std::env::set_var("BURN_DEVICE", "flex")
+        };
+    }
+}
+
 fn main() -> std::process::ExitCode {
+    default_to_the_cpu();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Demo(args) => commands::demo::run(args),

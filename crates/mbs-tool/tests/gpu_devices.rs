@@ -265,3 +265,59 @@ fn mixed_precision_trains_on_vulkan_as_on_the_cpu() {
     );
     assert!(!out.exists(), "--out was created");
 }
+
+/// Vulkan drivers print to stderr while a device opens (Mesa's lavapipe,
+/// without `XDG_RUNTIME_DIR`: "error: XDG_RUNTIME_DIR is invalid or not
+/// set in the environment.", four times). A CPU run, fresh, resumed or
+/// already complete, opens no GPU at all; a Vulkan run passes on what the
+/// driver printed once a line, labelled as the driver's, so no line of
+/// stderr looks like an mbs error.
+#[test]
+fn a_cpu_run_probes_no_gpu_and_driver_output_is_labelled() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = synth(&dir.path().join("data"));
+    let steps = [
+        "--steps",
+        "2",
+        "--val-every",
+        "2",
+        "--checkpoint-every",
+        "1",
+    ];
+    let train_without_a_desktop = |out: &Path, device: &str| {
+        let out_s = out.display().to_string();
+        let output = mbs_tool()
+            .args(train_args(&manifest, &out_s, device, &steps))
+            .env_remove("XDG_RUNTIME_DIR")
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{device}: {}", text(&output));
+        String::from_utf8_lossy(&output.stderr).into_owned()
+    };
+    let cpu = dir.path().join("cpu");
+    let fresh = train_without_a_desktop(&cpu, "cpu");
+    std::fs::remove_dir_all(cpu.join("checkpoints/step-0000002")).unwrap();
+    let resumed = train_without_a_desktop(&cpu, "cpu");
+    assert!(resumed.contains("at step 1 of 2"), "{resumed}");
+    let complete = train_without_a_desktop(&cpu, "cpu");
+    assert!(
+        complete.contains("is complete (2 of 2 steps)"),
+        "{complete}"
+    );
+    for stderr in [fresh, resumed, complete] {
+        assert!(!stderr.contains("XDG_RUNTIME_DIR"), "{stderr}");
+        assert!(!stderr.contains("Vulkan"), "{stderr}");
+    }
+    let vulkan = train_without_a_desktop(&dir.path().join("vulkan"), "vulkan");
+    for line in vulkan.lines() {
+        assert!(!line.starts_with("error"), "{vulkan}");
+        if line.contains("XDG_RUNTIME_DIR") {
+            assert!(
+                line.starts_with("note: the Vulkan driver printed: "),
+                "{vulkan}"
+            );
+        }
+    }
+    let labelled = vulkan.matches("XDG_RUNTIME_DIR").count();
+    assert!(labelled <= 1, "{vulkan}");
+}
