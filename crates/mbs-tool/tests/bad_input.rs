@@ -286,6 +286,13 @@ const CASES: &[Case] = &[
         1,
         "the configuration file: /data/batch_size",
     ),
+    // A run the machine's memory cannot hold is refused before anything
+    // is allocated or written (issue 26, item 1): about 800 TiB here.
+    case(
+        "train {d}/ok.json --out {o} --backbone raft-stereo --batch-size 1024 --crop 4096x4096",
+        1,
+        "more than twice this machine's",
+    ),
 ];
 
 #[test]

@@ -27,6 +27,7 @@ pub mod ema;
 pub mod error;
 pub mod losses;
 pub mod mask;
+pub mod memory;
 pub mod optimizer;
 pub mod precision;
 pub mod run;

@@ -187,6 +187,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let devices = mbs_nets::device::open_devices(&args.device)?;
     let names = args.device.split(',').map(|name| name.trim().to_string());
     mbs_train::precision::check_support(config.trainer.precision, names.zip(&devices))?;
+    let device_names = args
+        .device
+        .split(',')
+        .map(|name| name.trim().parse())
+        .collect::<Result<Vec<_>, _>>()?;
+    if let Some(warning) = mbs_train::memory::check(&config, &device_names)? {
+        eprintln!("warning: {warning}");
+    }
     if args.restart {
         let checkpoints = out.join(CHECKPOINTS_DIR);
         if checkpoints.exists() {
