@@ -205,3 +205,107 @@ fn killed_run_resumes_to_byte_identical_outputs() {
         "resumed run equals a clean run, no partial file left"
     );
 }
+
+/// `--shard auto` under Open MPI's `mpirun` (3 ranks) and as 3 tasks of
+/// an `srun` step (SLURM's variables): together the shards write exactly
+/// the unsharded run's files. Without a launcher, `auto` is a usage error.
+/// Open MPI comes from `tools/test.sh`; without `mpirun` this test fails.
+#[test]
+fn shard_auto_under_mpirun_and_srun_equals_the_unsharded_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    write_carla_frames(&data, 6, 32, 24);
+    let data_s = data.display().to_string();
+    let decode = |out: &str| {
+        let mut args = vec!["decode-depth", &data_s, "--all-pairs", "--out"];
+        args.push(out);
+        args.iter().map(|a| a.to_string()).collect::<Vec<_>>()
+    };
+    let out = |name: &str| dir.path().join(name).display().to_string();
+    let launchers = [
+        "OMPI_COMM_WORLD_RANK",
+        "OMPI_COMM_WORLD_SIZE",
+        "PMI_RANK",
+        "PMI_SIZE",
+        "SLURM_PROCID",
+        "SLURM_STEP_NUM_TASKS",
+        "SLURM_ARRAY_TASK_ID",
+        "SLURM_ARRAY_TASK_COUNT",
+    ];
+    let unsharded = common::mbs_tool()
+        .args(decode(&out("whole")))
+        .output()
+        .unwrap();
+    assert!(unsharded.status.success(), "{}", text(&unsharded));
+    let whole = tree(&dir.path().join("whole"));
+    assert!(whole.len() >= 6 * 5, "{} files", whole.len());
+
+    let mut mpirun = std::process::Command::new("mpirun");
+    mpirun.args(["-np", "3", "--oversubscribe"]);
+    if is_root() {
+        mpirun.arg("--allow-run-as-root");
+    }
+    let output = mpirun
+        .arg(env!("CARGO_BIN_EXE_mbs-tool"))
+        .args(decode(&out("mpirun")))
+        .args(["--shard", "auto"])
+        .output()
+        .expect("mpirun runs (tools/test.sh installs Open MPI)");
+    assert!(output.status.success(), "{}", text(&output));
+    // Each rank decoded its 2 of the 6 frames.
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(stderr.matches(": 2 done, 0 skipped").count(), 3, "{stderr}");
+    assert_eq!(tree(&dir.path().join("mpirun")), whole);
+
+    let tasks: Vec<_> = (0..3)
+        .map(|task| {
+            common::mbs_tool()
+                .args(decode(&out("srun")))
+                .args(["--shard", "auto"])
+                .env("SLURM_PROCID", task.to_string())
+                .env("SLURM_STEP_NUM_TASKS", "3")
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for task in tasks {
+        let output = task.wait_with_output().unwrap();
+        assert!(output.status.success(), "{}", text(&output));
+    }
+    assert_eq!(tree(&dir.path().join("srun")), whole);
+    // One task alone writes its third.
+    let output = common::mbs_tool()
+        .args(decode(&out("one")))
+        .args(["--shard", "auto"])
+        .env("SLURM_PROCID", "1")
+        .env("SLURM_STEP_NUM_TASKS", "3")
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", text(&output));
+    assert_eq!(tree(&dir.path().join("one")).len() * 3, whole.len());
+
+    let mut alone = common::mbs_tool();
+    for name in launchers {
+        alone.env_remove(name);
+    }
+    let output = alone
+        .args(decode(&out("alone")))
+        .args(["--shard", "auto"])
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(2), "{}", text(&output));
+    assert!(
+        String::from_utf8_lossy(&output.stderr).contains("no launcher set this process's shard"),
+        "{}",
+        text(&output)
+    );
+    assert!(!dir.path().join("alone").exists());
+}
+
+/// Whether the tests run as root (mpirun then needs `--allow-run-as-root`).
+fn is_root() -> bool {
+    std::process::Command::new("id")
+        .arg("-u")
+        .output()
+        .is_ok_and(|output| String::from_utf8_lossy(&output.stdout).trim() == "0")
+}

@@ -1,5 +1,6 @@
 //! `--shard K/N`: split a batch between the N jobs of a cluster job array;
 //! job K (0-based) takes items K, K+N, K+2N… of the sorted item list.
+//! `--shard auto` reads K and N from the launcher (see [`Shard::from_launcher`]).
 
 use std::str::FromStr;
 
@@ -16,7 +17,11 @@ impl FromStr for Shard {
     type Err = String;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let usage = || format!("invalid shard {s:?}: expected K/N with 0 <= K < N, e.g. 0/4");
+        if s.trim() == "auto" {
+            return Shard::from_launcher(|name| std::env::var(name).ok());
+        }
+        let usage =
+            || format!("invalid shard {s:?}: expected K/N with 0 <= K < N, e.g. 0/4, or auto");
         let (k, n) = s.split_once('/').ok_or_else(usage)?;
         let index: usize = k.trim().parse().map_err(|_| usage())?;
         let count: usize = n.trim().parse().map_err(|_| usage())?;
@@ -28,6 +33,79 @@ impl FromStr for Shard {
 }
 
 impl Shard {
+    /// This process's shard from the variables its launcher sets (`var`
+    /// reads one, `None` when unset):
+    /// - a SLURM job array: `SLURM_ARRAY_TASK_ID` counted from
+    ///   `SLURM_ARRAY_TASK_MIN` in steps of `SLURM_ARRAY_TASK_STEP`, of
+    ///   `SLURM_ARRAY_TASK_COUNT`;
+    /// - the processes of one launch: MPI's rank and size (Open MPI's
+    ///   `OMPI_COMM_WORLD_RANK`/`_SIZE`, MPICH's and Intel MPI's
+    ///   `PMI_RANK`/`PMI_SIZE`), else the tasks of an `srun` step
+    ///   (`SLURM_PROCID`/`SLURM_STEP_NUM_TASKS`; not `SLURM_NTASKS`, which
+    ///   a batch script sees too, where it runs one process).
+    ///
+    /// Both at once (an array of multi-process jobs) make `array × processes`
+    /// shards. An error when neither is set or a value is not a number.
+    pub fn from_launcher(var: impl Fn(&str) -> Option<String>) -> Result<Self, String> {
+        let number = |name: &str| -> Result<Option<usize>, String> {
+            var(name)
+                .map(|value| {
+                    value.trim().parse().map_err(|_| {
+                        format!("--shard auto: {name}={value:?} is not a non-negative integer")
+                    })
+                })
+                .transpose()
+        };
+        let pair = |index: &str, count: &str| -> Result<Option<Shard>, String> {
+            match (number(index)?, number(count)?) {
+                (Some(index), Some(count)) => Ok(Some(Shard { index, count })),
+                _ => Ok(None),
+            }
+        };
+        let array = match pair("SLURM_ARRAY_TASK_ID", "SLURM_ARRAY_TASK_COUNT")? {
+            Some(Shard { index, count }) => {
+                let first = number("SLURM_ARRAY_TASK_MIN")?.unwrap_or(0);
+                let step = number("SLURM_ARRAY_TASK_STEP")?.unwrap_or(1).max(1);
+                Some(Shard {
+                    index: index.saturating_sub(first) / step,
+                    count,
+                })
+            }
+            None => None,
+        };
+        let processes = match pair("OMPI_COMM_WORLD_RANK", "OMPI_COMM_WORLD_SIZE")? {
+            Some(shard) => Some(shard),
+            None => match pair("PMI_RANK", "PMI_SIZE")? {
+                Some(shard) => Some(shard),
+                None => pair("SLURM_PROCID", "SLURM_STEP_NUM_TASKS")?,
+            },
+        };
+        let shard = match (array, processes) {
+            (Some(array), Some(processes)) => Shard {
+                index: array.index * processes.count + processes.index,
+                count: array.count * processes.count,
+            },
+            (Some(one), None) | (None, Some(one)) => one,
+            (None, None) => {
+                return Err(
+                    "--shard auto: no launcher set this process's shard (looked for \
+                     SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT, OMPI_COMM_WORLD_RANK/\
+                     OMPI_COMM_WORLD_SIZE, PMI_RANK/PMI_SIZE and SLURM_PROCID/\
+                     SLURM_STEP_NUM_TASKS); give --shard K/N"
+                        .into(),
+                );
+            }
+        };
+        if shard.count == 0 || shard.index >= shard.count {
+            return Err(format!(
+                "--shard auto: the launcher's variables give shard {}/{}, which is not one of \
+                 0/N to N-1/N",
+                shard.index, shard.count
+            ));
+        }
+        Ok(shard)
+    }
+
     /// Keeps this shard's items of an already sorted list.
     pub fn select<T>(self, items: Vec<T>) -> Vec<T> {
         items
@@ -56,6 +134,69 @@ mod tests {
             .collect();
         all.sort();
         assert_eq!(all, (0..10).collect::<Vec<_>>());
+    }
+
+    /// `--shard auto` under each launcher, from a given environment.
+    #[test]
+    fn auto_reads_each_launcher() {
+        let resolve = |vars: &[(&str, &str)]| {
+            Shard::from_launcher(|name| {
+                vars.iter()
+                    .find(|(key, _)| *key == name)
+                    .map(|(_, value)| value.to_string())
+            })
+        };
+        let shard = |index, count| Ok(Shard { index, count });
+        // A SLURM array of 16 numbered 1..16, task 5.
+        let array = [
+            ("SLURM_ARRAY_TASK_ID", "5"),
+            ("SLURM_ARRAY_TASK_COUNT", "16"),
+            ("SLURM_ARRAY_TASK_MIN", "1"),
+        ];
+        assert_eq!(resolve(&array), shard(4, 16));
+        // An array 0-14:2 (8 tasks), task 6.
+        let stepped = [
+            ("SLURM_ARRAY_TASK_ID", "6"),
+            ("SLURM_ARRAY_TASK_COUNT", "8"),
+            ("SLURM_ARRAY_TASK_MIN", "0"),
+            ("SLURM_ARRAY_TASK_STEP", "2"),
+        ];
+        assert_eq!(resolve(&stepped), shard(3, 8));
+        let ompi = [("OMPI_COMM_WORLD_RANK", "2"), ("OMPI_COMM_WORLD_SIZE", "3")];
+        assert_eq!(resolve(&ompi), shard(2, 3));
+        assert_eq!(
+            resolve(&[("PMI_RANK", "1"), ("PMI_SIZE", "4")]),
+            shard(1, 4)
+        );
+        let srun = [("SLURM_PROCID", "3"), ("SLURM_STEP_NUM_TASKS", "8")];
+        assert_eq!(resolve(&srun), shard(3, 8));
+        // mpirun inside a batch script: MPI's rank, not the script's task.
+        let batch_script = [
+            ("SLURM_PROCID", "0"),
+            ("SLURM_STEP_NUM_TASKS", "1"),
+            ("OMPI_COMM_WORLD_RANK", "1"),
+            ("OMPI_COMM_WORLD_SIZE", "3"),
+        ];
+        assert_eq!(resolve(&batch_script), shard(1, 3));
+        // Task 5 (of 16, from 1) running rank 2 of 3: 4 * 3 + 2 of 48.
+        let both = [array.as_slice(), ompi.as_slice()].concat();
+        assert_eq!(resolve(&both), shard(14, 48));
+        // Nothing set, SLURM_NTASKS alone (a batch script), bad values.
+        for (vars, message) in [
+            (&[][..], "no launcher set"),
+            (&[("SLURM_NTASKS", "4")][..], "no launcher set"),
+            (
+                &[("PMI_RANK", "x"), ("PMI_SIZE", "2")][..],
+                "PMI_RANK=\"x\" is not",
+            ),
+            (
+                &[("PMI_RANK", "2"), ("PMI_SIZE", "2")][..],
+                "give shard 2/2",
+            ),
+        ] {
+            let error = resolve(vars).unwrap_err();
+            assert!(error.contains(message), "{vars:?}: {error}");
+        }
     }
 
     #[test]

@@ -19,6 +19,7 @@ use crate::cli::shard::Shard;
   mbs-tool decode-depth /data/MBS20K --out /data/MBS20K-depth --all-pairs
   mbs-tool decode-depth mbs-demo/manifest.json --pairs 0:1,0:4 --disparity-format pfm
   mbs-tool decode-depth /data/MBS20K --shard $SLURM_ARRAY_TASK_ID/16
+  srun -n 16 mbs-tool decode-depth /data/MBS20K --shard auto     # or mpirun -np 16
 
 Outputs per frame: depth_0.exr (or .pfm, or depth_0_mm.png) and disp_0_T.png
 (KITTI 16-bit, value/256) or disp_0_T.pfm for each requested pair 0:T.
@@ -55,7 +56,8 @@ pub struct Args {
     #[arg(long, default_value_t = 5, value_parser = crate::cli::values::views)]
     pub views: usize,
     /// Process only shard K of N (0-based), for cluster job arrays.
-    #[arg(long, value_name = "K/N")]
+    /// `auto` reads K and N from a SLURM array, `srun` or `mpirun`.
+    #[arg(long, value_name = "K/N|auto")]
     pub shard: Option<Shard>,
     /// Worker threads (0 = one per core).
     #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]

@@ -55,7 +55,8 @@ pub struct Args {
     #[arg(long)]
     pub overwrite: bool,
     /// Process only shard K of N (0-based), for cluster job arrays.
-    #[arg(long, value_name = "K/N")]
+    /// `auto` reads K and N from a SLURM array, `srun` or `mpirun`.
+    #[arg(long, value_name = "K/N|auto")]
     pub shard: Option<Shard>,
     /// Worker threads (0 = one per core).
     #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
