@@ -27,3 +27,11 @@ if [ ${#packages[@]} -gt 0 ]; then
         "${packages[@]}" > /dev/null
 fi
 cargo test --workspace --locked
+# The Python package (python/, pyo3 + maturin) built from this tree into
+# .python-test/ with numpy and pytest from PyPI, then its tests against the
+# mbs-tool binary the Rust tests just built. They fail, never skip, when a
+# part is missing.
+python3 -m pip install --quiet --disable-pip-version-check --upgrade \
+    --target .python-test ./python numpy pytest
+PYTHONPATH="$PWD/.python-test" MBS_TOOL="$PWD/target/debug/mbs-tool" \
+    python3 -m pytest -q -p no:cacheprovider python/tests

@@ -1,0 +1,47 @@
+"""mbs from Python: disparity and depth files, CARLA depth, the built-in matcher.
+
+Conventions, the same for every function:
+
+- images are ``uint8`` arrays of shape ``(H, W, 3)``, RGB;
+- disparity and depth are ``float32`` arrays of shape ``(H, W)``, with
+  ``inf`` where a pixel has no valid value;
+- a wrong dtype, shape or value raises ``ValueError`` naming the argument;
+  a file that cannot be read or written raises ``OSError`` naming it;
+- heavy calls release the GIL, so threads run them in parallel.
+
+Example::
+
+    import numpy as np, mbs
+    depth = mbs.decode_carla_depth(rgb)                   # metres, inf past 200 m
+    disparity = mbs.depth_to_disparity(depth, focal=480.0, baseline=0.5)
+    mbs.write_kitti_disparity("disp.png", disparity)
+    predicted = mbs.match_stereo(left, right, max_disparity=128)
+"""
+
+from mbs._native import (
+    decode_carla_depth,
+    depth_to_disparity,
+    match_stereo,
+    read_exr,
+    read_kitti_disparity,
+    read_pfm,
+    read_rgb,
+    write_exr,
+    write_kitti_disparity,
+    write_pfm,
+    write_rgb,
+)
+
+__all__ = [
+    "decode_carla_depth",
+    "depth_to_disparity",
+    "match_stereo",
+    "read_exr",
+    "read_kitti_disparity",
+    "read_pfm",
+    "read_rgb",
+    "write_exr",
+    "write_kitti_disparity",
+    "write_pfm",
+    "write_rgb",
+]

@@ -1,0 +1,300 @@
+//! `mbs._native`: the Rust side of the Python package `mbs` (see
+//! `mbs/__init__.py` for the conventions every function follows).
+//!
+//! Arrays cross as NumPy arrays: images `uint8` HxWx3 RGB, disparity and
+//! depth `float32` HxW with `inf` for invalid pixels. A wrong dtype, shape
+//! or value is a `ValueError` naming the argument; a file that cannot be
+//! read or written is an `OSError` naming it. Heavy calls release the GIL.
+
+use std::path::{Path, PathBuf};
+
+use image::{ImageBuffer, RgbImage};
+use mbs_core::FloatImage;
+use mbs_core::formats::{carla, exr, pfm, png16, rgb};
+use mbs_core::geometry::depth_to_disparity_value;
+use mbs_infer::StereoMatcher;
+use mbs_infer::{Sgm, SgmConfig, SgmPaths};
+use numpy::{PyArray2, PyArray3, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyOSError, PyValueError};
+use pyo3::prelude::*;
+
+/// The most pixels a side an array may have (as the command line's images).
+const MAX_SIDE: usize = 32768;
+
+/// A `ValueError` about argument `name`.
+fn value_error(name: &str, problem: impl std::fmt::Display) -> PyErr {
+    PyValueError::new_err(format!("{name}: {problem}"))
+}
+
+/// An `OSError` naming `path`.
+fn os_error(path: &Path, problem: impl std::fmt::Display) -> PyErr {
+    PyOSError::new_err(format!("{}: {problem}", path.display()))
+}
+
+/// What an argument that is not the expected array is, for messages.
+fn describe(value: &Bound<'_, PyAny>) -> String {
+    match value.cast::<numpy::PyUntypedArray>() {
+        Ok(array) => format!(
+            "a {} array of shape {:?}",
+            array.dtype(),
+            array.shape().to_vec()
+        ),
+        Err(_) => match value.get_type().name() {
+            Ok(name) => format!("a {name}"),
+            Err(_) => "something else".into(),
+        },
+    }
+}
+
+/// Checks an array's sides: at least 1 and at most [`MAX_SIDE`].
+fn check_sides(name: &str, height: usize, width: usize) -> PyResult<()> {
+    if height == 0 || width == 0 || height > MAX_SIDE || width > MAX_SIDE {
+        return Err(value_error(
+            name,
+            format!("{height}x{width} pixels: each side must be 1 to {MAX_SIDE}"),
+        ));
+    }
+    Ok(())
+}
+
+/// A `float32` HxW array as a float image.
+fn float_map(name: &str, value: &Bound<'_, PyAny>) -> PyResult<FloatImage> {
+    let array = value.cast::<PyArray2<f32>>().map_err(|_| {
+        value_error(
+            name,
+            format!("expected a float32 HxW array, got {}", describe(value)),
+        )
+    })?;
+    let [height, width] = [array.shape()[0], array.shape()[1]];
+    check_sides(name, height, width)?;
+    let values: Vec<f32> = array.readonly().as_array().iter().copied().collect();
+    ImageBuffer::from_raw(width as u32, height as u32, values)
+        .ok_or_else(|| value_error(name, "its data does not match its shape"))
+}
+
+/// A `uint8` HxWx3 array as an RGB image.
+fn rgb_image(name: &str, value: &Bound<'_, PyAny>) -> PyResult<RgbImage> {
+    let wrong = || {
+        value_error(
+            name,
+            format!("expected a uint8 HxWx3 RGB array, got {}", describe(value)),
+        )
+    };
+    let array = value.cast::<PyArray3<u8>>().map_err(|_| wrong())?;
+    let shape = array.shape();
+    if shape[2] != 3 {
+        return Err(wrong());
+    }
+    check_sides(name, shape[0], shape[1])?;
+    let values: Vec<u8> = array.readonly().as_array().iter().copied().collect();
+    ImageBuffer::from_raw(shape[1] as u32, shape[0] as u32, values)
+        .ok_or_else(|| value_error(name, "its data does not match its shape"))
+}
+
+/// A float image as a `float32` HxW array.
+fn to_array<'py>(py: Python<'py>, map: FloatImage) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    let (width, height) = map.dimensions();
+    let array = numpy::PyArray1::from_vec(py, map.into_raw());
+    array.reshape([height as usize, width as usize])
+}
+
+/// An RGB image as a `uint8` HxWx3 array.
+fn to_rgb_array<'py>(py: Python<'py>, image: RgbImage) -> PyResult<Bound<'py, PyArray3<u8>>> {
+    let (width, height) = image.dimensions();
+    let array = numpy::PyArray1::from_vec(py, image.into_raw());
+    array.reshape([height as usize, width as usize, 3])
+}
+
+/// Reads an image (PNG, PPM, ...) as a uint8 HxWx3 RGB array (grey and
+/// 16-bit images are converted, alpha dropped).
+#[pyfunction]
+fn read_rgb(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArray3<u8>>> {
+    let image = py
+        .detach(|| rgb::read_rgb(&path))
+        .map_err(|e| os_error(&path, e))?;
+    to_rgb_array(py, image)
+}
+
+/// Writes a uint8 HxWx3 RGB array as a PNG.
+#[pyfunction]
+fn write_rgb(py: Python<'_>, path: PathBuf, image: &Bound<'_, PyAny>) -> PyResult<()> {
+    let image = rgb_image("image", image)?;
+    py.detach(|| rgb::write_rgb_png(&path, &image))
+        .map_err(|e| os_error(&path, e))
+}
+
+/// Reads a single-channel PFM (disparity or depth) as a float32 HxW array.
+#[pyfunction]
+fn read_pfm(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArray2<f32>>> {
+    let map = py
+        .detach(|| pfm::read_pfm_grey(&path))
+        .map_err(|e| os_error(&path, e))?;
+    to_array(py, map)
+}
+
+/// Writes a float32 HxW array as a little-endian single-channel PFM.
+#[pyfunction]
+fn write_pfm(py: Python<'_>, path: PathBuf, map: &Bound<'_, PyAny>) -> PyResult<()> {
+    let map = float_map("map", map)?;
+    py.detach(|| pfm::write_pfm_grey(&path, &map, pfm::Endian::Little))
+        .map_err(|e| os_error(&path, e))
+}
+
+/// Reads a KITTI 16-bit PNG disparity (value / 256; 0 is invalid, `inf`).
+#[pyfunction]
+fn read_kitti_disparity(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArray2<f32>>> {
+    let map = py
+        .detach(|| png16::read_kitti_disparity(&path))
+        .map_err(|e| os_error(&path, e))?;
+    to_array(py, map)
+}
+
+/// Writes a disparity as a KITTI 16-bit PNG (value x 256; `inf`, NaN and
+/// values that do not fit are written as 0, invalid).
+#[pyfunction]
+fn write_kitti_disparity(
+    py: Python<'_>,
+    path: PathBuf,
+    disparity: &Bound<'_, PyAny>,
+) -> PyResult<()> {
+    let disparity = float_map("disparity", disparity)?;
+    py.detach(|| png16::write_kitti_disparity(&path, &disparity))
+        .map_err(|e| os_error(&path, e))
+}
+
+/// Reads a single-channel OpenEXR depth map as a float32 HxW array.
+#[pyfunction]
+fn read_exr(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArray2<f32>>> {
+    let map = py
+        .detach(|| exr::read_exr(&path))
+        .map_err(|e| os_error(&path, e))?;
+    to_array(py, map)
+}
+
+/// Writes a float32 HxW array as a single-channel OpenEXR file.
+#[pyfunction]
+fn write_exr(py: Python<'_>, path: PathBuf, map: &Bound<'_, PyAny>) -> PyResult<()> {
+    let map = float_map("map", map)?;
+    py.detach(|| exr::write_exr(&path, &map))
+        .map_err(|e| os_error(&path, e))
+}
+
+/// Decodes a CARLA RGB-encoded depth image (uint8 HxWx3) into metres;
+/// depth beyond `max_depth` (200 m by default, as `mbs-tool decode-depth`)
+/// is `inf`.
+#[pyfunction]
+#[pyo3(signature = (rgb, max_depth = 200.0))]
+fn decode_carla_depth<'py>(
+    py: Python<'py>,
+    rgb: &Bound<'py, PyAny>,
+    max_depth: f32,
+) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    if max_depth.is_nan() || max_depth <= 0.0 {
+        return Err(value_error(
+            "max_depth",
+            format!("{max_depth} is not positive"),
+        ));
+    }
+    let rgb = rgb_image("rgb", rgb)?;
+    let depth =
+        py.detach(|| mbs_core::geometry::limit_depth(&carla::decode_depth(&rgb), max_depth));
+    to_array(py, depth)
+}
+
+/// Disparity (px) of a depth map (m) for a pair of cameras `baseline` metres
+/// apart with focal length `focal` pixels: `focal * baseline / depth`; depth
+/// that is not finite, not positive or beyond `max_depth` gives `inf`.
+#[pyfunction]
+#[pyo3(signature = (depth, focal, baseline, max_depth = 200.0))]
+fn depth_to_disparity<'py>(
+    py: Python<'py>,
+    depth: &Bound<'py, PyAny>,
+    focal: f64,
+    baseline: f64,
+    max_depth: f32,
+) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    for (name, value) in [("focal", focal), ("baseline", baseline)] {
+        if !value.is_finite() || value <= 0.0 {
+            return Err(value_error(
+                name,
+                format!("{value} is not a positive number"),
+            ));
+        }
+    }
+    let mut map = float_map("depth", depth)?;
+    let scale = focal * baseline;
+    py.detach(|| {
+        map.iter_mut()
+            .for_each(|z| *z = depth_to_disparity_value(*z, scale, max_depth))
+    });
+    to_array(py, map)
+}
+
+/// Left-view disparity of a rectified pair with the built-in semi-global
+/// matcher (`mbs-tool predict`'s defaults): `max_disparity` disparities
+/// (0 estimates the range from the pair, up to 256), 5 or 8 paths, holes
+/// filled from the background side unless `fill` is false (then `inf`).
+#[pyfunction]
+#[pyo3(signature = (left, right, max_disparity = 128, paths = 5, fill = true))]
+fn match_stereo<'py>(
+    py: Python<'py>,
+    left: &Bound<'py, PyAny>,
+    right: &Bound<'py, PyAny>,
+    max_disparity: u32,
+    paths: u32,
+    fill: bool,
+) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    let paths = match paths {
+        5 => SgmPaths::Five,
+        8 => SgmPaths::Eight,
+        other => return Err(value_error("paths", format!("{other} is not 5 or 8"))),
+    };
+    if max_disparity > mbs_infer::sgm::MAX_DISPARITY {
+        return Err(value_error(
+            "max_disparity",
+            format!(
+                "{max_disparity} is not from 0 to {}",
+                mbs_infer::sgm::MAX_DISPARITY
+            ),
+        ));
+    }
+    let (left, right) = (rgb_image("left", left)?, rgb_image("right", right)?);
+    if left.dimensions() != right.dimensions() {
+        return Err(value_error(
+            "right",
+            format!(
+                "{}x{} pixels, but left is {}x{}",
+                right.height(),
+                right.width(),
+                left.height(),
+                left.width()
+            ),
+        ));
+    }
+    let matcher = Sgm::new(SgmConfig {
+        paths,
+        fill,
+        ..SgmConfig::with_max_disparity(max_disparity)
+    });
+    let disparity = py
+        .detach(|| matcher.predict(&left, &right))
+        .map_err(|e| value_error("left, right", e))?;
+    to_array(py, disparity.disparity)
+}
+
+/// The module `mbs._native`.
+#[pymodule]
+fn _native(module: &Bound<'_, PyModule>) -> PyResult<()> {
+    module.add_function(wrap_pyfunction!(read_rgb, module)?)?;
+    module.add_function(wrap_pyfunction!(write_rgb, module)?)?;
+    module.add_function(wrap_pyfunction!(read_pfm, module)?)?;
+    module.add_function(wrap_pyfunction!(write_pfm, module)?)?;
+    module.add_function(wrap_pyfunction!(read_kitti_disparity, module)?)?;
+    module.add_function(wrap_pyfunction!(write_kitti_disparity, module)?)?;
+    module.add_function(wrap_pyfunction!(read_exr, module)?)?;
+    module.add_function(wrap_pyfunction!(write_exr, module)?)?;
+    module.add_function(wrap_pyfunction!(decode_carla_depth, module)?)?;
+    module.add_function(wrap_pyfunction!(depth_to_disparity, module)?)?;
+    module.add_function(wrap_pyfunction!(match_stereo, module)?)?;
+    Ok(())
+}

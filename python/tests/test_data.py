@@ -1,0 +1,155 @@
+"""The Python package against the command line: file round trips, CARLA
+depth and disparity equal to `mbs-tool decode-depth`'s files, the matcher
+equal to `mbs-tool predict`, and the errors every function promises.
+
+`tools/test.sh` builds the package and runs these with MBS_TOOL set to the
+`mbs-tool` binary of the same tree.
+"""
+
+import os
+import subprocess
+import threading
+
+import numpy as np
+import pytest
+
+import mbs
+
+MBS_TOOL = os.environ.get("MBS_TOOL", "target/debug/mbs-tool")
+
+
+def mbs_tool(*args):
+    """Runs mbs-tool and fails the test, with its output, when it fails."""
+    done = subprocess.run([MBS_TOOL, *map(str, args)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stdout + done.stderr
+    return done
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    """A small synthetic MBS20K-style set made by `mbs-tool synth`."""
+    root = tmp_path_factory.mktemp("synth")
+    mbs_tool("synth", "--out", root, "--seed", "3", "--frames", "1",
+             "--towns", "Town01", "--weathers", "ClearNoon",
+             "--width", "96", "--height", "48", "--focal", "48", "--no-checksums")
+    frames = sorted(root.glob("Town01/ClearNoon/*/"))
+    assert frames, f"synth wrote no frame under {root}"
+    return frames[0]
+
+
+def test_pfm_round_trip_keeps_every_value_and_inf(tmp_path):
+    disparity = np.arange(12, dtype=np.float32).reshape(3, 4) * 0.25
+    disparity[1, 2] = np.inf
+    mbs.write_pfm(tmp_path / "d.pfm", disparity)
+    back = mbs.read_pfm(tmp_path / "d.pfm")
+    assert back.dtype == np.float32 and back.shape == (3, 4)
+    np.testing.assert_array_equal(back, disparity)
+
+
+def test_kitti_png_round_trip_within_its_resolution(tmp_path):
+    disparity = np.array([[0.5, 10.25, 200.0], [np.inf, 3.0, 1.0 / 256]], dtype=np.float32)
+    mbs.write_kitti_disparity(tmp_path / "d.png", disparity)
+    back = mbs.read_kitti_disparity(tmp_path / "d.png")
+    finite = np.isfinite(disparity)
+    np.testing.assert_allclose(back[finite], disparity[finite], atol=1.0 / 512)
+    assert np.isinf(back[1, 0]), "0 in a KITTI PNG is invalid"
+
+
+def test_rgb_png_round_trip_is_exact(tmp_path):
+    image = (np.arange(5 * 7 * 3) % 251).astype(np.uint8).reshape(5, 7, 3)
+    mbs.write_rgb(tmp_path / "i.png", image)
+    back = mbs.read_rgb(tmp_path / "i.png")
+    assert back.dtype == np.uint8 and back.shape == (5, 7, 3)
+    np.testing.assert_array_equal(back, image)
+
+
+def test_exr_round_trip_is_exact(tmp_path):
+    depth = np.linspace(0.5, 90.0, 20, dtype=np.float32).reshape(4, 5)
+    depth[0, 0] = np.inf
+    mbs.write_exr(tmp_path / "z.exr", depth)
+    np.testing.assert_array_equal(mbs.read_exr(tmp_path / "z.exr"), depth)
+
+
+def test_carla_depth_and_disparity_equal_decode_depth(scene, tmp_path):
+    out = tmp_path / "decoded"
+    # Through the manifest, so the rig is synth's (a folder means MBS20K's).
+    mbs_tool("decode-depth", scene.parent.parent.parent / "manifest.json", "--pairs", "0:1",
+             "--disparity-format", "pfm", "--out", out)
+    decoded = out / scene.relative_to(scene.parent.parent.parent)
+    rgb = mbs.read_rgb(scene / "depth_0.png")
+    depth = mbs.decode_carla_depth(rgb)
+    np.testing.assert_array_equal(depth, mbs.read_exr(decoded / "depth_0.exr"))
+    # synth's rig: focal 48 px, cameras 0.5 m apart.
+    disparity = mbs.depth_to_disparity(depth, focal=48.0, baseline=0.5)
+    np.testing.assert_allclose(
+        disparity, mbs.read_pfm(decoded / "disp_0_1.pfm"), rtol=1e-6
+    )
+
+
+def test_matcher_equals_predict(scene, tmp_path):
+    left, right = scene / "rgb_1.png", scene / "rgb_2.png"
+    mbs_tool("predict", "--left", left, "--right", right, "--out", tmp_path,
+             "--format", "pfm", "--max-disparity", "32")
+    (written,) = list(tmp_path.glob("*.pfm"))
+    ours = mbs.match_stereo(mbs.read_rgb(left), mbs.read_rgb(right), max_disparity=32)
+    np.testing.assert_array_equal(ours, mbs.read_pfm(written))
+
+
+def test_the_matcher_runs_in_threads(scene):
+    left, right = mbs.read_rgb(scene / "rgb_1.png"), mbs.read_rgb(scene / "rgb_2.png")
+    alone = mbs.match_stereo(left, right, max_disparity=32)
+    results = [None] * 4
+
+    def work(k):
+        results[k] = mbs.match_stereo(left, right, max_disparity=32)
+
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(4)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    for result in results:
+        np.testing.assert_array_equal(result, alone)
+
+
+@pytest.mark.parametrize(
+    "call, argument",
+    [
+        (lambda: mbs.write_pfm("x.pfm", np.zeros((2, 2), dtype=np.float64)), "map"),
+        (lambda: mbs.write_pfm("x.pfm", np.zeros((2, 2, 1), dtype=np.float32)), "map"),
+        (lambda: mbs.write_pfm("x.pfm", [[1.0]]), "map"),
+        (lambda: mbs.write_pfm("x.pfm", np.zeros((0, 3), dtype=np.float32)), "map"),
+        (lambda: mbs.decode_carla_depth(np.zeros((4, 4, 4), dtype=np.uint8)), "rgb"),
+        (lambda: mbs.decode_carla_depth(np.zeros((4, 4, 3), dtype=np.float32)), "rgb"),
+        (lambda: mbs.decode_carla_depth(np.zeros((4, 4, 3), dtype=np.uint8), max_depth=-1), "max_depth"),
+        (lambda: mbs.depth_to_disparity(np.ones((2, 2), dtype=np.float32), focal=0, baseline=1), "focal"),
+        (lambda: mbs.depth_to_disparity(np.ones((2, 2), dtype=np.float32), focal=1, baseline=np.nan), "baseline"),
+        (lambda: mbs.match_stereo(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 9, 3), np.uint8)), "right"),
+        (lambda: mbs.match_stereo(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8), paths=6), "paths"),
+        (lambda: mbs.match_stereo(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8), max_disparity=5000), "max_disparity"),
+    ],
+)
+def test_a_wrong_argument_is_a_value_error_naming_it(call, argument):
+    with pytest.raises(ValueError) as error:
+        call()
+    assert str(error.value).startswith(f"{argument}: "), str(error.value)
+
+
+def test_a_bad_file_is_an_os_error_naming_it(tmp_path):
+    missing = tmp_path / "missing.pfm"
+    with pytest.raises(OSError, match="missing.pfm"):
+        mbs.read_pfm(missing)
+    garbage = tmp_path / "garbage.png"
+    garbage.write_bytes(b"\x89PNG\r\n\x1a\nnot really")
+    with pytest.raises(OSError, match="garbage.png"):
+        mbs.read_kitti_disparity(garbage)
+    (tmp_path / "a_file").write_bytes(b"")
+    with pytest.raises(OSError, match="a_file"):
+        mbs.write_pfm(tmp_path / "a_file" / "d.pfm", np.zeros((2, 2), np.float32))
+
+
+def test_non_contiguous_arrays_are_read_in_their_logical_order(tmp_path):
+    base = np.arange(24, dtype=np.float32).reshape(4, 6)
+    view = base[:, ::2]
+    mbs.write_pfm(tmp_path / "v.pfm", view)
+    np.testing.assert_array_equal(mbs.read_pfm(tmp_path / "v.pfm"), view)
