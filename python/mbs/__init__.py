@@ -16,11 +16,13 @@ Example::
     disparity = mbs.depth_to_disparity(depth, focal=480.0, baseline=0.5)
     mbs.write_kitti_disparity("disp.png", disparity)
     predicted = mbs.match_stereo(left, right, max_disparity=128)
+    views = mbs.extrapolate(left, right)                  # image_1, image_4, masks, disparities
 """
 
 from mbs._native import (
     decode_carla_depth,
     depth_to_disparity,
+    extrapolate,
     match_stereo,
     read_exr,
     read_kitti_disparity,
@@ -35,6 +37,7 @@ from mbs._native import (
 __all__ = [
     "decode_carla_depth",
     "depth_to_disparity",
+    "extrapolate",
     "match_stereo",
     "read_exr",
     "read_kitti_disparity",

@@ -12,11 +12,15 @@ use image::{ImageBuffer, RgbImage};
 use mbs_core::FloatImage;
 use mbs_core::formats::{carla, exr, pfm, png16, rgb};
 use mbs_core::geometry::depth_to_disparity_value;
+use mbs_extrapolate::{DisparitySource, Extrapolator};
 use mbs_infer::StereoMatcher;
+use mbs_infer::inpaint::{BackgroundFill, Inpainter, IsotropicFill};
 use mbs_infer::{Sgm, SgmConfig, SgmPaths};
+use mbs_warp::Dilation;
 use numpy::{PyArray2, PyArray3, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyOSError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
 /// The most pixels a side an array may have (as the command line's images).
 const MAX_SIDE: usize = 32768;
@@ -89,6 +93,37 @@ fn rgb_image(name: &str, value: &Bound<'_, PyAny>) -> PyResult<RgbImage> {
     let values: Vec<u8> = array.readonly().as_array().iter().copied().collect();
     ImageBuffer::from_raw(shape[1] as u32, shape[0] as u32, values)
         .ok_or_else(|| value_error(name, "its data does not match its shape"))
+}
+
+/// Checks a matcher's disparity count (0 estimates it from the pair).
+fn check_max_disparity(max_disparity: u32) -> PyResult<()> {
+    if max_disparity > mbs_infer::sgm::MAX_DISPARITY {
+        return Err(value_error(
+            "max_disparity",
+            format!(
+                "{max_disparity} is not from 0 to {}",
+                mbs_infer::sgm::MAX_DISPARITY
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Checks that the two views of a pair have one size.
+fn check_same_size(left: &RgbImage, right: &RgbImage) -> PyResult<()> {
+    if left.dimensions() != right.dimensions() {
+        return Err(value_error(
+            "right",
+            format!(
+                "{}x{} pixels, but left is {}x{}",
+                right.height(),
+                right.width(),
+                left.height(),
+                left.width()
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// A float image as a `float32` HxW array.
@@ -249,28 +284,9 @@ fn match_stereo<'py>(
         8 => SgmPaths::Eight,
         other => return Err(value_error("paths", format!("{other} is not 5 or 8"))),
     };
-    if max_disparity > mbs_infer::sgm::MAX_DISPARITY {
-        return Err(value_error(
-            "max_disparity",
-            format!(
-                "{max_disparity} is not from 0 to {}",
-                mbs_infer::sgm::MAX_DISPARITY
-            ),
-        ));
-    }
+    check_max_disparity(max_disparity)?;
     let (left, right) = (rgb_image("left", left)?, rgb_image("right", right)?);
-    if left.dimensions() != right.dimensions() {
-        return Err(value_error(
-            "right",
-            format!(
-                "{}x{} pixels, but left is {}x{}",
-                right.height(),
-                right.width(),
-                left.height(),
-                left.width()
-            ),
-        ));
-    }
+    check_same_size(&left, &right)?;
     let matcher = Sgm::new(SgmConfig {
         paths,
         fill,
@@ -280,6 +296,84 @@ fn match_stereo<'py>(
         .detach(|| matcher.predict(&left, &right))
         .map_err(|e| value_error("left, right", e))?;
     to_array(py, disparity.disparity)
+}
+
+/// A grey mask (0/255) as a `uint8` HxW array.
+fn to_mask_array<'py>(
+    py: Python<'py>,
+    mask: mbs_core::MaskImage,
+) -> PyResult<Bound<'py, PyArray2<u8>>> {
+    let (width, height) = mask.dimensions();
+    let array = numpy::PyArray1::from_vec(py, mask.into_raw());
+    array.reshape([height as usize, width as usize])
+}
+
+/// Two new views of a rectified pair, as `mbs-tool extrapolate` makes them
+/// with its defaults: `image_1` one baseline left of `left` and `image_4`
+/// one baseline right of `right`, by z-buffered forward warping with the
+/// built-in matcher's disparities (tuned for warping; `max_disparity` 0
+/// estimates the range from the pair), holes grown by `dilation` (`none`,
+/// `square`, `ellipse`, `background-side` or `foreground-side`, by
+/// `dilate_radius` pixels) and inpainted (`background` or `isotropic`).
+/// Returns a dict: `image_1`, `image_4` (uint8 HxWx3), `mask_1`, `mask_4`
+/// (uint8 HxW, 255 where synthesised) and `disparity_2`, `disparity_3`
+/// (float32 HxW, the disparities used for the left and right views).
+#[pyfunction]
+#[pyo3(signature = (left, right, max_disparity = 0, dilation = "none", dilate_radius = 2, inpaint = "background"))]
+fn extrapolate<'py>(
+    py: Python<'py>,
+    left: &Bound<'py, PyAny>,
+    right: &Bound<'py, PyAny>,
+    max_disparity: u32,
+    dilation: &str,
+    dilate_radius: u32,
+    inpaint: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    let dilation = match dilation {
+        "none" => Dilation::None,
+        "square" => Dilation::Square(dilate_radius),
+        "ellipse" => Dilation::Ellipse(dilate_radius),
+        "background-side" => Dilation::BackgroundSide(dilate_radius),
+        "foreground-side" => Dilation::ForegroundSide(dilate_radius),
+        other => {
+            return Err(value_error(
+                "dilation",
+                format!(
+                    "{other:?} is not none, square, ellipse, background-side or foreground-side"
+                ),
+            ));
+        }
+    };
+    let inpainter: Box<dyn Inpainter> = match inpaint {
+        "background" => Box::new(BackgroundFill::default()),
+        "isotropic" => Box::new(IsotropicFill),
+        other => {
+            return Err(value_error(
+                "inpaint",
+                format!("{other:?} is not background or isotropic"),
+            ));
+        }
+    };
+    check_max_disparity(max_disparity)?;
+    let (left, right) = (rgb_image("left", left)?, rgb_image("right", right)?);
+    check_same_size(&left, &right)?;
+    let extrapolator = Extrapolator::new(dilation, inpainter);
+    let source = DisparitySource::builtin(max_disparity);
+    let (views, disparities) = py
+        .detach(|| {
+            let disparities = source.disparities(&left, &right)?;
+            let views = extrapolator.extrapolate(&left, &right, &disparities)?;
+            Ok::<_, mbs_extrapolate::ExtrapolateError>((views, disparities))
+        })
+        .map_err(|e| value_error("left, right", e))?;
+    let out = PyDict::new(py);
+    out.set_item("image_1", to_rgb_array(py, views.image_1)?)?;
+    out.set_item("image_4", to_rgb_array(py, views.image_4)?)?;
+    out.set_item("mask_1", to_mask_array(py, views.mask_1)?)?;
+    out.set_item("mask_4", to_mask_array(py, views.mask_4)?)?;
+    out.set_item("disparity_2", to_array(py, disparities.left)?)?;
+    out.set_item("disparity_3", to_array(py, disparities.right)?)?;
+    Ok(out)
 }
 
 /// The module `mbs._native`.
@@ -296,5 +390,6 @@ fn _native(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(decode_carla_depth, module)?)?;
     module.add_function(wrap_pyfunction!(depth_to_disparity, module)?)?;
     module.add_function(wrap_pyfunction!(match_stereo, module)?)?;
+    module.add_function(wrap_pyfunction!(extrapolate, module)?)?;
     Ok(())
 }

@@ -1,6 +1,7 @@
 """The Python package against the command line: file round trips, CARLA
 depth and disparity equal to `mbs-tool decode-depth`'s files, the matcher
-equal to `mbs-tool predict`, and the errors every function promises.
+equal to `mbs-tool predict`, extrapolation equal to `mbs-tool extrapolate`,
+and the errors every function promises.
 
 `tools/test.sh` builds the package and runs these with MBS_TOOL set to the
 `mbs-tool` binary of the same tree.
@@ -95,6 +96,30 @@ def test_matcher_equals_predict(scene, tmp_path):
     np.testing.assert_array_equal(ours, mbs.read_pfm(written))
 
 
+@pytest.mark.parametrize("options, flags", [
+    ({}, []),
+    ({"dilation": "ellipse", "dilate_radius": 1, "inpaint": "isotropic", "max_disparity": 32},
+     ["--dilation", "ellipse", "--dilate-radius", "1", "--inpaint", "isotropic", "--max-disparity", "32"]),
+])
+def test_extrapolate_equals_the_command_byte_for_byte(scene, tmp_path, options, flags):
+    left, right = scene / "rgb_1.png", scene / "rgb_2.png"
+    cli = tmp_path / "cli"
+    mbs_tool("extrapolate", "--left", left, "--right", right, "--out", cli, *flags)
+    views = mbs.extrapolate(mbs.read_rgb(left), mbs.read_rgb(right), **options)
+    ours = tmp_path / "ours"
+    ours.mkdir()
+    for name in ("image_1", "image_4"):
+        mbs.write_rgb(ours / f"{name}.png", views[name])
+        assert (ours / f"{name}.png").read_bytes() == (cli / f"{name}.png").read_bytes(), name
+    for name in ("mask_1", "mask_4"):
+        assert views[name].dtype == np.uint8 and set(np.unique(views[name])) <= {0, 255}
+        np.testing.assert_array_equal(views[name], mbs.read_rgb(cli / f"{name}.png")[..., 0])
+    for name in ("disparity_2", "disparity_3"):
+        mbs.write_pfm(ours / f"{name}.pfm", views[name])
+        assert (ours / f"{name}.pfm").read_bytes() == (cli / f"{name}.pfm").read_bytes(), name
+    assert views["mask_1"].any() and views["mask_4"].any(), "new views have synthesised pixels"
+
+
 def test_the_matcher_runs_in_threads(scene):
     left, right = mbs.read_rgb(scene / "rgb_1.png"), mbs.read_rgb(scene / "rgb_2.png")
     alone = mbs.match_stereo(left, right, max_disparity=32)
@@ -127,6 +152,9 @@ def test_the_matcher_runs_in_threads(scene):
         (lambda: mbs.match_stereo(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 9, 3), np.uint8)), "right"),
         (lambda: mbs.match_stereo(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8), paths=6), "paths"),
         (lambda: mbs.match_stereo(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8), max_disparity=5000), "max_disparity"),
+        (lambda: mbs.extrapolate(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8), dilation="disc"), "dilation"),
+        (lambda: mbs.extrapolate(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8), inpaint="lama"), "inpaint"),
+        (lambda: mbs.extrapolate(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 7, 3), np.uint8)), "right"),
     ],
 )
 def test_a_wrong_argument_is_a_value_error_naming_it(call, argument):
