@@ -72,25 +72,28 @@ fn per_pixel_and_parameters(network: &NetworkConfig) -> (f64, f64) {
             let range = network.max_disparity as f64 / COMPACT_REFERENCE_DISPARITY;
             (COMPACT_BYTES_PER_PIXEL * range.max(1.0), COMPACT_PARAMETERS)
         }
-        BackboneKind::RaftStereo => {
-            let raft = &network.raft_stereo;
-            let width = raft.hidden_dim as f64 / REFERENCE_HIDDEN;
-            let iters = raft.train_iters as f64 / RAFT_STEREO_REFERENCE_ITERS;
-            (
-                RAFT_STEREO_BYTES_PER_PIXEL * width * iters,
-                RAFT_STEREO_PARAMETERS * width.max(width * width),
-            )
-        }
-        BackboneKind::Igev => {
-            let igev = &network.igev;
-            let width = igev.hidden_dim as f64 / REFERENCE_HIDDEN;
-            let iters = igev.train_iters as f64 / IGEV_REFERENCE_ITERS;
-            (
-                IGEV_BYTES_PER_PIXEL * width * iters,
-                IGEV_PARAMETERS * width.max(width * width),
-            )
-        }
+        BackboneKind::RaftStereo => iterative(
+            [RAFT_STEREO_BYTES_PER_PIXEL, RAFT_STEREO_PARAMETERS],
+            network.raft_stereo.hidden_dim,
+            network.raft_stereo.train_iters as f64 / RAFT_STEREO_REFERENCE_ITERS,
+        ),
+        BackboneKind::Igev => iterative(
+            [IGEV_BYTES_PER_PIXEL, IGEV_PARAMETERS],
+            network.igev.hidden_dim,
+            network.igev.train_iters as f64 / IGEV_REFERENCE_ITERS,
+        ),
     }
+}
+
+/// An iterative network's figures at the reference width scaled to
+/// `hidden` channels and `iters` times the reference iterations:
+/// activations linear in both, parameters quadratic in the width.
+fn iterative([per_pixel, parameters]: [f64; 2], hidden: usize, iters: f64) -> (f64, f64) {
+    let width = hidden as f64 / REFERENCE_HIDDEN;
+    (
+        per_pixel * width * iters,
+        parameters * width.max(width * width),
+    )
 }
 
 /// The machine's memory, from `/proc/meminfo`, in bytes.
