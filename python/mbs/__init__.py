@@ -19,6 +19,9 @@ Example::
     views = mbs.extrapolate(left, right)                  # image_1, image_4, masks, disparities
 """
 
+import json as _json
+
+from mbs import _native
 from mbs._native import (
     decode_carla_depth,
     depth_to_disparity,
@@ -34,15 +37,35 @@ from mbs._native import (
     write_rgb,
 )
 
+
+def load_manifest(path):
+    """A dataset manifest as a dict (rig, samples, provenance), checked
+    against the schema and the confinement rule of its paths, which are
+    relative to the manifest's folder. ``OSError`` names a manifest that
+    cannot be read or is not valid."""
+    return _json.loads(_native.load_manifest_json(path))
+
+
+def validate(path, deep=False):
+    """``mbs-tool validate --json``'s report as a dict: ``manifest``,
+    ``deep``, ``samples``, ``files_checked`` and ``problems`` (each with its
+    ``kind``, ``message`` and, where it has them, ``sample`` and ``path``).
+    The manifest is clean when ``problems`` is empty; ``deep`` decodes every
+    pixel of every file."""
+    return _json.loads(_native.validate_json(path, deep))
+
+
 __all__ = [
     "decode_carla_depth",
     "depth_to_disparity",
     "extrapolate",
+    "load_manifest",
     "match_stereo",
     "read_exr",
     "read_kitti_disparity",
     "read_pfm",
     "read_rgb",
+    "validate",
     "write_exr",
     "write_kitti_disparity",
     "write_pfm",

@@ -376,6 +376,31 @@ fn extrapolate<'py>(
     Ok(out)
 }
 
+/// A manifest, checked against the schema and the confinement rule, as
+/// JSON text (`mbs.load_manifest` parses it).
+#[pyfunction]
+fn load_manifest_json(py: Python<'_>, path: PathBuf) -> PyResult<String> {
+    let manifest = py
+        .detach(|| mbs_dataset::Manifest::load(&path))
+        .map_err(|e| os_error(&path, e))?;
+    serde_json::to_string(&manifest).map_err(|e| os_error(&path, e))
+}
+
+/// `mbs-tool validate --json`'s report of a manifest, as JSON text
+/// (`mbs.validate` parses it); `deep` decodes every pixel.
+#[pyfunction]
+#[pyo3(signature = (path, deep = false))]
+fn validate_json(py: Python<'_>, path: PathBuf, deep: bool) -> PyResult<String> {
+    let report = py.detach(|| {
+        mbs_dataset::validate::validate_manifest(
+            &path,
+            mbs_dataset::validate::ValidateOptions { deep },
+            &(),
+        )
+    });
+    serde_json::to_string(&report).map_err(|e| os_error(&path, e))
+}
+
 /// The module `mbs._native`.
 #[pymodule]
 fn _native(module: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -391,5 +416,7 @@ fn _native(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(depth_to_disparity, module)?)?;
     module.add_function(wrap_pyfunction!(match_stereo, module)?)?;
     module.add_function(wrap_pyfunction!(extrapolate, module)?)?;
+    module.add_function(wrap_pyfunction!(load_manifest_json, module)?)?;
+    module.add_function(wrap_pyfunction!(validate_json, module)?)?;
     Ok(())
 }

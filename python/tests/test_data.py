@@ -1,12 +1,14 @@
 """The Python package against the command line: file round trips, CARLA
 depth and disparity equal to `mbs-tool decode-depth`'s files, the matcher
 equal to `mbs-tool predict`, extrapolation equal to `mbs-tool extrapolate`,
-and the errors every function promises.
+manifests and validation reports as the command's, and the errors every
+function promises.
 
 `tools/test.sh` builds the package and runs these with MBS_TOOL set to the
 `mbs-tool` binary of the same tree.
 """
 
+import json
 import os
 import subprocess
 import threading
@@ -118,6 +120,45 @@ def test_extrapolate_equals_the_command_byte_for_byte(scene, tmp_path, options, 
         mbs.write_pfm(ours / f"{name}.pfm", views[name])
         assert (ours / f"{name}.pfm").read_bytes() == (cli / f"{name}.pfm").read_bytes(), name
     assert views["mask_1"].any() and views["mask_4"].any(), "new views have synthesised pixels"
+
+
+def test_a_manifest_loads_with_its_rig_and_samples(scene):
+    path = scene.parent.parent.parent / "manifest.json"
+    manifest = mbs.load_manifest(path)
+    with open(path) as file:
+        written = json.load(file)
+    assert manifest["rig"] == written["rig"]
+    assert [s["id"] for s in manifest["samples"]] == [s["id"] for s in written["samples"]]
+    first = manifest["samples"][0]
+    assert (path.parent / first["views"][1]).is_file()
+
+
+def test_validate_reports_as_the_command(scene, tmp_path):
+    path = scene.parent.parent.parent / "manifest.json"
+    clean = mbs.validate(path)
+    assert clean == json.loads(mbs_tool("validate", path, "--json").stdout)
+    assert clean["problems"] == [] and clean["samples"] >= 1 and clean["files_checked"] > 0
+    # A view cut short: reported with its sample and file, as the command does.
+    broken = tmp_path / "broken"
+    subprocess.run(["cp", "-r", str(path.parent), str(broken)], check=True)
+    view = broken / scene.relative_to(path.parent) / "rgb_0.png"
+    view.write_bytes(view.read_bytes()[:100])
+    report = mbs.validate(broken / "manifest.json")
+    done = subprocess.run([MBS_TOOL, "validate", str(broken / "manifest.json"), "--json"],
+                          capture_output=True, text=True)
+    assert done.returncode != 0
+    assert report == json.loads(done.stdout)
+    (problem,) = report["problems"]
+    assert problem["path"].endswith("rgb_0.png"), problem
+
+
+def test_a_manifest_that_is_not_one_is_an_os_error_naming_it(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"rig": 3}')
+    with pytest.raises(OSError, match="bad.json"):
+        mbs.load_manifest(bad)
+    with pytest.raises(OSError, match="missing.json"):
+        mbs.load_manifest(tmp_path / "missing.json")
 
 
 def test_the_matcher_runs_in_threads(scene):
