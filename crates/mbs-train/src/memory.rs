@@ -163,12 +163,12 @@ impl MemoryVerdict {
 pub fn check(config: &RunConfig, devices: &[DeviceName]) -> Result<Option<String>, TrainError> {
     let on_cpu = devices.iter().filter(|d| **d == DeviceName::Cpu).count();
     let items = (config.data.batch_size * on_cpu).div_ceil(devices.len().max(1));
-    let Some(machine) = MachineMemory::read() else {
-        return Ok(None);
-    };
     if items == 0 {
         return Ok(None);
     }
+    let Some(machine) = MachineMemory::read() else {
+        return Ok(None);
+    };
     let estimate = MemoryEstimate::of(config, items);
     let need = format!(
         "a training step of {items} batch item(s) of {}x{} on the CPU needs about {} \
