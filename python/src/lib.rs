@@ -8,7 +8,7 @@
 
 use std::path::{Path, PathBuf};
 
-use image::{ImageBuffer, RgbImage};
+use image::{ImageBuffer, Pixel, RgbImage};
 use mbs_core::FloatImage;
 use mbs_core::formats::{carla, exr, pfm, png16, rgb};
 use mbs_core::geometry::depth_to_disparity_value;
@@ -17,7 +17,7 @@ use mbs_infer::StereoMatcher;
 use mbs_infer::inpaint::{BackgroundFill, Inpainter, IsotropicFill};
 use mbs_infer::{Sgm, SgmConfig, SgmPaths};
 use mbs_warp::Dilation;
-use numpy::{PyArray2, PyArray3, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::{PyArray2, PyArray3, PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyOSError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -126,62 +126,82 @@ fn check_same_size(left: &RgbImage, right: &RgbImage) -> PyResult<()> {
     Ok(())
 }
 
-/// A float image as a `float32` HxW array.
-fn to_array<'py>(py: Python<'py>, map: FloatImage) -> PyResult<Bound<'py, PyArray2<f32>>> {
-    let (width, height) = map.dimensions();
-    let array = numpy::PyArray1::from_vec(py, map.into_raw());
-    array.reshape([height as usize, width as usize])
+/// An image as a NumPy array: HxW for one channel (float32 maps, uint8
+/// masks), HxWxC otherwise (uint8 RGB).
+fn to_numpy<'py, P>(
+    py: Python<'py>,
+    image: ImageBuffer<P, Vec<P::Subpixel>>,
+) -> PyResult<Bound<'py, PyArrayDyn<P::Subpixel>>>
+where
+    P: Pixel,
+    P::Subpixel: numpy::Element,
+{
+    let (width, height) = image.dimensions();
+    let mut shape = vec![height as usize, width as usize];
+    if P::CHANNEL_COUNT > 1 {
+        shape.push(usize::from(P::CHANNEL_COUNT));
+    }
+    numpy::PyArray1::from_vec(py, image.into_raw()).reshape(shape)
 }
 
-/// An RGB image as a `uint8` HxWx3 array.
-fn to_rgb_array<'py>(py: Python<'py>, image: RgbImage) -> PyResult<Bound<'py, PyArray3<u8>>> {
-    let (width, height) = image.dimensions();
-    let array = numpy::PyArray1::from_vec(py, image.into_raw());
-    array.reshape([height as usize, width as usize, 3])
+/// Reads `path` with `read` without the GIL, as a NumPy array; an error
+/// is an `OSError` naming the file.
+fn read_file<'py, P>(
+    py: Python<'py>,
+    path: &Path,
+    read: impl FnOnce(&Path) -> mbs_core::Result<ImageBuffer<P, Vec<P::Subpixel>>> + Send,
+) -> PyResult<Bound<'py, PyArrayDyn<P::Subpixel>>>
+where
+    P: Pixel + Send,
+    P::Subpixel: numpy::Element + Send,
+{
+    let image = py.detach(|| read(path)).map_err(|e| os_error(path, e))?;
+    to_numpy(py, image)
+}
+
+/// Writes `path` with `write` without the GIL; an error is an `OSError`
+/// naming the file.
+fn write_file(
+    py: Python<'_>,
+    path: &Path,
+    write: impl FnOnce(&Path) -> mbs_core::Result<()> + Send,
+) -> PyResult<()> {
+    py.detach(|| write(path)).map_err(|e| os_error(path, e))
 }
 
 /// Reads an image (PNG, PPM, ...) as a uint8 HxWx3 RGB array (grey and
 /// 16-bit images are converted, alpha dropped).
 #[pyfunction]
-fn read_rgb(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArray3<u8>>> {
-    let image = py
-        .detach(|| rgb::read_rgb(&path))
-        .map_err(|e| os_error(&path, e))?;
-    to_rgb_array(py, image)
+fn read_rgb(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArrayDyn<u8>>> {
+    read_file(py, &path, rgb::read_rgb)
 }
 
 /// Writes a uint8 HxWx3 RGB array as a PNG.
 #[pyfunction]
 fn write_rgb(py: Python<'_>, path: PathBuf, image: &Bound<'_, PyAny>) -> PyResult<()> {
     let image = rgb_image("image", image)?;
-    py.detach(|| rgb::write_rgb_png(&path, &image))
-        .map_err(|e| os_error(&path, e))
+    write_file(py, &path, |path| rgb::write_rgb_png(path, &image))
 }
 
 /// Reads a single-channel PFM (disparity or depth) as a float32 HxW array.
 #[pyfunction]
-fn read_pfm(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArray2<f32>>> {
-    let map = py
-        .detach(|| pfm::read_pfm_grey(&path))
-        .map_err(|e| os_error(&path, e))?;
-    to_array(py, map)
+fn read_pfm(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArrayDyn<f32>>> {
+    read_file(py, &path, pfm::read_pfm_grey)
 }
 
 /// Writes a float32 HxW array as a little-endian single-channel PFM.
 #[pyfunction]
 fn write_pfm(py: Python<'_>, path: PathBuf, map: &Bound<'_, PyAny>) -> PyResult<()> {
     let map = float_map("map", map)?;
-    py.detach(|| pfm::write_pfm_grey(&path, &map, pfm::Endian::Little))
-        .map_err(|e| os_error(&path, e))
+    write_file(py, &path, |path| {
+        pfm::write_pfm_grey(path, &map, pfm::Endian::Little)
+    })
 }
 
 /// Reads a KITTI 16-bit PNG disparity (value / 256; 0 is invalid, `inf`).
 #[pyfunction]
-fn read_kitti_disparity(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArray2<f32>>> {
-    let map = py
-        .detach(|| png16::read_kitti_disparity(&path))
-        .map_err(|e| os_error(&path, e))?;
-    to_array(py, map)
+fn read_kitti_disparity(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArrayDyn<f32>>> {
+    read_file(py, &path, png16::read_kitti_disparity)
 }
 
 /// Writes a disparity as a KITTI 16-bit PNG (value x 256; `inf`, NaN and
@@ -193,25 +213,22 @@ fn write_kitti_disparity(
     disparity: &Bound<'_, PyAny>,
 ) -> PyResult<()> {
     let disparity = float_map("disparity", disparity)?;
-    py.detach(|| png16::write_kitti_disparity(&path, &disparity))
-        .map_err(|e| os_error(&path, e))
+    write_file(py, &path, |path| {
+        png16::write_kitti_disparity(path, &disparity)
+    })
 }
 
 /// Reads a single-channel OpenEXR depth map as a float32 HxW array.
 #[pyfunction]
-fn read_exr(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArray2<f32>>> {
-    let map = py
-        .detach(|| exr::read_exr(&path))
-        .map_err(|e| os_error(&path, e))?;
-    to_array(py, map)
+fn read_exr(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArrayDyn<f32>>> {
+    read_file(py, &path, exr::read_exr)
 }
 
 /// Writes a float32 HxW array as a single-channel OpenEXR file.
 #[pyfunction]
 fn write_exr(py: Python<'_>, path: PathBuf, map: &Bound<'_, PyAny>) -> PyResult<()> {
     let map = float_map("map", map)?;
-    py.detach(|| exr::write_exr(&path, &map))
-        .map_err(|e| os_error(&path, e))
+    write_file(py, &path, |path| exr::write_exr(path, &map))
 }
 
 /// Decodes a CARLA RGB-encoded depth image (uint8 HxWx3) into metres;
@@ -223,7 +240,7 @@ fn decode_carla_depth<'py>(
     py: Python<'py>,
     rgb: &Bound<'py, PyAny>,
     max_depth: f32,
-) -> PyResult<Bound<'py, PyArray2<f32>>> {
+) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
     if max_depth.is_nan() || max_depth <= 0.0 {
         return Err(value_error(
             "max_depth",
@@ -233,7 +250,7 @@ fn decode_carla_depth<'py>(
     let rgb = rgb_image("rgb", rgb)?;
     let depth =
         py.detach(|| mbs_core::geometry::limit_depth(&carla::decode_depth(&rgb), max_depth));
-    to_array(py, depth)
+    to_numpy(py, depth)
 }
 
 /// Disparity (px) of a depth map (m) for a pair of cameras `baseline` metres
@@ -247,7 +264,7 @@ fn depth_to_disparity<'py>(
     focal: f64,
     baseline: f64,
     max_depth: f32,
-) -> PyResult<Bound<'py, PyArray2<f32>>> {
+) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
     for (name, value) in [("focal", focal), ("baseline", baseline)] {
         if !value.is_finite() || value <= 0.0 {
             return Err(value_error(
@@ -262,7 +279,7 @@ fn depth_to_disparity<'py>(
         map.iter_mut()
             .for_each(|z| *z = depth_to_disparity_value(*z, scale, max_depth))
     });
-    to_array(py, map)
+    to_numpy(py, map)
 }
 
 /// Left-view disparity of a rectified pair with the built-in semi-global
@@ -278,7 +295,7 @@ fn match_stereo<'py>(
     max_disparity: u32,
     paths: u32,
     fill: bool,
-) -> PyResult<Bound<'py, PyArray2<f32>>> {
+) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
     let paths = match paths {
         5 => SgmPaths::Five,
         8 => SgmPaths::Eight,
@@ -295,17 +312,7 @@ fn match_stereo<'py>(
     let disparity = py
         .detach(|| matcher.predict(&left, &right))
         .map_err(|e| value_error("left, right", e))?;
-    to_array(py, disparity.disparity)
-}
-
-/// A grey mask (0/255) as a `uint8` HxW array.
-fn to_mask_array<'py>(
-    py: Python<'py>,
-    mask: mbs_core::MaskImage,
-) -> PyResult<Bound<'py, PyArray2<u8>>> {
-    let (width, height) = mask.dimensions();
-    let array = numpy::PyArray1::from_vec(py, mask.into_raw());
-    array.reshape([height as usize, width as usize])
+    to_numpy(py, disparity.disparity)
 }
 
 /// Two new views of a rectified pair, as `mbs-tool extrapolate` makes them
@@ -367,12 +374,12 @@ fn extrapolate<'py>(
         })
         .map_err(|e| value_error("left, right", e))?;
     let out = PyDict::new(py);
-    out.set_item("image_1", to_rgb_array(py, views.image_1)?)?;
-    out.set_item("image_4", to_rgb_array(py, views.image_4)?)?;
-    out.set_item("mask_1", to_mask_array(py, views.mask_1)?)?;
-    out.set_item("mask_4", to_mask_array(py, views.mask_4)?)?;
-    out.set_item("disparity_2", to_array(py, disparities.left)?)?;
-    out.set_item("disparity_3", to_array(py, disparities.right)?)?;
+    out.set_item("image_1", to_numpy(py, views.image_1)?)?;
+    out.set_item("image_4", to_numpy(py, views.image_4)?)?;
+    out.set_item("mask_1", to_numpy(py, views.mask_1)?)?;
+    out.set_item("mask_4", to_numpy(py, views.mask_4)?)?;
+    out.set_item("disparity_2", to_numpy(py, disparities.left)?)?;
+    out.set_item("disparity_3", to_numpy(py, disparities.right)?)?;
     Ok(out)
 }
 
