@@ -27,11 +27,22 @@ if [ ${#packages[@]} -gt 0 ]; then
         "${packages[@]}" > /dev/null
 fi
 cargo test --workspace --locked
-# The Python package (python/, pyo3 + maturin) built from this tree into
-# .python-test/ with numpy and pytest from PyPI, then its tests against the
+# The Python package (python/, pyo3 + maturin) built from this tree into a
+# virtual environment, .venv-test/, with its test requirements from PyPI
+# (numpy, pytest, PyTorch for mbs.torch), then its tests against the
 # mbs-tool binary the Rust tests just built. They fail, never skip, when a
 # part is missing.
-python3 -m pip install --quiet --disable-pip-version-check --upgrade \
-    --target .python-test ./python numpy pytest
-PYTHONPATH="$PWD/.python-test" MBS_TOOL="$PWD/target/debug/mbs-tool" \
-    python3 -m pytest -q -p no:cacheprovider python/tests
+if [ ! -x .venv-test/bin/python ]; then
+    python3 -m venv .venv-test || {
+        rm -rf .venv-test
+        sudo=""
+        [ "$(id -u)" -eq 0 ] || sudo="sudo"
+        $sudo apt-get update -qq
+        DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq python3-venv > /dev/null
+        python3 -m venv .venv-test
+    }
+fi
+.venv-test/bin/python -m pip install --quiet --disable-pip-version-check \
+    -r python/requirements-test.txt ./python
+MBS_TOOL="$PWD/target/debug/mbs-tool" \
+    .venv-test/bin/python -m pytest -q -p no:cacheprovider python/tests

@@ -1,0 +1,372 @@
+"""The S3 loss on PyTorch tensors (paper eq. 7), term for term the loss of
+``mbs-tool train`` (crates/mbs-train/src/losses):
+
+``L = g mean(A |d_s - r d_t|) + lambda_p mean(M_s P_s) + lambda_s L_s + lambda_r R``
+
+- ``P`` is the photometric error ``alpha (1 - SSIM) / 2 + (1 - alpha) L1``
+  (box SSIM of side ``ssim_window``, reflection padding), averaged over
+  channels; the target is warped to the reference with linear
+  interpolation along x, clamped at the border;
+- ``M_s`` and ``M_t`` are the validity masks ``P < tau`` (threshold
+  filtering) and ``P < P_identity`` (auto-masking), without the pixels
+  whose warp leaves the target when ``out_of_view_invalid``;
+- ``A = M_t (M_s + omega (1 - M_s))`` (occlusion-aware enhancement);
+- ``L_s`` is the edge-aware smoothness of the student's disparity;
+- ``R`` is the mean distance (px) of the student's disparities outside
+  ``[0, W - 1]``: 0 for any plausible prediction, a way back for one that
+  left the image;
+- ``g`` is the geometry weight of the step (the trainer's warm-up).
+
+``range_weight=0`` and ``out_of_view_invalid=False`` are the paper's loss
+exactly; the defaults are ``mbs-tool train``'s.
+"""
+
+from dataclasses import dataclass
+from typing import List, Optional, Sequence, Union
+
+import torch
+from torch import nn
+
+from mbs.torch.views import side_signs
+
+#: SSIM stabilisers for images in ``[0, 1]``.
+_C1 = 0.01**2
+_C2 = 0.03**2
+
+
+@dataclass
+class S3LossOutput:
+    """The loss and its parts; a part whose term is switched off is ``None``.
+
+    ``total`` is differentiable in the student's disparities; the terms are
+    the final prediction's, before their weights; the masks are 0/1 maps
+    ``[B, 1, H, W]`` without gradient.
+    """
+
+    total: torch.Tensor
+    geometry: Optional[torch.Tensor] = None
+    photometric: Optional[torch.Tensor] = None
+    smoothness: Optional[torch.Tensor] = None
+    range: Optional[torch.Tensor] = None
+    student_mask: Optional[torch.Tensor] = None
+    teacher_mask: Optional[torch.Tensor] = None
+    weight_map: Optional[torch.Tensor] = None
+
+
+def _window_sums(tensor: torch.Tensor, dim: int, window: int) -> torch.Tensor:
+    outputs = tensor.shape[dim] + 1 - window
+    zero_shape = list(tensor.shape)
+    zero_shape[dim] = 1
+    prefix = torch.cat([tensor.new_zeros(zero_shape), tensor.cumsum(dim)], dim)
+    return prefix.narrow(dim, window, outputs) - prefix.narrow(dim, 0, outputs)
+
+
+def _window_means(tensor: torch.Tensor, window: int) -> torch.Tensor:
+    return _window_sums(_window_sums(tensor, 2, window), 3, window) / float(window * window)
+
+
+def ssim(x: torch.Tensor, y: torch.Tensor, window: int) -> torch.Tensor:
+    """Per-pixel, per-channel SSIM of two ``[B, C, H, W]`` images in
+    ``[0, 1]`` on an odd ``window`` box with reflection padding."""
+    pad = window // 2
+    x = torch.nn.functional.pad(x - 0.5, (pad, pad, pad, pad), mode="reflect")
+    y = torch.nn.functional.pad(y - 0.5, (pad, pad, pad, pad), mode="reflect")
+    mean_x, mean_y = _window_means(x, window), _window_means(y, window)
+    sigma_x = _window_means(x * x, window) - mean_x * mean_x
+    sigma_y = _window_means(y * y, window) - mean_y * mean_y
+    sigma_xy = _window_means(x * y, window) - mean_x * mean_y
+    mu_x, mu_y = mean_x + 0.5, mean_y + 0.5
+    numerator = (mu_x * mu_y * 2.0 + _C1) * (sigma_xy * 2.0 + _C2)
+    denominator = (mu_x * mu_x + mu_y * mu_y + _C1) * (sigma_x + sigma_y + _C2)
+    return numerator / denominator
+
+
+def photometric_map(reference, reconstructed, alpha: float, window: int) -> torch.Tensor:
+    """``alpha clamp((1 - SSIM) / 2, 0, 1) + (1 - alpha) |I_r - I|``,
+    averaged over channels: ``[B, 1, H, W]``."""
+    dissimilarity = ((1.0 - ssim(reference, reconstructed, window)) / 2.0).clamp(0.0, 1.0)
+    l1 = (reference - reconstructed).abs()
+    return (dissimilarity * alpha + l1 * (1.0 - alpha)).mean(dim=1, keepdim=True)
+
+
+def sample_columns(disparity: torch.Tensor, signs: torch.Tensor) -> torch.Tensor:
+    """The column each reference pixel samples in its target: ``x - d``
+    (target on the right, sign +1) or ``x + d`` (left, sign -1)."""
+    width = disparity.shape[3]
+    columns = torch.arange(width, dtype=disparity.dtype, device=disparity.device).view(1, 1, 1, width)
+    return columns - disparity * signs
+
+
+def warp_to_reference(target: torch.Tensor, disparity: torch.Tensor, signs: torch.Tensor) -> torch.Tensor:
+    """``target`` sampled at ``x - sign d`` with linear interpolation along
+    x, clamped to the border; differentiable in ``disparity``."""
+    batch, channels, height, width = target.shape
+    x = sample_columns(disparity, signs).clamp(0.0, width - 1)
+    left = x.detach().floor().clamp(max=width - 2)
+    weight = x - left
+    left = left.long().expand(batch, channels, height, width)
+    return target.gather(3, left) * (1.0 - weight) + target.gather(3, left + 1) * weight
+
+
+def lands_inside(disparity: torch.Tensor, signs: torch.Tensor) -> torch.Tensor:
+    """1 where a pixel's warp lands inside the target, 0 where it leaves it."""
+    columns = sample_columns(disparity.detach(), signs)
+    return ((columns >= 0.0) & (columns <= disparity.shape[3] - 1)).to(disparity.dtype)
+
+
+def validity_mask(photometric, identity, tau: Optional[float], auto_mask: bool) -> torch.Tensor:
+    """1 where the warped error beats ``tau`` and the identity error, for
+    the parts switched on (strict inequalities); no gradient."""
+    photometric = photometric.detach()
+    mask = torch.ones_like(photometric)
+    if tau is not None:
+        mask = mask * (photometric < tau).to(mask.dtype)
+    if auto_mask:
+        mask = mask * (photometric < identity.detach()).to(mask.dtype)
+    return mask
+
+
+def weight_map(teacher_mask, student_mask, omega: float) -> torch.Tensor:
+    """``A = M_t (M_s + omega (1 - M_s))``."""
+    return teacher_mask * (student_mask * (1.0 - omega) + omega)
+
+
+def match_scale(target, student, weights) -> torch.Tensor:
+    """``target`` rescaled per item so that its weighted mean is the
+    student's (no gradient); an item with no weight keeps its target."""
+    student_sum = (weights * student.detach()).sum(dim=(1, 2, 3), keepdim=True)
+    target_sum = (weights * target).sum(dim=(1, 2, 3), keepdim=True)
+    has_weight = (target_sum.abs() > 1e-6).to(target.dtype)
+    scale = student_sum / target_sum.abs().clamp(min=1e-6) * has_weight + (1.0 - has_weight)
+    return target * scale
+
+
+def geometry_consistency(student, teacher, ratios, weights, cap, scale_match: bool) -> torch.Tensor:
+    """``mean(weights |d_s - r d_t|)`` with the teacher detached; pixels
+    whose target exceeds ``cap`` weigh 0."""
+    target = teacher.detach() * ratios.view(-1, 1, 1, 1)
+    if cap is not None:
+        weights = weights * (target <= cap).to(weights.dtype)
+    if scale_match:
+        target = match_scale(target, student, weights)
+    return (weights * (student - target).abs()).mean()
+
+
+def out_of_range(disparity: torch.Tensor) -> torch.Tensor:
+    """``mean(max(0, -d) + max(0, d - (W - 1)))`` in pixels."""
+    width = disparity.shape[3]
+    return ((-disparity).clamp(min=0.0) + (disparity - (width - 1)).clamp(min=0.0)).mean()
+
+
+def edge_aware_smoothness(disparity, image, normalise: bool) -> torch.Tensor:
+    """Mean of ``|d(x+1) - d(x)| exp(-|I(x+1) - I(x)|)`` over horizontal
+    pairs plus the same over vertical pairs (each map divided by its mean
+    first with ``normalise``)."""
+    if normalise:
+        disparity = disparity / (disparity.mean(dim=(2, 3), keepdim=True) + 1e-7)
+
+    def term(dim):
+        disparity_step = disparity.diff(dim=dim).abs()
+        image_step = image.diff(dim=dim).abs().mean(dim=1, keepdim=True)
+        return (disparity_step * torch.exp(-image_step)).mean()
+
+    return term(3) + term(2)
+
+
+class S3Loss(nn.Module):
+    """The S3 loss of ``mbs-tool train`` as an ``nn.Module``, with every
+    switch of its ``trainer.loss`` settings (paper Tables 3 and 4).
+
+    Call it with the clean reference and target images ``[B, 3, H, W]`` in
+    ``[0, 1]``, the student's disparity (``[B, 1, H, W]``, on the reference
+    grid, with the gradient) or a list of an iterative student's
+    predictions (weighted by :func:`mbs.torch.sequence_weights`), the
+    teacher's disparity, each item's target side (``"left"`` or
+    ``"right"``) for student and teacher, and the baseline ratios
+    ``r = B_s / B_t``. It returns an :class:`S3LossOutput`.
+
+    Example::
+
+        loss_fn = S3Loss()
+        out = loss_fn(reference, student_target, teacher_target,
+                      student_disparity, teacher_disparity,
+                      ["right", "left"], ["right", "left"], [0.5, 0.25])
+        out.total.backward()
+    """
+
+    def __init__(
+        self,
+        *,
+        tau: float = 0.1,
+        omega: float = 2.0,
+        lambda_p: float = 10.0,
+        lambda_s_ratio: float = 0.001,
+        alpha: float = 0.85,
+        ssim_window: int = 7,
+        geometry: bool = True,
+        photometric: bool = True,
+        smoothness: bool = True,
+        threshold_filter: bool = True,
+        auto_mask: bool = True,
+        occlusion_enhancement: bool = True,
+        normalise_smoothness: bool = False,
+        max_target_disparity: float = 0.0,
+        range_weight: float = 1.0,
+        geometry_scale_match: bool = False,
+        out_of_view_invalid: bool = True,
+        sequence_gamma: float = 0.9,
+        final_prediction_only: bool = False,
+    ):
+        super().__init__()
+        _require(tau > 0, "tau", tau, "a positive number")
+        for name, value in [
+            ("omega", omega),
+            ("lambda_p", lambda_p),
+            ("lambda_s_ratio", lambda_s_ratio),
+            ("max_target_disparity", max_target_disparity),
+            ("range_weight", range_weight),
+        ]:
+            _require(value >= 0, name, value, "a number >= 0")
+        _require(0 <= alpha <= 1, "alpha", alpha, "a number in [0, 1]")
+        _require(0 <= sequence_gamma <= 1, "sequence_gamma", sequence_gamma, "a number in [0, 1]")
+        _require(
+            isinstance(ssim_window, int) and ssim_window > 0 and ssim_window % 2 == 1,
+            "ssim_window",
+            ssim_window,
+            "an odd window side such as 3 or 7",
+        )
+        _require(
+            geometry or photometric or smoothness,
+            "geometry/photometric/smoothness",
+            "all False",
+            "at least one loss term on",
+        )
+        self.tau, self.omega, self.alpha, self.ssim_window = tau, omega, alpha, ssim_window
+        self.lambda_p, self.lambda_s = lambda_p, lambda_s_ratio * lambda_p
+        self.geometry, self.photometric, self.smoothness = geometry, photometric, smoothness
+        self.threshold = tau if threshold_filter else None
+        self.auto_mask = auto_mask
+        self.effective_omega = omega if occlusion_enhancement else 1.0
+        self.normalise_smoothness = normalise_smoothness
+        self.cap = max_target_disparity if max_target_disparity > 0 else None
+        self.range_weight = range_weight
+        self.geometry_scale_match = geometry_scale_match
+        self.out_of_view_invalid = out_of_view_invalid
+        self.sequence_gamma = sequence_gamma
+        self.final_prediction_only = final_prediction_only
+
+    def forward(
+        self,
+        reference: torch.Tensor,
+        student_target: torch.Tensor,
+        teacher_target: torch.Tensor,
+        student_disparity: Union[torch.Tensor, Sequence[torch.Tensor]],
+        teacher_disparity: torch.Tensor,
+        student_sides: Sequence[str],
+        teacher_sides: Sequence[str],
+        ratios: Union[Sequence[float], torch.Tensor],
+        geometry_weight: float = 1.0,
+    ) -> S3LossOutput:
+        from mbs.torch.schedules import sequence_weights
+
+        predictions = list(student_disparity) if isinstance(student_disparity, (list, tuple)) else [student_disparity]
+        _require(len(predictions) > 0, "student_disparity", "an empty list", "a tensor or a non-empty list")
+        batch = _check_shapes(reference, student_target, teacher_target, predictions, teacher_disparity, self.ssim_window)
+        student_signs = side_signs(student_sides, batch, "student_sides", reference)
+        teacher_signs = side_signs(teacher_sides, batch, "teacher_sides", reference)
+        ratios = torch.as_tensor(ratios, dtype=reference.dtype, device=reference.device)
+        _require(ratios.shape == (batch,), "ratios", tuple(ratios.shape), f"{batch} baseline ratios")
+        shared = self._shared(reference, student_target, teacher_target, teacher_disparity, teacher_signs)
+        weights = sequence_weights(len(predictions), self.sequence_gamma, self.final_prediction_only)
+        out = self._terms(reference, student_target, predictions[-1], student_signs, ratios, geometry_weight, shared)
+        for prediction, weight in zip(predictions[:-1], weights[:-1]):
+            if weight <= 0:
+                continue
+            earlier = self._terms(reference, student_target, prediction, student_signs, ratios, geometry_weight, shared)
+            out.total = out.total + earlier.total * weight
+        return out
+
+    def _photometric(self, reference, target, warp=None):
+        if warp is not None:
+            target = warp_to_reference(target, *warp)
+        return photometric_map(reference, target, self.alpha, self.ssim_window)
+
+    def _in_view(self, mask, disparity, signs):
+        return mask * lands_inside(disparity, signs) if self.out_of_view_invalid else mask
+
+    def _shared(self, reference, student_target, teacher_target, teacher_disparity, teacher_signs):
+        student_identity = None
+        if self.photometric or self.geometry:
+            student_identity = self._photometric(reference, student_target)
+        teacher = None
+        if self.geometry:
+            disparity = teacher_disparity.detach()
+            warped = self._photometric(reference, teacher_target, (disparity, teacher_signs))
+            identity = self._photometric(reference, teacher_target)
+            mask = validity_mask(warped, identity, self.threshold, self.auto_mask)
+            teacher = (self._in_view(mask, disparity, teacher_signs), disparity)
+        return student_identity, teacher
+
+    def _terms(self, reference, student_target, student, signs, ratios, geometry_weight, shared) -> S3LossOutput:
+        student_identity, teacher = shared
+        out = S3LossOutput(total=student.new_zeros(()))
+        total = student.new_zeros(())
+        if student_identity is not None:
+            p_s = self._photometric(reference, student_target, (student, signs))
+            m_s = validity_mask(p_s, student_identity, self.threshold, self.auto_mask)
+            m_s = self._in_view(m_s, student, signs)
+            if self.photometric:
+                out.photometric = (m_s * p_s).mean()
+                total = total + out.photometric * self.lambda_p
+            if teacher is not None:
+                m_t, teacher_disparity = teacher
+                a = weight_map(m_t, m_s, self.effective_omega)
+                out.geometry = geometry_consistency(
+                    student, teacher_disparity, ratios, a, self.cap, self.geometry_scale_match
+                )
+                total = total + out.geometry * geometry_weight
+                out.teacher_mask, out.weight_map = m_t, a
+            out.student_mask = m_s
+        if self.range_weight > 0:
+            out.range = out_of_range(student)
+            total = total + out.range * self.range_weight
+        if self.smoothness:
+            out.smoothness = edge_aware_smoothness(student, reference, self.normalise_smoothness)
+            total = total + out.smoothness * self.lambda_s
+        out.total = total
+        return out
+
+
+def _check_shapes(reference, student_target, teacher_target, predictions, teacher_disparity, window) -> int:
+    for name, tensor in [
+        ("reference", reference),
+        ("student_target", student_target),
+        ("teacher_target", teacher_target),
+        ("teacher_disparity", teacher_disparity),
+    ] + [("student_disparity", p) for p in predictions]:
+        _require(isinstance(tensor, torch.Tensor), name, type(tensor).__name__, "a torch.Tensor")
+        _require(tensor.is_floating_point(), name, tensor.dtype, "a floating-point tensor")
+    _require(reference.dim() == 4, "reference", tuple(reference.shape), "[B, C, H, W]")
+    batch, channels, height, width = reference.shape
+    image, disparity = (batch, channels, height, width), (batch, 1, height, width)
+    for name, tensor, want in [
+        ("student_target", student_target, image),
+        ("teacher_target", teacher_target, image),
+        ("teacher_disparity", teacher_disparity, disparity),
+    ] + [("student_disparity", p, disparity) for p in predictions]:
+        _require(tuple(tensor.shape) == want, name, tuple(tensor.shape), f"{list(want)}")
+    _require(
+        width >= 2 and window // 2 < min(height, width),
+        "reference",
+        f"{height}x{width}",
+        f"images large enough for a {window}x{window} SSIM window",
+    )
+    return batch
+
+
+def _require(ok: bool, name: str, value, expected: str) -> None:
+    if not ok:
+        raise ValueError(f"{name}: got {value}, expected {expected}")
+
+
+__all__: List[str] = ["S3Loss", "S3LossOutput", "photometric_map", "ssim", "warp_to_reference"]

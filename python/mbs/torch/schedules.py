@@ -1,0 +1,48 @@
+"""The weights and schedules of an S3 run, as ``mbs-tool train``: the
+sequence weights of an iterative student, the EMA teacher's momentum and
+its update."""
+
+import math
+from typing import List
+
+import torch
+from torch import nn
+
+
+def sequence_weights(n: int, gamma: float = 0.9, final_only: bool = False) -> List[float]:
+    """The loss weight of each of ``n`` predictions, first to last:
+    ``gamma'^(n - 1 - i)`` with ``gamma' = gamma^(15 / (n - 1))``, as the
+    official RAFT-Stereo and IGEV-Stereo sequence losses; the final
+    prediction weighs 1, and with ``final_only`` the others weigh 0."""
+    if n <= 1 or final_only:
+        return [0.0] * (n - 1) + [1.0] if n > 0 else []
+    adjusted = gamma ** (15.0 / (n - 1))
+    return [adjusted ** (n - 1 - i) for i in range(n)]
+
+
+def cosine_momentum(step: int, total_steps: int, base: float = 0.996) -> float:
+    """The EMA momentum at ``step``: ``base`` at step 0, rising to 1 at
+    ``total_steps`` on a cosine (BYOL's schedule)."""
+    if total_steps <= 0:
+        return 1.0
+    progress = min(step, total_steps) / total_steps
+    return 1.0 - (1.0 - base) * (math.cos(math.pi * progress) + 1.0) / 2.0
+
+
+@torch.no_grad()
+def ema_update_(teacher: nn.Module, student: nn.Module, momentum: float) -> None:
+    """Sets every parameter of ``teacher`` to
+    ``momentum * teacher + (1 - momentum) * student``, in place (buffers
+    such as batch-norm statistics are left alone, as in ``mbs-tool train``).
+    The two networks must have the same parameters in the same order."""
+    if not 0.0 <= momentum <= 1.0:
+        raise ValueError(f"momentum: got {momentum}, expected a number in [0, 1]")
+    teacher_params, student_params = list(teacher.parameters()), list(student.parameters())
+    if len(teacher_params) != len(student_params):
+        raise ValueError(
+            f"teacher: {len(teacher_params)} parameters, the student has {len(student_params)}"
+        )
+    for index, (t, s) in enumerate(zip(teacher_params, student_params)):
+        if t.shape != s.shape:
+            raise ValueError(f"teacher: parameter {index} is {tuple(t.shape)}, the student's {tuple(s.shape)}")
+        t.mul_(momentum).add_(s.detach().to(t.device), alpha=1.0 - momentum)
