@@ -1,4 +1,6 @@
-"""mbs from Python: disparity and depth files, CARLA depth, the built-in matcher.
+"""mbs from Python: disparity and depth files, CARLA depth, the built-in matcher,
+extrapolation, procedural scenes with exact ground truth, manifests (and in
+``mbs.torch``, S3 for PyTorch networks).
 
 Conventions, the same for every function:
 
@@ -17,6 +19,7 @@ Example::
     mbs.write_kitti_disparity("disp.png", disparity)
     predicted = mbs.match_stereo(left, right, max_disparity=128)
     views = mbs.extrapolate(left, right)                  # image_1, image_4, masks, disparities
+    scene = mbs.synth_scene(seed=3, views=5)              # views, depth, disparity per camera
 """
 
 import json as _json
@@ -31,6 +34,7 @@ from mbs._native import (
     read_kitti_disparity,
     read_pfm,
     read_rgb,
+    synth_scene,
     write_exr,
     write_kitti_disparity,
     write_pfm,
@@ -65,6 +69,7 @@ __all__ = [
     "read_kitti_disparity",
     "read_pfm",
     "read_rgb",
+    "synth_scene",
     "validate",
     "write_exr",
     "write_kitti_disparity",

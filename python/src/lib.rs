@@ -6,13 +6,16 @@
 //! or value is a `ValueError` naming the argument; a file that cannot be
 //! read or written is an `OSError` naming it. Heavy calls release the GIL.
 
+mod batches;
+mod synth;
+
 use std::path::{Path, PathBuf};
 
 use image::{ImageBuffer, Pixel, RgbImage};
 use mbs_core::FloatImage;
 use mbs_core::formats::{carla, exr, pfm, png16, rgb};
 use mbs_core::geometry::depth_to_disparity_value;
-use mbs_extrapolate::{DisparitySource, Extrapolator};
+use mbs_extrapolate::{Disparities, DisparitySource, Extrapolator};
 use mbs_infer::StereoMatcher;
 use mbs_infer::inpaint::{BackgroundFill, Inpainter, IsotropicFill};
 use mbs_infer::{Sgm, SgmConfig, SgmPaths};
@@ -322,11 +325,16 @@ fn match_stereo<'py>(
 /// estimates the range from the pair), holes grown by `dilation` (`none`,
 /// `square`, `ellipse`, `background-side` or `foreground-side`, by
 /// `dilate_radius` pixels) and inpainted (`background` or `isotropic`).
-/// Returns a dict: `image_1`, `image_4` (uint8 HxWx3), `mask_1`, `mask_4`
-/// (uint8 HxW, 255 where synthesised) and `disparity_2`, `disparity_3`
-/// (float32 HxW, the disparities used for the left and right views).
+/// `disparity_left` and `disparity_right` (float32 HxW, `inf` or NaN-free
+/// non-negative values, as `--disparity-left`/`--disparity-right` files)
+/// replace the matcher: given one, the other view's is derived from it by
+/// warping. Returns a dict: `image_1`, `image_4` (uint8 HxWx3), `mask_1`,
+/// `mask_4` (uint8 HxW, 255 where synthesised) and `disparity_2`,
+/// `disparity_3` (float32 HxW, the disparities used for the left and right
+/// views).
 #[pyfunction]
-#[pyo3(signature = (left, right, max_disparity = 0, dilation = "none", dilate_radius = 2, inpaint = "background"))]
+#[pyo3(signature = (left, right, max_disparity = 0, dilation = "none", dilate_radius = 2, inpaint = "background", disparity_left = None, disparity_right = None))]
+#[allow(clippy::too_many_arguments)]
 fn extrapolate<'py>(
     py: Python<'py>,
     left: &Bound<'py, PyAny>,
@@ -335,6 +343,8 @@ fn extrapolate<'py>(
     dilation: &str,
     dilate_radius: u32,
     inpaint: &str,
+    disparity_left: Option<&Bound<'py, PyAny>>,
+    disparity_right: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let dilation = match dilation {
         "none" => Dilation::None,
@@ -364,11 +374,31 @@ fn extrapolate<'py>(
     check_max_disparity(max_disparity)?;
     let (left, right) = (rgb_image("left", left)?, rgb_image("right", right)?);
     check_same_size(&left, &right)?;
+    let given = |name: &str, value: Option<&Bound<'py, PyAny>>| {
+        value
+            .map(|v| {
+                let map = float_map(name, v)?;
+                mbs_extrapolate::disparity::checked_disparity(
+                    map,
+                    left.dimensions(),
+                    Path::new(name),
+                )
+                .map_err(|e| PyValueError::new_err(e.to_string()))
+            })
+            .transpose()
+    };
+    let given = (
+        given("disparity_left", disparity_left)?,
+        given("disparity_right", disparity_right)?,
+    );
     let extrapolator = Extrapolator::new(dilation, inpainter);
     let source = DisparitySource::builtin(max_disparity);
     let (views, disparities) = py
         .detach(|| {
-            let disparities = source.disparities(&left, &right)?;
+            let disparities = match Disparities::from_maps(given.0, given.1, &left, &right)? {
+                Some(disparities) => disparities,
+                None => source.disparities(&left, &right)?,
+            };
             let views = extrapolator.extrapolate(&left, &right, &disparities)?;
             Ok::<_, mbs_extrapolate::ExtrapolateError>((views, disparities))
         })
@@ -425,5 +455,7 @@ fn _native(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(extrapolate, module)?)?;
     module.add_function(wrap_pyfunction!(load_manifest_json, module)?)?;
     module.add_function(wrap_pyfunction!(validate_json, module)?)?;
+    module.add_class::<batches::HostBatches>()?;
+    module.add_function(wrap_pyfunction!(synth::synth_scene, module)?)?;
     Ok(())
 }

@@ -1,12 +1,13 @@
-"""`mbs.torch.S3Loss` against the Rust trainer's loss: on the fixed inputs
-of `fixtures/s3_loss.safetensors` (written by the Rust example
-`s3_loss_fixture`, see its doc for the command), every case's total, terms,
-masks, weight map and gradient in each student prediction equal the Rust
-values. Masks must agree pixel for pixel; values within 2e-5 relative
-(f32, sums in another order); gradients within 1e-6 absolute plus 1e-4
-relative. Then the loss's invariants on their own: a prediction far
-outside the image is pulled back, and bad arguments are `ValueError`s that
-name them.
+"""`mbs.torch` against the Rust trainer: on the fixed inputs of
+`fixtures/torch_parity.safetensors` (written by the Rust example
+`torch_parity_fixture`, see its doc for the command), every case of
+`S3Loss` gives the Rust loss's total, terms, masks, weight map and
+gradient in each student prediction: masks pixel for pixel, values within
+2e-5 relative (f32, sums in another order), gradients within 1e-6 absolute
+plus 1e-4 relative; `augment_pair` gives the trainer's augmented pair
+within 1e-6 from the same draws. Then the loss's invariants on their own:
+a prediction far outside the image is pulled back, and bad arguments are
+`ValueError`s that name them.
 """
 
 import json
@@ -17,9 +18,9 @@ import numpy as np
 import pytest
 import torch
 
-from mbs.torch import S3Loss, cosine_momentum, ema_update_, mirror_left, predict, sequence_weights
+from mbs.torch import S3Loss, augment_pair, cosine_momentum, ema_update_, mirror_left, predict, sequence_weights
 
-FIXTURE = Path(__file__).parent / "fixtures" / "s3_loss.safetensors"
+FIXTURE = Path(__file__).parent / "fixtures" / "torch_parity.safetensors"
 
 
 def read_safetensors(path):
@@ -86,6 +87,16 @@ def test_loss_matches_the_rust_trainer(case):
     for i, prediction in enumerate(predictions):
         expected = TENSORS[f"{name}/grad_{i}"]
         torch.testing.assert_close(prediction.grad, expected, rtol=1e-4, atol=1e-6, msg=f"{name}/grad_{i}")
+
+
+def test_augmentation_matches_the_trainer():
+    draws = {name: TENSORS[f"augment/{name}"] for name in ["brightness", "contrast", "saturation", "occlusion"]}
+    reference, target = augment_pair(TENSORS["inputs/reference"], TENSORS["inputs/student_target"], **draws)
+    torch.testing.assert_close(reference, TENSORS["augment/reference"], rtol=0, atol=1e-6)
+    torch.testing.assert_close(target, TENSORS["augment/target"], rtol=0, atol=1e-6)
+    # The draws did something: factors away from 1 and rectangles erased.
+    assert (draws["brightness"] - 1).abs().max() > 0.05
+    assert 0 < draws["occlusion"].mean() < 1
 
 
 def test_the_fixture_exercises_every_part():

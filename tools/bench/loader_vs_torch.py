@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
-"""Training data loading at MBS20K scale: mbs-train's `BatchLoader` against
-the PyTorch `DataLoader` a user of the authors' code would write, in the
-same run, on the same files.
+"""Training data loading at MBS20K scale: mbs-train's `BatchLoader`, and
+`mbs.torch.MultiBaselineDataset` under a PyTorch `DataLoader`, against the
+`DataLoader` a user of the authors' code would write, in the same run, on
+the same files.
 
 Both draw per item a sample, three distinct views of it (reference,
 student and teacher targets) and one 384x512 crop, decode the three
@@ -10,6 +11,9 @@ student and teacher targets) and one 384x512 crop, decode the three
 
 - mbs: the release example `loader_throughput --manifest M --workers W`
   (crates/mbs-train/examples/loader_throughput.rs), W loading threads;
+- mbs.torch: `DataLoader(MultiBaselineDataset(...), batch_size=None,
+  num_workers=W)`, one item per step decoded and cropped in Rust, plus the
+  student's augmentation in PyTorch (the dataset's whole work);
 - PyTorch: `torch.utils.data.DataLoader(num_workers=W, batch_size=16)` over
   a map-style `Dataset` decoding with `cv2.imread` (BGR to RGB), as the
   official RAFT-Stereo and IGEV-Stereo loaders do.
@@ -19,8 +23,8 @@ The data are rendered first with `mbs-tool synth` (six 5-view scenes at
 loaders make one untimed pass first, so the files are in the page cache as
 in a long run, then time --steps batches per worker count.
 
-Needs PyTorch and OpenCV (`pip install torch opencv-python-headless`; not
-part of CI). From the repository root:
+Needs PyTorch, OpenCV and the package (`pip install torch
+opencv-python-headless ./python`; not part of CI). From the repository root:
     python3 tools/bench/loader_vs_torch.py --workers 1,2 --steps 12
 """
 
@@ -111,6 +115,22 @@ def torch_samples_per_s(manifest, crop, batch, steps, workers):
     return batch * steps / one_pass()
 
 
+def dataset_samples_per_s(manifest, crop, batch, steps, workers):
+    import torch
+    from mbs.torch import MultiBaselineDataset
+
+    def one_pass():
+        dataset = MultiBaselineDataset(manifest, steps, batch, crop, seed=1)
+        loader = torch.utils.data.DataLoader(dataset, batch_size=None, num_workers=workers)
+        start = time.perf_counter()
+        for items in loader:
+            assert items["reference"].shape == (batch, 3, *crop)
+        return time.perf_counter() - start
+
+    one_pass()  # warms the page cache
+    return batch * steps / one_pass()
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--manifest", help="a real dataset's manifest (default: render six scenes)")
@@ -121,9 +141,11 @@ def main():
     args = parser.parse_args()
     try:
         import cv2  # noqa: F401
+        import mbs  # noqa: F401
         import torch  # noqa: F401
     except ImportError as missing:
-        sys.exit(f"{missing}: this benchmark needs pip install torch opencv-python-headless (not part of CI)")
+        sys.exit(f"{missing}: this benchmark needs pip install torch opencv-python-headless ./python "
+                 "(not part of CI)")
     workers = [int(w) for w in args.workers.split(",")]
     crop = (384, 512)
     with tempfile.TemporaryDirectory() as scratch:
@@ -138,16 +160,19 @@ def main():
                               "--steps", str(args.steps), "--batch", str(args.batch)],
                              check=True, stdout=subprocess.PIPE, text=True).stdout
         mbs = {line["workers"]: line["samples_per_s"] for line in map(json.loads, out.splitlines())}
+        dataset = {w: dataset_samples_per_s(manifest, crop, args.batch, args.steps, w) for w in workers}
         peer = {w: torch_samples_per_s(manifest, crop, args.batch, args.steps, w) for w in workers}
         load_after = os.getloadavg()
     import torch
 
     print(f"batch {args.batch}, crop {crop[0]}x{crop[1]}, {args.steps} batches, torch {torch.__version__}, "
           f"load average {load_before[0]:.2f} before / {load_after[0]:.2f} after\n")
-    print("| loading threads / DataLoader workers | mbs samples/s | PyTorch samples/s | mbs / PyTorch |")
-    print("| ---: | ---: | ---: | ---: |")
+    print("| loading threads / DataLoader workers | mbs samples/s | mbs.torch dataset samples/s "
+          "| cv2 + numpy dataset samples/s | mbs / cv2 | mbs.torch / cv2 |")
+    print("| ---: | ---: | ---: | ---: | ---: | ---: |")
     for w in workers:
-        print(f"| {w} | {mbs[w]:.1f} | {peer[w]:.1f} | {mbs[w] / peer[w]:.2f} |")
+        print(f"| {w} | {mbs[w]:.1f} | {dataset[w]:.1f} | {peer[w]:.1f} | {mbs[w] / peer[w]:.2f} "
+              f"| {dataset[w] / peer[w]:.2f} |")
 
 
 if __name__ == "__main__":

@@ -87,11 +87,20 @@ impl DisparitySource {
 /// pixel at all are errors naming the file; unknown pixels (`+inf`, 0 in
 /// PNGs) are filled from the background side.
 pub fn load_disparity(path: &Path, size: (u32, u32)) -> Result<FloatImage, ExtrapolateError> {
-    let map = read_float_map(path)?;
+    checked_disparity(read_float_map(path)?, size, path)
+}
+
+/// `map` as [`load_disparity`] checks and fills a file's disparity;
+/// errors name `source` (the file, or the argument it came from).
+pub fn checked_disparity(
+    map: FloatImage,
+    size: (u32, u32),
+    source: &Path,
+) -> Result<FloatImage, ExtrapolateError> {
     let bad = map.iter().filter(|d| d.is_nan() || **d < 0.0).count();
     if bad > 0 {
         return Err(ExtrapolateError::input(
-            path,
+            source,
             format!(
                 "{bad} NaN or negative disparities (disparity is a non-negative magnitude; mark invalid pixels +inf or 0 in PNGs)"
             ),
@@ -99,7 +108,7 @@ pub fn load_disparity(path: &Path, size: (u32, u32)) -> Result<FloatImage, Extra
     }
     if map.dimensions() != size {
         return Err(ExtrapolateError::input(
-            path,
+            source,
             format!(
                 "disparity is {:?} but the views are {size:?} (width, height)",
                 map.dimensions()
@@ -107,7 +116,7 @@ pub fn load_disparity(path: &Path, size: (u32, u32)) -> Result<FloatImage, Extra
         ));
     }
     if !map.iter().any(|d| d.is_finite()) {
-        return Err(ExtrapolateError::input(path, "no valid disparity at all"));
+        return Err(ExtrapolateError::input(source, "no valid disparity at all"));
     }
     Ok(fill_disparity_background(&map))
 }
@@ -135,21 +144,33 @@ impl Disparities {
         right: &RgbImage,
     ) -> Result<Option<Disparities>, ExtrapolateError> {
         let size = left.dimensions();
-        Ok(Some(match (left_file, right_file) {
-            (Some(l), Some(r)) => Disparities {
-                left: load_disparity(l, size)?,
-                right: load_disparity(r, size)?,
+        let load = |file: Option<&Path>| file.map(|f| load_disparity(f, size)).transpose();
+        let (left_map, right_map) = (load(left_file)?, load(right_file)?);
+        Self::from_maps(left_map, right_map, left, right)
+    }
+
+    /// Both views' disparities from the maps given (one or both, already
+    /// checked): a view without one gets the other's warped to it. `None`
+    /// when neither is given.
+    pub fn from_maps(
+        left_map: Option<FloatImage>,
+        right_map: Option<FloatImage>,
+        left: &RgbImage,
+        right: &RgbImage,
+    ) -> Result<Option<Disparities>, ExtrapolateError> {
+        Ok(Some(match (left_map, right_map) {
+            (Some(dl), Some(dr)) => Disparities {
+                left: dl,
+                right: dr,
             },
-            (Some(l), None) => {
-                let dl = load_disparity(l, size)?;
+            (Some(dl), None) => {
                 let dr = derive_other_view(left, &dl, Side::Right)?;
                 Disparities {
                     left: dl,
                     right: dr,
                 }
             }
-            (None, Some(r)) => {
-                let dr = load_disparity(r, size)?;
+            (None, Some(dr)) => {
                 let dl = derive_other_view(right, &dr, Side::Left)?;
                 Disparities {
                     left: dl,

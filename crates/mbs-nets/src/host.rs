@@ -4,36 +4,9 @@
 
 use burn::tensor::{Device, Tensor, TensorData};
 use mbs_core::RgbImage;
+use mbs_image::planar::{Window, append_chw};
 
 use crate::error::NetError;
-
-/// A crop window, in pixels.
-#[derive(Debug, Clone, Copy)]
-pub struct Window {
-    /// First row.
-    pub top: usize,
-    /// First column.
-    pub left: usize,
-    /// Rows.
-    pub height: usize,
-    /// Columns.
-    pub width: usize,
-}
-
-/// Appends `window` of `image` to `out` as planar RGB in `[0, 1]`.
-pub fn append_chw(window: &Window, image: &RgbImage, out: &mut Vec<f32>) {
-    let stride = image.width() as usize * 3;
-    let raw = image.as_raw();
-    for channel in 0..3 {
-        for y in window.top..window.top + window.height {
-            let row = &raw[y * stride..(y + 1) * stride];
-            out.extend(
-                (window.left..window.left + window.width)
-                    .map(|x| row[x * 3 + channel] as f32 / 255.0),
-            );
-        }
-    }
-}
 
 /// Planar values of `shape` as a tensor on `device`.
 pub fn chw_tensor(data: Vec<f32>, shape: [usize; 4], device: &Device) -> Tensor<4> {
@@ -44,13 +17,7 @@ pub fn chw_tensor(data: Vec<f32>, shape: [usize; 4], device: &Device) -> Tensor<
 pub fn image_tensor(image: &RgbImage, device: &Device) -> Tensor<4> {
     let (height, width) = (image.height() as usize, image.width() as usize);
     let mut out = Vec::with_capacity(3 * width * height);
-    let whole = Window {
-        top: 0,
-        left: 0,
-        height,
-        width,
-    };
-    append_chw(&whole, image, &mut out);
+    append_chw(&Window::whole(image), image, &mut out);
     chw_tensor(out, [1, 3, height, width], device)
 }
 

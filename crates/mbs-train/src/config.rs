@@ -60,7 +60,7 @@ impl RunConfig {
         RunConfig::new(
             TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(2e-4, 200_000)),
             NetworkConfig::new(),
-            AugmentConfig::new(),
+            AugmentConfig::default(),
             DataConfig::new(),
         )
     }

@@ -61,6 +61,27 @@ impl From<mbs_dataset::DatasetError> for TrainError {
     }
 }
 
+impl From<mbs_batch::BatchError> for TrainError {
+    fn from(e: mbs_batch::BatchError) -> Self {
+        use mbs_batch::BatchError;
+        match e {
+            BatchError::TooFewViews(views) => TrainError::TooFewViews(views),
+            BatchError::Input(message) => TrainError::Input(message),
+            BatchError::Data { path, reason } => TrainError::Data { path, reason },
+            BatchError::InvalidSetting {
+                name,
+                value,
+                reason,
+            } => NetError::InvalidSetting {
+                name,
+                value,
+                reason,
+            }
+            .into(),
+        }
+    }
+}
+
 impl From<mbs_viz::VizError> for TrainError {
     fn from(e: mbs_viz::VizError) -> Self {
         TrainError::Input(format!("drawing: {e}"))

@@ -1,4 +1,4 @@
-//! S3 self-supervised multi-baseline stereo training on burn: losses, masks and weight map, EMA teacher, schedules, triplet sampling, data pipeline, checkpoints, and training runs with their logs, pictures and TensorBoard events; the networks it trains are `mbs-nets`'.
+//! S3 self-supervised multi-baseline stereo training on burn: losses, masks and weight map, EMA teacher, schedules, batches on the device (drawn by `mbs-batch`), checkpoints, and training runs with their logs, pictures and TensorBoard events; the networks it trains are `mbs-nets`'.
 //!
 //! Everything runs on burn's run-time selected device (`Device::flex()` on
 //! CPU, Vulkan or CUDA through [`mbs_nets::device::open_device`],
@@ -8,8 +8,8 @@
 //! One step, as [`step::S3Trainer::step`] runs it:
 //!
 //! ```text
-//! sampling::TripletSampler  -> (reference r, student target t_s, teacher target t_t), r = B_s / B_t
-//! augment::AugmentConfig    -> colour jitter + occlusion of the student's pair
+//! mbs_batch::load_batch     -> (reference r, student target t_s, teacher target t_t), r = B_s / B_t
+//! augment::augment          -> colour jitter + occlusion of the student's pair
 //! mbs_nets::predict         -> d_t = teacher(I_r, I_tt)     (no autodiff, left targets mirrored)
 //!                              d_s = student(aug I_r, aug I_ts)
 //! losses::S3Loss::compute   -> L = mean(A |d_s - r d_t|) + lambda_p mean(M_s P_s) + lambda_s L_s
@@ -31,7 +31,6 @@ pub mod memory;
 pub mod optimizer;
 pub mod precision;
 pub mod run;
-pub mod sampling;
 pub mod schedule;
 pub mod step;
 pub mod supervision;
@@ -41,4 +40,5 @@ pub use config::RunConfig;
 pub use data::StepBatch;
 pub use error::TrainError;
 pub use losses::{LossConfig, LossInputs, LossOutput, S3Loss};
+pub use mbs_batch::sampling;
 pub use step::{S3Trainer, StepReport, TrainerConfig};

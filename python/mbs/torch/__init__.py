@@ -1,22 +1,15 @@
 """S3 for any PyTorch stereo network (torch is an optional dependency).
 
+- :class:`MultiBaselineDataset`: the batches ``mbs-tool train`` draws
+  (triplets, crops, ratios, augmentation), one item per step;
 - :class:`S3Loss`: the paper's loss with every term, mask and switch of
   ``mbs-tool train``, on tensors and autograd;
 - :func:`predict`: runs ``network(left, right)`` with left targets mirrored;
-- :func:`sequence_weights`, :func:`cosine_momentum`, :func:`ema_update_`:
-  the iterative student's weights and the EMA teacher.
+- :func:`sequence_weights`, :func:`cosine_momentum`, :func:`ema_update_`,
+  :func:`geometry_weight`: the iterative student's weights, the EMA
+  teacher and the geometry term's warm-up.
 
-Example::
-
-    from mbs.torch import S3Loss, predict, cosine_momentum, ema_update_
-    loss_fn = S3Loss()
-    with torch.no_grad():
-        teacher_d = predict(teacher, ref, teacher_tgt, teacher_sides)[-1]
-    student_d = predict(student, ref, student_tgt, student_sides)
-    out = loss_fn(ref, student_tgt, teacher_tgt, student_d, teacher_d,
-                  student_sides, teacher_sides, ratios)
-    out.total.backward(); optimiser.step(); optimiser.zero_grad()
-    ema_update_(teacher, student, cosine_momentum(step, total_steps))
+A whole training loop is ``python/examples/s3_train.py``.
 """
 
 try:
@@ -24,17 +17,22 @@ try:
 except ImportError as error:  # pragma: no cover - depends on the environment
     raise ImportError("mbs.torch needs PyTorch: pip install torch") from error
 
+from mbs.torch.augment import augment_pair
+from mbs.torch.data import MultiBaselineDataset
 from mbs.torch.loss import S3Loss, S3LossOutput, photometric_map, ssim, warp_to_reference
-from mbs.torch.schedules import cosine_momentum, ema_update_, sequence_weights
+from mbs.torch.schedules import cosine_momentum, ema_update_, geometry_weight, sequence_weights
 from mbs.torch.views import LEFT, RIGHT, mirror_left, predict
 
 __all__ = [
     "LEFT",
+    "MultiBaselineDataset",
     "RIGHT",
     "S3Loss",
     "S3LossOutput",
+    "augment_pair",
     "cosine_momentum",
     "ema_update_",
+    "geometry_weight",
     "mirror_left",
     "photometric_map",
     "predict",

@@ -46,3 +46,25 @@ def ema_update_(teacher: nn.Module, student: nn.Module, momentum: float) -> None
         if t.shape != s.shape:
             raise ValueError(f"teacher: parameter {index} is {tuple(t.shape)}, the student's {tuple(s.shape)}")
         t.mul_(momentum).add_(s.detach().to(t.device), alpha=1.0 - momentum)
+
+
+def geometry_weight(step: int, total_steps: int, start: float = 0.0, warmup: float = 0.0) -> float:
+    """The geometry term's weight at ``step`` of a ``total_steps`` run, as
+    ``trainer.geometry_start`` and ``trainer.geometry_warmup``: 0 for the
+    first ``start`` share of the steps, then rising linearly to 1 over the
+    next ``warmup`` share (both rounded to whole steps), then 1. The
+    defaults weigh it fully from the first step (the paper); ``mbs-tool
+    train`` uses 0.3 and 0.5 for RAFT-Stereo and IGEV-Stereo from random
+    weights."""
+    for name, value in [("start", start), ("warmup", warmup)]:
+        if not 0.0 <= value <= 1.0:
+            raise ValueError(f"{name}: got {value}, expected a share of the run in [0, 1]")
+    if start + warmup > 1.0:
+        raise ValueError(f"start + warmup: got {start + warmup}, expected at most 1")
+    start_step = round(start * total_steps)
+    warmup_steps = round((start + warmup) * total_steps) - start_step
+    if step < start_step:
+        return 0.0
+    if warmup_steps == 0:
+        return 1.0
+    return min((step - start_step) / warmup_steps, 1.0)

@@ -7,9 +7,9 @@ use std::sync::Arc;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::thread::JoinHandle;
 
-use super::batch::{HostBatch, load_batch};
-use super::samples::TrainingSamples;
 use crate::error::TrainError;
+use mbs_batch::TrainingSamples;
+use mbs_batch::{HostBatch, load_batch};
 
 /// Batches waiting per worker.
 const SLOTS: usize = 2;
@@ -36,7 +36,8 @@ struct Job {
 impl Job {
     fn run(self) {
         for step in self.steps {
-            let batch = load_batch(&self.samples, self.batch_size, self.crop, self.seed, step);
+            let batch = load_batch(&self.samples, self.batch_size, self.crop, self.seed, step)
+                .map_err(TrainError::from);
             let failed = batch.is_err();
             // A closed channel means the consumer stopped: nothing more to do.
             if self.sender.send(batch).is_err() || failed {

@@ -9,21 +9,20 @@
 
 pub mod batch;
 pub mod loader;
-pub mod samples;
 pub mod validation;
 
 use burn::config::Config;
 use mbs_dataset::Split;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 
 use crate::error::TrainError;
 use mbs_core::limits::{MAX_IMAGE_SIDE, MAX_JOBS};
 use mbs_nets::ranges;
 
-pub use batch::{HostBatch, StepBatch};
+pub use batch::StepBatch;
 pub use loader::BatchLoader;
-pub use samples::{TrainingSamples, ViewPaths};
+pub use mbs_batch::HostBatch;
+pub use mbs_batch::rng::{Stream, step_rng};
+pub use mbs_batch::samples::{TrainingSamples, ViewPaths};
 pub use validation::{ValidationPair, ValidationSet};
 
 /// How batches are drawn and loaded.
@@ -81,39 +80,9 @@ impl DataConfig {
     }
 }
 
-/// Which random stream of a step a generator serves.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Stream {
-    /// Sample, triplet and crop choices (worker threads).
-    Batch,
-    /// The student's augmentation (training thread).
-    Augment,
-}
-
-/// The generator of `stream` for step `step` of a run seeded with `seed`.
-pub fn step_rng(seed: u64, step: usize, stream: Stream) -> ChaCha8Rng {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let lane = match stream {
-        Stream::Batch => 0,
-        Stream::Augment => 1,
-    };
-    rng.set_stream(((step as u64) << 1) | lane);
-    rng
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::Rng;
-
-    #[test]
-    fn step_generators_depend_on_seed_step_and_stream_only() {
-        let first = |seed, step, stream| step_rng(seed, step, stream).random::<u64>();
-        assert_eq!(first(1, 5, Stream::Batch), first(1, 5, Stream::Batch));
-        assert_ne!(first(1, 5, Stream::Batch), first(1, 6, Stream::Batch));
-        assert_ne!(first(1, 5, Stream::Batch), first(1, 5, Stream::Augment));
-        assert_ne!(first(1, 5, Stream::Batch), first(2, 5, Stream::Batch));
-    }
 
     #[test]
     fn defaults_are_the_papers_pretraining_settings() {

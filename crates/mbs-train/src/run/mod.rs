@@ -375,8 +375,12 @@ impl TrainingRun {
                     skipped.len()
                 )));
             }
-            let batch =
-                batch.into_step_batch(&self.devices[0], &self.config.augment, self.config.seed);
+            let batch = StepBatch::from_host(
+                batch,
+                &self.devices[0],
+                &self.config.augment,
+                self.config.seed,
+            );
             let report = self.trainer.step_parallel(batch, &self.devices)?;
             let taken = report.step + 1;
             interval.add(&report);

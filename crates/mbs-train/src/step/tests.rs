@@ -3,7 +3,7 @@
 //! disparity between views `r` and `t` is `3 |t - r|` px everywhere.
 
 use super::*;
-use crate::augment::AugmentConfig;
+use crate::augment::{AugmentConfig, augment};
 use crate::precision::{LossScale, Precision};
 use crate::sampling::{Triplet, TripletSampler};
 use burn::module::Module;
@@ -154,14 +154,17 @@ fn loss_decreases_over_twenty_steps() {
     };
     let error_before = error(&trainer);
     // Fresh colour jitter and occlusion of the student's input every step.
-    let augment = AugmentConfig::new()
-        .with_occlusion_min_side(4)
-        .with_occlusion_max_side(12);
+    let config = AugmentConfig {
+        occlusion_min_side: 4,
+        occlusion_max_side: 12,
+        ..AugmentConfig::default()
+    };
     let mut augment_rng = ChaCha8Rng::seed_from_u64(9);
     let start = std::time::Instant::now();
     let losses: Vec<f32> = (0..20)
         .map(|_| {
-            let (augmented_reference, augmented_target) = augment.apply(
+            let (augmented_reference, augmented_target) = augment(
+                &config,
                 fixed.reference.clone(),
                 fixed.student_target.clone(),
                 &mut augment_rng,
@@ -581,13 +584,16 @@ impl MixedPrecisionSetup {
     /// `steps` steps on the fixed batch, the student's input freshly
     /// jittered and occluded each step (the same way for every trainer).
     fn train_on(&self, trainer: &mut S3Trainer<CostVolumeNet>, steps: usize) -> Vec<StepReport> {
-        let augment = AugmentConfig::new()
-            .with_occlusion_min_side(4)
-            .with_occlusion_max_side(12);
+        let config = AugmentConfig {
+            occlusion_min_side: 4,
+            occlusion_max_side: 12,
+            ..AugmentConfig::default()
+        };
         (0..steps)
             .map(|_| {
                 let mut rng = ChaCha8Rng::seed_from_u64(9 + trainer.steps_taken() as u64);
-                let (augmented_reference, augmented_target) = augment.apply(
+                let (augmented_reference, augmented_target) = augment(
+                    &config,
                     self.fixed.reference.clone(),
                     self.fixed.student_target.clone(),
                     &mut rng,

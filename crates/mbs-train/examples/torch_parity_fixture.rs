@@ -1,11 +1,13 @@
-//! Writes the fixture of the PyTorch loss's parity test
+//! Writes the fixture of `mbs.torch`'s parity tests
 //! (`python/tests/test_torch_loss.py`): fixed inputs, and for each case (a
 //! loss configuration, a geometry weight, one or three student
 //! predictions) the value of every term, the masks and the weight map of
-//! [`S3Loss`] and the gradient of its total in each student prediction.
+//! [`S3Loss`] and the gradient of its total in each student prediction;
+//! then one batch's augmentation draws and the augmented pair
+//! ([`mbs_train::augment::apply`]).
 //!
 //! ```text
-//! cargo run -p mbs-train --example s3_loss_fixture -- python/tests/fixtures/s3_loss.safetensors
+//! cargo run -p mbs-train --example torch_parity_fixture -- python/tests/fixtures/torch_parity.safetensors
 //! ```
 //!
 //! The inputs are smooth analytic images (two items, 3x14x22) and targets
@@ -13,7 +15,7 @@
 //! on the left, with student and teacher disparities near the true ones
 //! but a patch that leaves the image and one below zero, so that every
 //! mask and the range term have something to do. Tensors are named
-//! `inputs/<name>` and `<case>/<name>`; the metadata holds each case's
+//! `inputs/<name>`, `<case>/<name>` and `augment/<name>`; the metadata holds each case's
 //! loss configuration (the keys of `trainer.loss`, as `mbs.torch.S3Loss`'s
 //! arguments), geometry weight and prediction count.
 
@@ -24,8 +26,11 @@ use std::path::{Path, PathBuf};
 use burn::tensor::{Device, Tensor};
 use mbs_core::geometry::Side;
 use mbs_nets::test_util::{tensor4, values};
+use mbs_train::augment::{AugmentConfig, apply};
 use mbs_train::step::sequence_weights;
 use mbs_train::{LossConfig, LossInputs, S3Loss};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 use safetensors::tensor::{Dtype, TensorView};
 
 const BATCH: usize = 2;
@@ -311,6 +316,25 @@ fn main() -> Result<(), Box<dyn Error>> {
     fixture
         .metadata
         .insert("cases".into(), serde_json::to_string(&described)?);
+    let plain = Device::flex();
+    let augment = AugmentConfig {
+        occlusion_probability: 1.0,
+        occlusion_min_side: 3,
+        occlusion_max_side: 8,
+        ..AugmentConfig::default()
+    };
+    let draws = augment.draw(BATCH, HEIGHT, WIDTH, &mut ChaCha8Rng::seed_from_u64(7));
+    let (reference, target) = apply(
+        &draws,
+        tensor4(&inputs[0].1, image_shape, &plain),
+        tensor4(&inputs[1].1, image_shape, &plain),
+    );
+    fixture.add("augment/brightness".into(), &[BATCH], &draws.brightness);
+    fixture.add("augment/contrast".into(), &[BATCH], &draws.contrast);
+    fixture.add("augment/saturation".into(), &[BATCH], &draws.saturation);
+    fixture.add("augment/occlusion".into(), &map_shape, &draws.occlusion);
+    fixture.add_tensor("augment/reference".into(), reference);
+    fixture.add_tensor("augment/target".into(), target);
     fixture.write(&path)?;
     println!("{} cases -> {}", described.len(), path.display());
     Ok(())

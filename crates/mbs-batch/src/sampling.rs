@@ -6,7 +6,7 @@ use mbs_core::geometry::{Rig, Side};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::error::TrainError;
+use crate::error::BatchError;
 
 /// One training triplet of view indices (0..N-1, left to right).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -47,9 +47,9 @@ fn side(reference: usize, target: usize) -> Side {
 
 /// Every triplet of an `n_views` sample, in (reference, student, teacher)
 /// lexicographic order: `n (n - 1)^2` of them.
-pub fn all_triplets(n_views: usize) -> Result<Vec<Triplet>, TrainError> {
+pub fn all_triplets(n_views: usize) -> Result<Vec<Triplet>, BatchError> {
     if n_views < 2 {
-        return Err(TrainError::TooFewViews(n_views));
+        return Err(BatchError::TooFewViews(n_views));
     }
     let others = |reference: usize| (0..n_views).filter(move |&v| v != reference);
     Ok((0..n_views)
@@ -74,9 +74,9 @@ pub struct TripletSampler {
 
 impl TripletSampler {
     /// A sampler for samples of `n_views` views.
-    pub fn new(n_views: usize, seed: u64) -> Result<Self, TrainError> {
+    pub fn new(n_views: usize, seed: u64) -> Result<Self, BatchError> {
         if n_views < 2 {
-            return Err(TrainError::TooFewViews(n_views));
+            return Err(BatchError::TooFewViews(n_views));
         }
         Ok(Self {
             n_views,
@@ -125,7 +125,7 @@ mod tests {
                     .all(|t| t.student != t.reference && t.teacher != t.reference)
             );
         }
-        assert_eq!(all_triplets(1), Err(TrainError::TooFewViews(1)));
+        assert_eq!(all_triplets(1), Err(BatchError::TooFewViews(1)));
     }
 
     #[test]

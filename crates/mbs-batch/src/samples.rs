@@ -8,7 +8,7 @@ use mbs_dataset::Manifest;
 use mbs_dataset::manifest::{Split, resolve};
 use mbs_dataset::probe::probe;
 
-use crate::error::TrainError;
+use crate::error::BatchError;
 
 /// The views of one sample, left to right.
 #[derive(Debug, Clone, PartialEq)]
@@ -33,7 +33,7 @@ pub struct TrainingSamples {
 impl TrainingSamples {
     /// The `train` samples of the manifest at `path`; every one must have
     /// one view per camera and images at least `crop` (height, width).
-    pub fn load(path: &Path, crop: (usize, usize)) -> Result<Self, TrainError> {
+    pub fn load(path: &Path, crop: (usize, usize)) -> Result<Self, BatchError> {
         let manifest = Manifest::load(path)?;
         Self::from_manifest(path, &manifest, crop)
     }
@@ -43,10 +43,10 @@ impl TrainingSamples {
         path: &Path,
         manifest: &Manifest,
         (crop_height, crop_width): (usize, usize),
-    ) -> Result<Self, TrainError> {
+    ) -> Result<Self, BatchError> {
         let rig = manifest.rig;
         if rig.num_views < 2 {
-            return Err(TrainError::data(
+            return Err(BatchError::data(
                 path,
                 format!(
                     "the rig has {} camera(s); S3 needs at least 2",
@@ -57,7 +57,7 @@ impl TrainingSamples {
         let mut samples = Vec::new();
         for sample in manifest.samples.iter().filter(|s| s.split == Split::Train) {
             if sample.views.len() != rig.num_views {
-                return Err(TrainError::data(
+                return Err(BatchError::data(
                     path,
                     format!(
                         "sample {} has {} views for a {}-camera rig",
@@ -69,7 +69,7 @@ impl TrainingSamples {
             }
             let size = sample.size(&rig);
             if (size.1 as usize) < crop_height || (size.0 as usize) < crop_width {
-                return Err(TrainError::data(
+                return Err(BatchError::data(
                     path,
                     format!(
                         "sample {} is {}x{} (height x width), smaller than the {crop_height}x{crop_width} crop; choose a smaller crop",
@@ -84,7 +84,7 @@ impl TrainingSamples {
             });
         }
         if samples.is_empty() {
-            return Err(TrainError::data(path, "no sample of the `train` split"));
+            return Err(BatchError::data(path, "no sample of the `train` split"));
         }
         Ok(Self { rig, samples })
     }
@@ -94,7 +94,7 @@ impl TrainingSamples {
     /// Checks every view's header (size and completeness, as `validate`
     /// does without `--deep`) before training starts, so a bad file does
     /// not end a run hours in; the error lists the problems found.
-    pub fn check_files(&self, manifest: &Path) -> Result<(), TrainError> {
+    pub fn check_files(&self, manifest: &Path) -> Result<(), BatchError> {
         use rayon::prelude::*;
         let problems: Vec<String> = self
             .samples
@@ -131,6 +131,6 @@ impl TrainingSamples {
         if problems.len() > SHOWN {
             message.push_str(&format!("\n  … and {} more", problems.len() - SHOWN));
         }
-        Err(TrainError::data(manifest, message))
+        Err(BatchError::data(manifest, message))
     }
 }

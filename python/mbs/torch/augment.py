@@ -1,0 +1,33 @@
+"""The student's input augmentation of ``mbs-tool train`` on PyTorch
+tensors, from the draws of a batch (``MultiBaselineDataset`` returns them):
+the same colour jitter for both images of an item, then the target's
+occluding rectangles filled with its mean colour."""
+
+import torch
+
+
+def _grey(images: torch.Tensor) -> torch.Tensor:
+    """Luma ``0.299 R + 0.587 G + 0.114 B``, ``[B, 1, H, W]``."""
+    return images[:, 0:1] * 0.299 + images[:, 1:2] * 0.587 + images[:, 2:3] * 0.114
+
+
+def augment_pair(reference, target, brightness, contrast, saturation, occlusion):
+    """Augments pairs ``[B, 3, H, W]`` in ``[0, 1]`` with one batch's draws:
+    per item, brightness, then contrast around the image's mean grey, then
+    saturation around each pixel's grey (clamped to ``[0, 1]``), both
+    images alike; then the target is set to its mean colour where
+    ``occlusion`` (``[B, 1, H, W]``) is 1. Factors are ``[B]`` tensors."""
+    factors = [f.to(reference).view(-1, 1, 1, 1) for f in (brightness, contrast, saturation)]
+
+    def jitter(images):
+        brightness, contrast, saturation = factors
+        images = images * brightness
+        mean_grey = _grey(images).mean(dim=(2, 3), keepdim=True)
+        images = (images - mean_grey) * contrast + mean_grey
+        pixel_grey = _grey(images)
+        return ((images - pixel_grey) * saturation + pixel_grey).clamp(0.0, 1.0)
+
+    reference, target = jitter(reference), jitter(target)
+    mask = occlusion.to(target)
+    mean_colour = target.mean(dim=(2, 3), keepdim=True)
+    return reference, target * (1.0 - mask) + mean_colour * mask

@@ -1,0 +1,162 @@
+//! `mbs._native.HostBatches`: the trainer's host batches for Python
+//! (`mbs.torch.MultiBaselineDataset` wraps it), drawn and decoded by the
+//! crate the trainer uses (`mbs-batch`), so a step's batch is the one
+//! `mbs-tool train` draws for the same manifest, seed, batch size and crop.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use mbs_batch::{AugmentConfig, HostBatch, Stream, TrainingSamples, load_batch, step_rng};
+use numpy::{PyArray1, PyArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::{os_error, value_error};
+
+/// The largest batch, as `mbs-tool train`'s `data.batch_size`.
+const MAX_BATCH_SIZE: usize = 1024;
+
+/// The batches of a run over the `train` samples of a manifest.
+#[pyclass(frozen, module = "mbs._native")]
+pub struct HostBatches {
+    manifest: PathBuf,
+    samples: Arc<TrainingSamples>,
+    batch_size: usize,
+    crop: (usize, usize),
+    seed: u64,
+    augment: AugmentConfig,
+}
+
+#[pymethods]
+impl HostBatches {
+    /// Reads the manifest's `train` samples (every one at least the crop);
+    /// `augment_json` holds `trainer.augment`-style keys, missing ones at
+    /// the paper's values.
+    #[new]
+    #[pyo3(signature = (manifest, batch_size, crop_height, crop_width, seed, augment_json = "{}"))]
+    fn new(
+        py: Python<'_>,
+        manifest: PathBuf,
+        batch_size: usize,
+        crop_height: usize,
+        crop_width: usize,
+        seed: u64,
+        augment_json: &str,
+    ) -> PyResult<Self> {
+        if !(1..=MAX_BATCH_SIZE).contains(&batch_size) {
+            return Err(value_error(
+                "batch_size",
+                format!("{batch_size}: expected 1 to {MAX_BATCH_SIZE}"),
+            ));
+        }
+        if crop_height < 16 || crop_width < 16 {
+            return Err(value_error(
+                "crop",
+                format!("{crop_height}x{crop_width}: each side must be at least 16 pixels"),
+            ));
+        }
+        let augment: AugmentConfig = serde_json::from_str(augment_json)
+            .map_err(|e| value_error("augment", format!("not augmentation settings: {e}")))?;
+        augment.validate().map_err(|e| value_error("augment", e))?;
+        let crop = (crop_height, crop_width);
+        let samples = py
+            .detach(|| TrainingSamples::load(&manifest, crop))
+            .map_err(|e| os_error(&manifest, e))?;
+        Ok(HostBatches {
+            manifest,
+            samples: Arc::new(samples),
+            batch_size,
+            crop,
+            seed,
+            augment,
+        })
+    }
+
+    /// The number of training samples.
+    fn __len__(&self) -> usize {
+        self.samples.samples.len()
+    }
+
+    /// The batch of `step` as a dict of NumPy arrays and lists: the clean
+    /// crops `reference`, `student_target` and `teacher_target`
+    /// (`float32`, `[B, 3, H, W]` in `[0, 1]`), `ratios` (`float64`),
+    /// `triplets` (`int64`, `[B, 3]`: reference, student and teacher
+    /// view), `windows` (`int64`, `[B, 2]`: top and left of the crop),
+    /// `student_sides` and `teacher_sides` (`"left"`/`"right"`),
+    /// `sample_ids`, `skipped` (unreadable images met and replaced, each
+    /// `(path, error)`), and the augmentation's draws: `brightness`,
+    /// `contrast`, `saturation` (`float32`, `[B]`) and `occlusion`
+    /// (`float32`, `[B, 1, H, W]`, 1 where the target is erased).
+    fn batch<'py>(&self, py: Python<'py>, step: usize) -> PyResult<Bound<'py, PyDict>> {
+        let (batch, draws) = py
+            .detach(|| {
+                let batch = load_batch(&self.samples, self.batch_size, self.crop, self.seed, step)?;
+                let mut rng = step_rng(self.seed, step, Stream::Augment);
+                let draws = self
+                    .augment
+                    .draw(batch.len(), batch.height, batch.width, &mut rng);
+                Ok::<_, mbs_batch::BatchError>((batch, draws))
+            })
+            .map_err(|e| os_error(&self.manifest, e))?;
+        let HostBatch {
+            height,
+            width,
+            reference,
+            student_target,
+            teacher_target,
+            triplets,
+            ratios,
+            sample_ids,
+            windows,
+            skipped,
+            ..
+        } = batch;
+        let items = triplets.len();
+        let out = PyDict::new(py);
+        let images = [3, height, width];
+        let array = |values: Vec<f32>, shape: &[usize]| {
+            let mut full = vec![items];
+            full.extend_from_slice(shape);
+            PyArray1::from_vec(py, values).reshape(full)
+        };
+        out.set_item("reference", array(reference, &images)?)?;
+        out.set_item("student_target", array(student_target, &images)?)?;
+        out.set_item("teacher_target", array(teacher_target, &images)?)?;
+        out.set_item("ratios", PyArray1::from_vec(py, ratios))?;
+        let views: Vec<i64> = triplets
+            .iter()
+            .flat_map(|t| [t.reference, t.student, t.teacher].map(|v| v as i64))
+            .collect();
+        out.set_item(
+            "triplets",
+            PyArray1::from_vec(py, views).reshape([items, 3])?,
+        )?;
+        let corners: Vec<i64> = windows
+            .iter()
+            .flat_map(|w| [w.top as i64, w.left as i64])
+            .collect();
+        out.set_item(
+            "windows",
+            PyArray1::from_vec(py, corners).reshape([items, 2])?,
+        )?;
+        let side = |side: mbs_core::Side| match side {
+            mbs_core::Side::Left => "left",
+            mbs_core::Side::Right => "right",
+        };
+        let student: Vec<&str> = triplets.iter().map(|t| side(t.student_side())).collect();
+        let teacher: Vec<&str> = triplets.iter().map(|t| side(t.teacher_side())).collect();
+        out.set_item("student_sides", student)?;
+        out.set_item("teacher_sides", teacher)?;
+        out.set_item("sample_ids", sample_ids)?;
+        let skipped: Vec<(String, String)> = skipped
+            .into_iter()
+            .map(|(path, error)| (path.display().to_string(), error))
+            .collect();
+        out.set_item("skipped", skipped)?;
+        out.set_item("brightness", PyArray1::from_vec(py, draws.brightness))?;
+        out.set_item("contrast", PyArray1::from_vec(py, draws.contrast))?;
+        out.set_item("saturation", PyArray1::from_vec(py, draws.saturation))?;
+        out.set_item("occlusion", array(draws.occlusion, &[1, height, width])?)?;
+        Ok(out)
+    }
+}

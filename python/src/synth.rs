@@ -1,0 +1,104 @@
+//! `mbs._native.synth_scene`: one procedural street scene rendered from a
+//! rig, as `mbs-tool synth` renders its frames, with exact ground truth.
+
+use image::RgbImage;
+use mbs_core::{FloatImage, Rig};
+use mbs_synth::{RenderOptions, Scene, SceneConfig, one_step_disparity, render};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::{MAX_SIDE, to_numpy, value_error};
+
+/// The most cameras a rig may have here.
+const MAX_VIEWS: usize = 16;
+
+/// A street scene generated from `seed` and rendered by exact ray casting
+/// from a rig of `views` cameras `baseline` metres apart (camera `k` at
+/// `x = k * baseline`), `width x height` pixels, focal length `focal`
+/// pixels, principal point at the centre, under `weather` (`ClearNoon`,
+/// `ClearNight`, `ClearSunset`, `CloudyNoon`, `MidRainyNoon`) with
+/// `supersample^2` samples per pixel. Returns a dict of lists, one entry
+/// per camera: `views` (uint8 HxWx3), `depth` (float32 HxW, planar metres;
+/// the sky is 1000 m) and `disparity` (float32 HxW, `focal * baseline /
+/// depth`: the exact disparity of a one-baseline pair; `k` times it for
+/// cameras `k` apart).
+#[pyfunction]
+#[pyo3(signature = (seed = 0, views = 5, width = 192, height = 96, focal = 96.0, baseline = 0.5, weather = "ClearNoon", supersample = 2))]
+#[allow(clippy::too_many_arguments)]
+pub fn synth_scene<'py>(
+    py: Python<'py>,
+    seed: u64,
+    views: usize,
+    width: usize,
+    height: usize,
+    focal: f64,
+    baseline: f64,
+    weather: &str,
+    supersample: u32,
+) -> PyResult<Bound<'py, PyDict>> {
+    if !(2..=MAX_VIEWS).contains(&views) {
+        return Err(value_error(
+            "views",
+            format!("{views}: expected 2 to {MAX_VIEWS} cameras"),
+        ));
+    }
+    for (name, side) in [("width", width), ("height", height)] {
+        if !(8..=MAX_SIDE).contains(&side) {
+            return Err(value_error(
+                name,
+                format!("{side}: expected 8 to {MAX_SIDE} pixels"),
+            ));
+        }
+    }
+    for (name, value) in [("focal", focal), ("baseline", baseline)] {
+        if !(value.is_finite() && value > 0.0) {
+            return Err(value_error(
+                name,
+                format!("{value}: expected a positive number"),
+            ));
+        }
+    }
+    if !(1..=4).contains(&supersample) {
+        return Err(value_error(
+            "supersample",
+            format!("{supersample}: expected 1 to 4"),
+        ));
+    }
+    let weather = serde_json::from_value(serde_json::Value::from(weather)).map_err(|_| {
+        value_error(
+            "weather",
+            format!(
+                "{weather:?} is not ClearNoon, ClearNight, ClearSunset, CloudyNoon or MidRainyNoon"
+            ),
+        )
+    })?;
+    let rig = Rig::centred(views, baseline, focal, width as u32, height as u32);
+    let options = RenderOptions {
+        supersample,
+        weather,
+        ..RenderOptions::default()
+    };
+    let rendered = py.detach(|| {
+        let scene = Scene::generate(seed, &SceneConfig::centred_on(&rig));
+        render(&scene, &rig, &options)
+    });
+    let disparity: Vec<FloatImage> = rendered
+        .depth
+        .iter()
+        .map(|depth| one_step_disparity(depth, &rig))
+        .collect();
+    let arrays = |images: Vec<RgbImage>| -> PyResult<Vec<_>> {
+        images
+            .into_iter()
+            .map(|image| to_numpy(py, image))
+            .collect()
+    };
+    let maps = |maps: Vec<FloatImage>| -> PyResult<Vec<_>> {
+        maps.into_iter().map(|map| to_numpy(py, map)).collect()
+    };
+    let out = PyDict::new(py);
+    out.set_item("views", arrays(rendered.views)?)?;
+    out.set_item("depth", maps(rendered.depth)?)?;
+    out.set_item("disparity", maps(disparity)?)?;
+    Ok(out)
+}
