@@ -7,6 +7,10 @@ dilation and inpainting; disparity estimation excluded. Also the quality
 (PSNR/SSIM vs the real views) of both pipelines on Tsukuba: from (col3, col4)
 synthesise col2 and col5, with the same disparities for both pipelines.
 
+`mbs.extrapolate` (the Python package, when installed: `pip install
+./python`) is timed on the same frame and disparities too, arrays in and
+out, all threads.
+
 Peer: numpy z-buffer splat warp (each source pixel to the nearest target
 pixel, largest disparity wins), cv2.dilate with an elliptical element of the
 same radius as mbs's dilation, cv2.inpaint TELEA (radius 3).
@@ -130,6 +134,19 @@ def main():
         disp3, disp4 = read_pfm(f"{out}/tsukuba_disp3.pfm"), read_pfm(f"{out}/tsukuba_disp4.pfm")
         kernel = None
 
+        def python_binding():
+            try:
+                import mbs
+            except ImportError:
+                return None
+            dilation = {} if args.dilate is None else {"dilation": "ellipse", "dilate_radius": args.dilate}
+            times = []
+            for _ in range(args.frames + 1):
+                start = time.perf_counter()
+                mbs.extrapolate(left, right, disparity_left=disp_left, disparity_right=disp_right, **dilation)
+                times.append((time.perf_counter() - start) * 1e3)
+            return float(np.median(times[1:]))
+
         def peer():
             times = []
             for _ in range(args.frames + 1):
@@ -140,7 +157,7 @@ def main():
 
         # The machine is shared: alternate the contenders and keep each one's
         # fastest median, so that a burst of foreign load hits both alike.
-        runs, peer_ms = {}, float("inf")
+        runs, peer_ms, python_ms = {}, float("inf"), None
         for _ in range(args.rounds):
             for threads in (1, None):
                 run = rust(threads)
@@ -149,6 +166,9 @@ def main():
                     runs[run["threads"]] = run
             kernel = kernel_for(run["dilation"])
             peer_ms = min(peer_ms, peer())
+            binding = python_binding()
+            if binding is not None:
+                python_ms = binding if python_ms is None else min(python_ms, binding)
     runs = [runs[k] for k in sorted(runs)]
     rust_q = runs[-1]
 
@@ -168,6 +188,8 @@ def main():
         name = f"mbs (Rust), {run['threads']} thread{'s' if run['threads'] > 1 else ''}"
         print(f"{name:<26} {run['ms_median']:>9.2f} {peer_ms / run['ms_median']:>8.1f}x {run['tsukuba_psnr_all']:>7.2f} "
               f"{run['tsukuba_psnr_holes']:>7.2f} {run['tsukuba_ssim_all']:>7.4f} {run['tsukuba_ssim_holes']:>7.4f}")
+    if python_ms is not None:
+        print(f"{'mbs.extrapolate (Python)':<26} {python_ms:>9.2f} {peer_ms / python_ms:>8.1f}x")
     print(f"{'numpy + OpenCV TELEA':<26} {peer_ms:>9.2f} {1:>8.1f}x {peer_q['psnr_all']:>7.2f} "
           f"{peer_q['psnr_holes']:>7.2f} {peer_q['ssim_all']:>7.4f} {peer_q['ssim_holes']:>7.4f}")
     return 0

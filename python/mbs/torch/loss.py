@@ -27,6 +27,7 @@ from typing import List, Optional, Sequence, Union
 import torch
 from torch import nn
 
+from mbs.torch.schedules import sequence_weights
 from mbs.torch.views import side_signs
 
 #: SSIM stabilisers for images in ``[0, 1]``.
@@ -267,8 +268,6 @@ class S3Loss(nn.Module):
         ratios: Union[Sequence[float], torch.Tensor],
         geometry_weight: float = 1.0,
     ) -> S3LossOutput:
-        from mbs.torch.schedules import sequence_weights
-
         predictions = list(student_disparity) if isinstance(student_disparity, (list, tuple)) else [student_disparity]
         _require(len(predictions) > 0, "student_disparity", "an empty list", "a tensor or a non-empty list")
         batch = _check_shapes(reference, student_target, teacher_target, predictions, teacher_disparity, self.ssim_window)
