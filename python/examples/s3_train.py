@@ -42,6 +42,7 @@ import mbs
 from mbs.torch import (
     MultiBaselineDataset,
     S3Loss,
+    augment_batch,
     cosine_momentum,
     ema_update_,
     geometry_weight,
@@ -169,7 +170,9 @@ def main(argv=None):
     for batch in loader:
         step = batch["step"]
         images = {name: batch[name].to(device) for name in
-                  ["reference", "student_target", "teacher_target", "augmented_reference", "augmented_target"]}
+                  ["reference", "student_target", "teacher_target", "brightness", "contrast", "saturation",
+                   "occlusion"]}
+        images["augmented_reference"], images["augmented_target"] = augment_batch(images)
         with torch.no_grad():
             teacher_disparity = predict(teacher, images["reference"], images["teacher_target"],
                                         batch["teacher_sides"])[-1]

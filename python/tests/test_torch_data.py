@@ -18,7 +18,7 @@ import torch
 from torch.utils.data import DataLoader
 
 import mbs
-from mbs.torch import MultiBaselineDataset
+from mbs.torch import MultiBaselineDataset, augment_batch
 
 MBS_TOOL = os.environ.get("MBS_TOOL", "target/debug/mbs-tool")
 
@@ -62,21 +62,23 @@ def test_items_are_crops_of_their_views_with_the_rigs_ratios(manifest):
         assert batch["ratios"][item].item() == pytest.approx(expected, rel=1e-6)
     for factor in ["brightness", "contrast", "saturation"]:
         assert ((batch[factor] >= 0.6) & (batch[factor] <= 1.4)).all()
-    assert ((batch["augmented_reference"] >= 0) & (batch["augmented_reference"] <= 1)).all()
+    reference, target = augment_batch(batch)
+    assert ((reference >= 0) & (reference <= 1)).all() and reference.shape == batch["reference"].shape
+    assert not torch.equal(target, batch["student_target"])
 
 
 def test_a_steps_batch_depends_on_seed_and_step_only(manifest):
     data = MultiBaselineDataset(manifest, steps=6, batch_size=2, crop=(32, 48), seed=3)
     again = MultiBaselineDataset(manifest, steps=6, batch_size=2, crop=(32, 48), seed=3)
     other_seed = MultiBaselineDataset(manifest, steps=6, batch_size=2, crop=(32, 48), seed=4)
-    assert torch.equal(data[5]["augmented_target"], again[5]["augmented_target"])
+    assert torch.equal(augment_batch(data[5])[1], augment_batch(again[5])[1])
     assert not torch.equal(data[4]["reference"], data[5]["reference"])
     assert not torch.equal(data[5]["reference"], other_seed[5]["reference"])
     alone = [data[k] for k in range(6)]
     loaded = list(DataLoader(data, batch_size=None, num_workers=2))
     assert [b["step"] for b in loaded] == list(range(6))
     for a, b in zip(alone, loaded):
-        for name in ["reference", "teacher_target", "augmented_target", "ratios", "triplets", "windows"]:
+        for name in ["reference", "teacher_target", "occlusion", "brightness", "ratios", "triplets", "windows"]:
             assert torch.equal(a[name], b[name]), name
 
 

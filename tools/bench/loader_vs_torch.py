@@ -12,8 +12,9 @@ student and teacher targets) and one 384x512 crop, decode the three
 - mbs: the release example `loader_throughput --manifest M --workers W`
   (crates/mbs-train/examples/loader_throughput.rs), W loading threads;
 - mbs.torch: `DataLoader(MultiBaselineDataset(...), batch_size=None,
-  num_workers=W)`, one item per step decoded and cropped in Rust, plus the
-  student's augmentation in PyTorch (the dataset's whole work);
+  num_workers=W)`, one item per step decoded and cropped in Rust with the
+  draws of the student's augmentation (which the training loop applies
+  where the network runs);
 - PyTorch: `torch.utils.data.DataLoader(num_workers=W, batch_size=16)` over
   a map-style `Dataset` decoding with `cv2.imread` (BGR to RGB), as the
   official RAFT-Stereo and IGEV-Stereo loaders do.

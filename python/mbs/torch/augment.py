@@ -1,7 +1,9 @@
 """The student's input augmentation of ``mbs-tool train`` on PyTorch
 tensors, from the draws of a batch (``MultiBaselineDataset`` returns them):
 the same colour jitter for both images of an item, then the target's
-occluding rectangles filled with its mean colour."""
+occluding rectangles filled with its mean colour. Apply it where the
+network runs, as the trainer does: on a GPU it costs next to nothing, in a
+``DataLoader`` worker it would cost more CPU time than decoding."""
 
 import torch
 
@@ -31,3 +33,14 @@ def augment_pair(reference, target, brightness, contrast, saturation, occlusion)
     mask = occlusion.to(target)
     mean_colour = target.mean(dim=(2, 3), keepdim=True)
     return reference, target * (1.0 - mask) + mean_colour * mask
+
+
+def augment_batch(batch: dict):
+    """The student's input ``(augmented reference, augmented target)`` of a
+    ``MultiBaselineDataset`` batch, on the device of its images."""
+    device = batch["reference"].device
+    return augment_pair(
+        batch["reference"],
+        batch["student_target"],
+        *(batch[name].to(device) for name in ("brightness", "contrast", "saturation", "occlusion")),
+    )

@@ -8,7 +8,6 @@ import torch
 from torch.utils.data import Dataset
 
 from mbs import _native
-from mbs.torch.augment import augment_pair
 
 
 class MultiBaselineDataset(Dataset):
@@ -29,15 +28,16 @@ class MultiBaselineDataset(Dataset):
             ...
 
     Each batch is a dict: ``reference``, ``student_target`` and
-    ``teacher_target`` (clean crops, ``float32 [B, 3, H, W]`` in ``[0, 1]``,
-    for the loss and the teacher), ``augmented_reference`` and
-    ``augmented_target`` (the student's input), ``ratios`` (``float32
-    [B]``, ``r = B_s / B_t``), ``student_sides`` and ``teacher_sides``
+    ``teacher_target`` (clean crops, ``float32 [B, 3, H, W]`` in ``[0, 1]``),
+    ``ratios`` (``float32 [B]``, ``r = B_s / B_t``), ``student_sides`` and ``teacher_sides``
     (``"left"``/``"right"`` per item), ``triplets`` (``int64 [B, 3]``:
     reference, student and teacher view), ``windows`` (``int64 [B, 2]``:
     the crop's top and left), ``sample_ids``, ``step``, ``skipped``
-    (unreadable images that were replaced), and the augmentation's draws
-    (``brightness``, ``contrast``, ``saturation``, ``occlusion``).
+    (unreadable images that were replaced), and the draws of the student's
+    augmentation (``brightness``, ``contrast``, ``saturation``,
+    ``occlusion``), which :func:`mbs.torch.augment_batch` applies where the
+    network runs (the student's input; the loss and the teacher see the
+    clean crops).
 
     ``augment`` takes ``mbs-tool train``'s ``augment.*`` keys
     (``brightness``, ``contrast``, ``saturation``, ``occlusion_probability``,
@@ -74,14 +74,6 @@ class MultiBaselineDataset(Dataset):
         for name in ("student_sides", "teacher_sides", "sample_ids", "skipped"):
             batch[name] = raw[name]
         batch["step"] = step
-        batch["augmented_reference"], batch["augmented_target"] = augment_pair(
-            batch["reference"],
-            batch["student_target"],
-            batch["brightness"],
-            batch["contrast"],
-            batch["saturation"],
-            batch["occlusion"],
-        )
         return batch
 
     def __getstate__(self):
