@@ -98,17 +98,9 @@ def test_matcher_equals_predict(scene, tmp_path):
     np.testing.assert_array_equal(ours, mbs.read_pfm(written))
 
 
-@pytest.mark.parametrize("options, flags", [
-    ({}, []),
-    ({"dilation": "ellipse", "dilate_radius": 1, "inpaint": "isotropic", "max_disparity": 32},
-     ["--dilation", "ellipse", "--dilate-radius", "1", "--inpaint", "isotropic", "--max-disparity", "32"]),
-])
-def test_extrapolate_equals_the_command_byte_for_byte(scene, tmp_path, options, flags):
-    left, right = scene / "rgb_1.png", scene / "rgb_2.png"
-    cli = tmp_path / "cli"
-    mbs_tool("extrapolate", "--left", left, "--right", right, "--out", cli, *flags)
-    views = mbs.extrapolate(mbs.read_rgb(left), mbs.read_rgb(right), **options)
-    ours = tmp_path / "ours"
+def assert_written_as_the_command(views, cli, ours):
+    """`mbs.extrapolate`'s views and disparities, written as the command
+    writes them, are its files byte for byte; its masks are its masks."""
     ours.mkdir()
     for name in ("image_1", "image_4"):
         mbs.write_rgb(ours / f"{name}.png", views[name])
@@ -119,6 +111,19 @@ def test_extrapolate_equals_the_command_byte_for_byte(scene, tmp_path, options, 
     for name in ("disparity_2", "disparity_3"):
         mbs.write_pfm(ours / f"{name}.pfm", views[name])
         assert (ours / f"{name}.pfm").read_bytes() == (cli / f"{name}.pfm").read_bytes(), name
+
+
+@pytest.mark.parametrize("options, flags", [
+    ({}, []),
+    ({"dilation": "ellipse", "dilate_radius": 1, "inpaint": "isotropic", "max_disparity": 32},
+     ["--dilation", "ellipse", "--dilate-radius", "1", "--inpaint", "isotropic", "--max-disparity", "32"]),
+])
+def test_extrapolate_equals_the_command_byte_for_byte(scene, tmp_path, options, flags):
+    left, right = scene / "rgb_1.png", scene / "rgb_2.png"
+    cli = tmp_path / "cli"
+    mbs_tool("extrapolate", "--left", left, "--right", right, "--out", cli, *flags)
+    views = mbs.extrapolate(mbs.read_rgb(left), mbs.read_rgb(right), **options)
+    assert_written_as_the_command(views, cli, tmp_path / "ours")
     assert views["mask_1"].any() and views["mask_4"].any(), "new views have synthesised pixels"
 
 
@@ -139,14 +144,7 @@ def test_extrapolate_from_disparity_arrays_equals_the_command_from_files(scene, 
     mbs_tool("extrapolate", "--left", left, "--right", right, "--out", cli, *flags)
     views = mbs.extrapolate(mbs.read_rgb(left), mbs.read_rgb(right),
                             **{f"disparity_{side}": maps[side] for side in sides})
-    ours = tmp_path / "ours"
-    ours.mkdir()
-    for name in ("image_1", "image_4"):
-        mbs.write_rgb(ours / f"{name}.png", views[name])
-        assert (ours / f"{name}.png").read_bytes() == (cli / f"{name}.png").read_bytes(), name
-    for name in ("disparity_2", "disparity_3"):
-        mbs.write_pfm(ours / f"{name}.pfm", views[name])
-        assert (ours / f"{name}.pfm").read_bytes() == (cli / f"{name}.pfm").read_bytes(), name
+    assert_written_as_the_command(views, cli, tmp_path / "ours")
 
 
 def test_bad_disparity_arrays_are_named(scene):
