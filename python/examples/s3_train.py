@@ -19,9 +19,11 @@ Each step prints (and ``--log`` writes as a JSON line) the loss, its
 terms, the student's and teacher's mask shares and the learning rate.
 Before the first step and after the last, the teacher is scored on the
 manifest's held-out samples (``val``, else ``test``) that have ground
-truth for the pair of views 0 and 1: EPE and Out-3 over valid pixels (a
-``{"eval": ...}`` line in the log). S3's loss is not a score that must
-fall: its masked terms grow as the masks do; the held-out error is.
+truth for the pair of views 0 and 1: EPE and Out-3 over valid pixels, and
+the self-supervised photometric error of the warp over all pixels (a
+``{"eval": ...}`` line in the log). The training loss itself is no score:
+its masked terms grow as the masks do, and the geometry term follows a
+moving teacher.
 """
 
 import argparse
@@ -46,7 +48,9 @@ from mbs.torch import (
     cosine_momentum,
     ema_update_,
     geometry_weight,
+    photometric_map,
     predict,
+    warp_to_reference,
 )
 
 
@@ -111,15 +115,25 @@ def held_out_pairs(manifest):
 
 @torch.no_grad()
 def evaluate(network, pairs, device):
-    """EPE (px) and Out-3 (%) of ``network`` over the pairs' valid pixels."""
-    errors = []
+    """EPE (px) and Out-3 (%) of ``network`` over the pairs' valid pixels,
+    and its self-supervised error: the photometric error (the loss's ``P``,
+    over every pixel, no mask) of the right view warped by its disparity."""
+    errors, photometric = [], []
     for left, right, truth in pairs:
         image = lambda array: torch.from_numpy(array).permute(2, 0, 1)[None].float().div(255).to(device)  # noqa: E731
-        predicted = predict(network, image(left), image(right), ["right"])[-1][0, 0].cpu().numpy()
+        left_image, right_image = image(left), image(right)
+        disparity = predict(network, left_image, right_image, ["right"])[-1]
+        signs = torch.ones(1, 1, 1, 1, device=device)
+        warped = warp_to_reference(right_image, disparity, signs)
+        photometric.append(photometric_map(left_image, warped, 0.85, 7).mean().item())
         valid = np.isfinite(truth)
-        errors.append(np.abs(predicted - truth)[valid])
+        errors.append(np.abs(disparity[0, 0].cpu().numpy() - truth)[valid])
     errors = np.concatenate(errors) if errors else np.array([np.nan])
-    return {"epe": float(errors.mean()), "out3": float((errors > 3).mean() * 100)}
+    return {
+        "epe": float(errors.mean()),
+        "out3": float((errors > 3).mean() * 100),
+        "photometric": float(np.mean(photometric)),
+    }
 
 
 def crop_size(text: str):
@@ -162,7 +176,8 @@ def main(argv=None):
 
     def score(step):
         scores = {"step": step, **evaluate(teacher, pairs, device)}
-        print(f"held-out after {step} steps: EPE {scores['epe']:.2f} px, Out-3 {scores['out3']:.1f} %", flush=True)
+        print(f"held-out after {step} steps: EPE {scores['epe']:.2f} px, Out-3 {scores['out3']:.1f} %, "
+              f"photometric error {scores['photometric']:.4f}", flush=True)
         if log:
             log.write(json.dumps({"eval": scores}) + "\n")
 
