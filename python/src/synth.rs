@@ -7,10 +7,17 @@ use mbs_synth::{RenderOptions, Scene, SceneConfig, one_step_disparity, render};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::{MAX_SIDE, to_numpy, value_error};
+use crate::{to_numpy, value_error};
 
 /// The most cameras a rig may have here.
 const MAX_VIEWS: usize = 16;
+
+/// The most pixels a view may have a side.
+const MAX_VIEW_SIDE: usize = 4096;
+
+/// The most pixels of all views together (the views, depth and disparity
+/// maps of a call then take at most about 1.3 GB).
+const MAX_TOTAL_PIXELS: usize = 1 << 26;
 
 /// A street scene generated from `seed` and rendered by exact ray casting
 /// from a rig of `views` cameras `baseline` metres apart (camera `k` at
@@ -43,12 +50,22 @@ pub fn synth_scene<'py>(
         ));
     }
     for (name, side) in [("width", width), ("height", height)] {
-        if !(8..=MAX_SIDE).contains(&side) {
+        if !(8..=MAX_VIEW_SIDE).contains(&side) {
             return Err(value_error(
                 name,
-                format!("{side}: expected 8 to {MAX_SIDE} pixels"),
+                format!("{side}: expected 8 to {MAX_VIEW_SIDE} pixels"),
             ));
         }
+    }
+    if views * width * height > MAX_TOTAL_PIXELS {
+        return Err(value_error(
+            "views",
+            format!(
+                "{views} views of {width}x{height} are {} pixels, more than the {MAX_TOTAL_PIXELS} \
+                 one call renders; render fewer or smaller views",
+                views * width * height
+            ),
+        ));
     }
     for (name, value) in [("focal", focal), ("baseline", baseline)] {
         if !(value.is_finite() && value > 0.0) {

@@ -293,6 +293,7 @@ def test_synth_scene_has_exact_ground_truth():
 
 def test_synth_scene_names_bad_settings():
     for kwargs, named in [({"views": 1}, "views"), ({"width": 4}, "width"), ({"focal": -1.0}, "focal"),
-                          ({"weather": "Snow"}, "weather"), ({"supersample": 0}, "supersample")]:
+                          ({"weather": "Snow"}, "weather"), ({"supersample": 0}, "supersample"),
+                          ({"width": 8192}, "width"), ({"views": 16, "width": 4096, "height": 4096}, "views")]:
         with pytest.raises(ValueError, match=named):
             mbs.synth_scene(**kwargs)
