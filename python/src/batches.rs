@@ -6,15 +6,15 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use mbs_batch::{AugmentConfig, HostBatch, Stream, TrainingSamples, load_batch, step_rng};
+use mbs_batch::{
+    AugmentConfig, HostBatch, MAX_BATCH_SIZE, MIN_CROP_SIDE, Stream, TrainingSamples, load_batch,
+    step_rng,
+};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::{os_error, value_error};
-
-/// The largest batch, as `mbs-tool train`'s `data.batch_size`.
-const MAX_BATCH_SIZE: usize = 1024;
 
 /// The batches of a run over the `train` samples of a manifest.
 #[pyclass(frozen, module = "mbs._native")]
@@ -49,10 +49,12 @@ impl HostBatches {
                 format!("{batch_size}: expected 1 to {MAX_BATCH_SIZE}"),
             ));
         }
-        if crop_height < 16 || crop_width < 16 {
+        if crop_height < MIN_CROP_SIDE || crop_width < MIN_CROP_SIDE {
             return Err(value_error(
                 "crop",
-                format!("{crop_height}x{crop_width}: each side must be at least 16 pixels"),
+                format!(
+                    "{crop_height}x{crop_width}: each side must be at least {MIN_CROP_SIDE} pixels"
+                ),
             ));
         }
         let augment: AugmentConfig = serde_json::from_str(augment_json)
@@ -70,11 +72,6 @@ impl HostBatches {
             seed,
             augment,
         })
-    }
-
-    /// The number of training samples.
-    fn __len__(&self) -> usize {
-        self.samples.samples.len()
     }
 
     /// The batch of `step` as a dict of NumPy arrays and lists: the clean

@@ -43,6 +43,13 @@ pub struct HostBatch {
     pub skipped: Vec<(PathBuf, String)>,
 }
 
+/// The largest batch (`data.batch_size`; the paper trains with 16).
+pub const MAX_BATCH_SIZE: usize = 1024;
+
+/// The smallest crop side a batch may have (`data.crop_height` and
+/// `data.crop_width` of a training run).
+pub const MIN_CROP_SIDE: usize = 16;
+
 /// Draws of an item after which a batch gives up on unreadable images: the
 /// data is then broken, not one file of it.
 pub const MAX_DRAWS_PER_ITEM: usize = 8;

@@ -120,24 +120,25 @@ fn median_ms(rounds: usize, mut run: impl FnMut()) -> f64 {
     times[times.len() / 2]
 }
 
-/// The three timings of a layer whose forward pass is `forward`, on a
-/// plain and on an autodiff device; `input` builds its input on a device.
-fn time_layer<const D: usize>(
+/// The three timings of a layer: `layer` builds it on a device and
+/// returns its forward pass, `input` builds its input on a device.
+fn time_layer<const D: usize, F: Fn(Tensor<D>) -> Tensor<D>>(
     rounds: usize,
     input: impl Fn(&Device) -> Tensor<D>,
-    forward: impl Fn(&Device, Tensor<D>) -> Tensor<D>,
+    layer: impl Fn(&Device) -> F,
 ) -> [f64; 3] {
     let plain = Device::flex();
     let autodiff = plain.clone().autodiff();
-    let x = input(&plain);
+    let (forward, x) = (layer(&plain), input(&plain));
     let forward_ms = median_ms(rounds, || {
-        let _ = forward(&plain, x.clone()).into_data();
+        let _ = forward(x.clone()).into_data();
     });
+    let forward = layer(&autodiff);
     let grads_ms = |input_grad: bool| {
         let x = input(&autodiff);
         let x = if input_grad { x.require_grad() } else { x };
         median_ms(rounds, || {
-            let grads = forward(&autodiff, x.clone()).sum().backward();
+            let grads = forward(x.clone()).sum().backward();
             drop(grads);
         })
     };
@@ -153,14 +154,6 @@ fn main() {
         let [from, to] = layer.channels;
         let (k, s, p) = (layer.kernel, layer.stride, layer.kernel / 2);
         let times = if layer.depth == 0 {
-            let make = |device: &Device| {
-                Conv2dConfig::new([from, to], [k, k])
-                    .with_stride([s, s])
-                    .with_padding(PaddingConfig2d::Explicit(p, p, p, p))
-                    .with_groups(layer.groups)
-                    .init(device)
-            };
-            let (plain, autodiff) = (make(&Device::flex()), make(&Device::flex().autodiff()));
             time_layer(
                 rounds,
                 |device| {
@@ -170,20 +163,16 @@ fn main() {
                         device,
                     )
                 },
-                |device, x| match device.is_autodiff() {
-                    true => autodiff.forward(x),
-                    false => plain.forward(x),
+                |device| {
+                    let conv = Conv2dConfig::new([from, to], [k, k])
+                        .with_stride([s, s])
+                        .with_padding(PaddingConfig2d::Explicit(p, p, p, p))
+                        .with_groups(layer.groups)
+                        .init(device);
+                    move |x| conv.forward(x)
                 },
             )
         } else {
-            let make = |device: &Device| {
-                Conv3dConfig::new([from, to], [k, k, k])
-                    .with_stride([s, s, s])
-                    .with_padding(PaddingConfig3d::Explicit(p, p, p))
-                    .with_groups(layer.groups)
-                    .init(device)
-            };
-            let (plain, autodiff) = (make(&Device::flex()), make(&Device::flex().autodiff()));
             time_layer(
                 rounds,
                 |device| {
@@ -193,9 +182,13 @@ fn main() {
                         device,
                     )
                 },
-                |device, x| match device.is_autodiff() {
-                    true => autodiff.forward(x),
-                    false => plain.forward(x),
+                |device| {
+                    let conv = Conv3dConfig::new([from, to], [k, k, k])
+                        .with_stride([s, s, s])
+                        .with_padding(PaddingConfig3d::Explicit(p, p, p))
+                        .with_groups(layer.groups)
+                        .init(device);
+                    move |x| conv.forward(x)
                 },
             )
         };

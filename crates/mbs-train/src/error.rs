@@ -11,9 +11,6 @@ pub enum TrainError {
     /// Tensors handed to a loss or a network do not have the expected shapes.
     #[error("shape mismatch: {0}")]
     Shape(String),
-    /// A rig with fewer than two views cannot give a stereo pair.
-    #[error("a multi-baseline sample needs at least 2 views, got {0}")]
-    TooFewViews(usize),
     /// A training configuration (file, `--set` override) is malformed.
     #[error("configuration: {0}")]
     Config(String),
@@ -43,6 +40,11 @@ pub enum TrainError {
         /// What stopped being finite.
         what: String,
     },
+    /// The training samples or a batch could not be drawn or decoded (a
+    /// rig of one camera, an unreadable manifest or image, an augmentation
+    /// setting out of range); the message names the file or the setting.
+    #[error(transparent)]
+    Batch(#[from] mbs_batch::BatchError),
     /// A network could not be built, loaded or run, a checkpoint written or
     /// read, or a device used.
     #[error(transparent)]
@@ -58,27 +60,6 @@ impl From<mbs_core::FormatError> for TrainError {
 impl From<mbs_dataset::DatasetError> for TrainError {
     fn from(e: mbs_dataset::DatasetError) -> Self {
         TrainError::Input(e.to_string())
-    }
-}
-
-impl From<mbs_batch::BatchError> for TrainError {
-    fn from(e: mbs_batch::BatchError) -> Self {
-        use mbs_batch::BatchError;
-        match e {
-            BatchError::TooFewViews(views) => TrainError::TooFewViews(views),
-            BatchError::Input(message) => TrainError::Input(message),
-            BatchError::Data { path, reason } => TrainError::Data { path, reason },
-            BatchError::InvalidSetting {
-                name,
-                value,
-                reason,
-            } => NetError::InvalidSetting {
-                name,
-                value,
-                reason,
-            }
-            .into(),
-        }
     }
 }
 

@@ -20,9 +20,9 @@ use mbs_nets::ranges;
 
 pub use batch::StepBatch;
 pub use loader::BatchLoader;
-pub use mbs_batch::HostBatch;
 pub use mbs_batch::rng::{Stream, step_rng};
 pub use mbs_batch::samples::{TrainingSamples, ViewPaths};
+pub use mbs_batch::{HostBatch, MAX_BATCH_SIZE, MIN_CROP_SIDE};
 pub use validation::{ValidationPair, ValidationSet};
 
 /// How batches are drawn and loaded.
@@ -56,9 +56,6 @@ pub struct DataConfig {
     pub val_split: Option<Split>,
 }
 
-/// The largest batch (the paper trains with 16).
-pub const MAX_BATCH_SIZE: usize = 1024;
-
 impl DataConfig {
     /// The number of loading threads: `workers`, or one per core for 0.
     pub fn loading_threads(&self) -> usize {
@@ -70,7 +67,7 @@ impl DataConfig {
 
     /// Checks the ranges.
     pub fn validate(&self) -> Result<(), TrainError> {
-        let side = (16, MAX_IMAGE_SIDE as usize);
+        let side = (MIN_CROP_SIDE, MAX_IMAGE_SIDE as usize);
         Ok(ranges::integers_in(&[
             ("batch_size", self.batch_size, (1, MAX_BATCH_SIZE)),
             ("crop_height", self.crop_height, side),
