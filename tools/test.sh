@@ -7,26 +7,13 @@ cd "$(dirname "$0")/.."
 # tests load it and fail, never skip, when it is missing.
 ORT_DYLIB_PATH="$(bash tools/setup-ort.sh | tail -n 1)"
 export ORT_DYLIB_PATH
-# A Vulkan driver for the `--device vulkan` tests: Mesa's lavapipe runs
-# Vulkan on the CPU (skipped when a Vulkan loader and a driver are already
-# installed). Those tests fail, never skip, without one.
-# Open MPI's `mpirun` for the `--shard auto` test (skipped when already
-# installed); that test fails, never skips, without it.
-exists() { for pattern in "$@"; do compgen -G "$pattern" > /dev/null && return 0; done; return 1; }
-packages=()
-if ! exists '/usr/lib/*/libvulkan.so.1' '/usr/lib/libvulkan.so.1' ||
-    ! exists '/usr/share/vulkan/icd.d/*.json' '/etc/vulkan/icd.d/*.json'; then
-    packages+=(mesa-vulkan-drivers libvulkan1)
-fi
-command -v mpirun > /dev/null || packages+=(openmpi-bin)
-if [ ${#packages[@]} -gt 0 ]; then
-    sudo=""
-    [ "$(id -u)" -eq 0 ] || sudo="sudo"
-    $sudo apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends \
-        "${packages[@]}" > /dev/null
-fi
-cargo test --workspace --locked
+# lavapipe (Vulkan on the CPU), Open MPI and libclang from Debian
+# (tools/setup-system.sh); the tests that use them fail, never skip,
+# without them.
+bash tools/setup-system.sh
+# With the `mpi` feature, so that the multi-process training tests
+# (crates/mbs-tool/tests/train_mpi.rs) run the binary that `mpirun` launches.
+cargo test --workspace --locked --features mbs-tool/mpi
 # The Python package (python/, pyo3 + maturin) built from this tree into a
 # virtual environment, .venv-test/, with its test requirements from PyPI
 # (numpy, pytest, PyTorch for mbs.torch), then its tests against the

@@ -85,6 +85,27 @@ pub fn open_device(name: &str) -> Result<Device, NetError> {
     name.trim().parse::<DeviceName>()?.open()
 }
 
+/// The device of one of several processes on a machine (the ranks of an
+/// MPI job) that were all given `list`: `cuda` and `vulkan` without an
+/// index become GPU `local_rank` (`cuda:LOCAL_RANK`), a named device
+/// (`cpu`, `cuda:2`) stays as it is, and a list is refused, since each
+/// process trains on one device.
+pub fn device_of_process(list: &str, local_rank: usize) -> Result<String, NetError> {
+    let name = list.trim();
+    if name.contains(',') {
+        return Err(NetError::Device {
+            name: name.into(),
+            reason: "each process of a multi-process run trains on one device: give one \
+                     (`cuda` takes the GPU of the process's local rank)"
+                .into(),
+        });
+    }
+    Ok(match name {
+        "cuda" | "vulkan" => format!("{name}:{local_rank}"),
+        _ => name.to_string(),
+    })
+}
+
 /// Opens each device of the comma-separated `list`, in order. The same
 /// device may appear twice (its shards then run one after the other).
 pub fn open_devices(list: &str) -> Result<Vec<Device>, NetError> {
@@ -223,6 +244,18 @@ fn run_probe(device: &Device) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn each_process_takes_the_gpu_of_its_local_rank_unless_one_is_named() {
+        assert_eq!(device_of_process("cuda", 3).expect("one"), "cuda:3");
+        assert_eq!(device_of_process(" vulkan ", 1).expect("one"), "vulkan:1");
+        assert_eq!(device_of_process("cuda:0", 3).expect("one"), "cuda:0");
+        assert_eq!(device_of_process("cpu", 2).expect("one"), "cpu");
+        let message = device_of_process("cuda:0,cuda:1", 0)
+            .expect_err("a list")
+            .to_string();
+        assert!(message.contains("trains on one device"), "{message}");
+    }
 
     #[test]
     fn names_are_parsed_printed_and_unknown_ones_refused() {

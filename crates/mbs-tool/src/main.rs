@@ -82,6 +82,8 @@ fn main() -> std::process::ExitCode {
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        // Another rank of the same MPI job printed it.
+        Err(e) if e.is::<cli::processes::ReportedByRankZero>() => std::process::ExitCode::FAILURE,
         Err(e) => {
             eprintln!("error: {}", cli::report_error::describe(&e));
             std::process::ExitCode::FAILURE

@@ -14,6 +14,10 @@ pub enum TrainError {
     /// A training configuration (file, `--set` override) is malformed.
     #[error("configuration: {0}")]
     Config(String),
+    /// The processes of a distributed run disagree (settings, files,
+    /// weights) or cannot share a step.
+    #[error("{0}")]
+    Distributed(String),
     /// A data file could not be read or written; the reader's message
     /// already names the file.
     #[error("{0}")]

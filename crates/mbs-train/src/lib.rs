@@ -23,6 +23,7 @@ pub mod checkpoint;
 pub mod clip;
 pub mod config;
 pub mod data;
+pub mod distributed;
 pub mod ema;
 pub mod error;
 pub mod losses;

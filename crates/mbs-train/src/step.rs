@@ -9,6 +9,7 @@ use burn::tensor::{Device, FloatDType, Tensor};
 
 use crate::clip::unscale_and_clip;
 use crate::data::StepBatch;
+use crate::distributed::{Collective, FlatGradients};
 use crate::ema::ema_update;
 use crate::error::TrainError;
 use crate::losses::{LossConfig, LossInputs, LossOutput, S3Loss};
@@ -364,6 +365,67 @@ impl Objective {
 }
 
 impl LossValues {
+    /// The values, the share's weight and its gradient length as bytes,
+    /// for the other ranks ([`Self::decode`]): f64s, each optional one
+    /// preceded by 1 (present) or 0.
+    fn encode(&self, weight: f64, gradient_length: usize) -> Vec<u8> {
+        let s = &self.supervision;
+        let optional = [
+            self.terms.geometry,
+            self.terms.photometric,
+            self.terms.smoothness,
+            self.terms.range,
+            s.student_mask,
+            s.teacher_mask,
+        ];
+        let mut floats = vec![weight, gradient_length as f64, f64::from(self.total)];
+        for value in optional {
+            floats.push(f64::from(u8::from(value.is_some())));
+            floats.push(value.map_or(0.0, f64::from));
+        }
+        floats.extend(
+            [
+                s.disparity_min,
+                s.disparity_mean,
+                s.disparity_max,
+                s.outside,
+            ]
+            .map(f64::from),
+        );
+        floats.iter().flat_map(|v| v.to_le_bytes()).collect()
+    }
+
+    /// What [`Self::encode`] wrote: the values, the weight and the gradient
+    /// length; `None` for bytes of another length.
+    fn decode(bytes: &[u8]) -> Option<(Self, f64, usize)> {
+        let floats: Vec<f64> = bytes
+            .chunks_exact(8)
+            .map(|chunk| f64::from_le_bytes(chunk.try_into().unwrap_or_default()))
+            .collect();
+        if floats.len() != 19 || bytes.len() != 19 * 8 {
+            return None;
+        }
+        let optional = |i: usize| (floats[3 + 2 * i] == 1.0).then(|| floats[4 + 2 * i] as f32);
+        let values = Self {
+            total: floats[2] as f32,
+            terms: LossTerms {
+                geometry: optional(0),
+                photometric: optional(1),
+                smoothness: optional(2),
+                range: optional(3),
+            },
+            supervision: Supervision {
+                student_mask: optional(4),
+                teacher_mask: optional(5),
+                disparity_min: floats[15] as f32,
+                disparity_mean: floats[16] as f32,
+                disparity_max: floats[17] as f32,
+                outside: floats[18] as f32,
+            },
+        };
+        Some((values, floats[0], floats[1] as usize))
+    }
+
     /// The sum of each share's values times its weight.
     fn weighted_sum(shares: &[(LossValues, f64)]) -> Self {
         let sum = |value: fn(&LossValues) -> Option<f32>| {
@@ -580,6 +642,62 @@ impl<B: Backbone> S3Trainer<B> {
             shares.push((values, weight));
         }
         self.apply(sum.grads(), LossValues::weighted_sum(&shares))
+    }
+
+    /// Takes this process's part of one optimisation step of a run spread
+    /// over the processes of `collective` (MPI ranks), each holding the
+    /// same weights and the same whole `batch`: rank r computes the
+    /// gradient of share r of the items (as [`Self::step_parallel`] shares
+    /// them among devices, weighted by its share of the items), the ranks
+    /// sum their gradients in one all-reduce of a flat buffer, and each
+    /// clips, steps the optimiser and updates its teacher identically, so
+    /// the weights stay the same everywhere (see
+    /// [`crate::distributed::check_same_weights`]). The report is the
+    /// whole batch's, on every rank.
+    pub fn step_distributed(
+        &mut self,
+        batch: StepBatch,
+        collective: &dyn Collective,
+    ) -> Result<StepReport, TrainError> {
+        let ranks = collective.size();
+        let items = batch.reference.dims()[0];
+        if items < ranks {
+            return Err(TrainError::Distributed(format!(
+                "a batch of {items} cannot be shared by {ranks} processes: use a batch size of \
+                 at least the number of processes"
+            )));
+        }
+        let share = batch.split(ranks).swap_remove(collective.rank());
+        let weight = share.reference.dims()[0] as f64 / items as f64;
+        self.objective.geometry_weight = self.geometry_weight();
+        let (grads, values) =
+            self.objective
+                .gradients(&self.teacher, &self.student, share, weight * self.scale())?;
+        let mut flat = FlatGradients::gather(&self.student, &grads)?;
+        // The shares' loss values, and the gradient lengths, which must
+        // agree before the buffers are summed.
+        let mine = values.encode(weight, flat.values.len());
+        let shares = collective
+            .gather(&mine)
+            .iter()
+            .map(|bytes| LossValues::decode(bytes))
+            .collect::<Option<Vec<_>>>()
+            .ok_or_else(|| TrainError::Distributed("a rank sent unreadable loss values".into()))?;
+        if let Some(rank) = shares
+            .iter()
+            .position(|(_, _, len)| *len != flat.values.len())
+        {
+            return Err(TrainError::Distributed(format!(
+                "rank {rank} computed {} gradient values where rank {} computed {}: the \
+                 processes do not train the same network",
+                shares[rank].2,
+                collective.rank(),
+                flat.values.len()
+            )));
+        }
+        collective.sum(&mut flat.values);
+        let shares: Vec<_> = shares.into_iter().map(|(v, w, _)| (v, w)).collect();
+        self.apply(flat.into_grads(), LossValues::weighted_sum(&shares))
     }
 
     /// The geometry term's weight at the current step: 0 before its

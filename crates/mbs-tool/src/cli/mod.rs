@@ -5,6 +5,7 @@
 pub mod batch;
 pub mod onnx;
 pub mod pairs;
+pub mod processes;
 pub mod report_error;
 pub mod rig;
 pub mod shard;

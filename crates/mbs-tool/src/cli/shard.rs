@@ -47,25 +47,18 @@ impl Shard {
     /// Both at once (an array of multi-process jobs) make `array × processes`
     /// shards. An error when neither is set or a value is not a number.
     pub fn from_launcher(var: impl Fn(&str) -> Option<String>) -> Result<Self, String> {
-        let number = |name: &str| -> Result<Option<usize>, String> {
-            var(name)
-                .map(|value| {
-                    value.trim().parse().map_err(|_| {
-                        format!("--shard auto: {name}={value:?} is not a non-negative integer")
-                    })
-                })
-                .transpose()
-        };
-        let pair = |index: &str, count: &str| -> Result<Option<Shard>, String> {
-            match (number(index)?, number(count)?) {
-                (Some(index), Some(count)) => Ok(Some(Shard { index, count })),
-                _ => Ok(None),
-            }
-        };
-        let array = match pair("SLURM_ARRAY_TASK_ID", "SLURM_ARRAY_TASK_COUNT")? {
+        let prefixed = |e: String| format!("--shard auto: {e}");
+        let array = match variable_pair(&var, "SLURM_ARRAY_TASK_ID", "SLURM_ARRAY_TASK_COUNT")
+            .map_err(prefixed)?
+        {
             Some(Shard { index, count }) => {
-                let first = number("SLURM_ARRAY_TASK_MIN")?.unwrap_or(0);
-                let step = number("SLURM_ARRAY_TASK_STEP")?.unwrap_or(1).max(1);
+                let first = number(&var, "SLURM_ARRAY_TASK_MIN")
+                    .map_err(prefixed)?
+                    .unwrap_or(0);
+                let step = number(&var, "SLURM_ARRAY_TASK_STEP")
+                    .map_err(prefixed)?
+                    .unwrap_or(1)
+                    .max(1);
                 Some(Shard {
                     index: index.saturating_sub(first) / step,
                     count,
@@ -73,13 +66,7 @@ impl Shard {
             }
             None => None,
         };
-        let processes = match pair("OMPI_COMM_WORLD_RANK", "OMPI_COMM_WORLD_SIZE")? {
-            Some(shard) => Some(shard),
-            None => match pair("PMI_RANK", "PMI_SIZE")? {
-                Some(shard) => Some(shard),
-                None => pair("SLURM_PROCID", "SLURM_STEP_NUM_TASKS")?,
-            },
-        };
+        let processes = Self::of_launch(&var).map_err(prefixed)?;
         let shard = match (array, processes) {
             (Some(array), Some(processes)) => Shard {
                 index: array.index * processes.count + processes.index,
@@ -106,6 +93,19 @@ impl Shard {
         Ok(shard)
     }
 
+    /// This process's rank and the number of processes of its launch
+    /// (`mpirun`, `srun`), from the variables [`Shard::from_launcher`]
+    /// reads for them; `None` when no launcher set them.
+    pub fn of_launch(var: impl Fn(&str) -> Option<String>) -> Result<Option<Self>, String> {
+        match variable_pair(&var, "OMPI_COMM_WORLD_RANK", "OMPI_COMM_WORLD_SIZE")? {
+            Some(shard) => Ok(Some(shard)),
+            None => match variable_pair(&var, "PMI_RANK", "PMI_SIZE")? {
+                Some(shard) => Ok(Some(shard)),
+                None => variable_pair(&var, "SLURM_PROCID", "SLURM_STEP_NUM_TASKS"),
+            },
+        }
+    }
+
     /// Keeps this shard's items of an already sorted list.
     pub fn select<T>(self, items: Vec<T>) -> Vec<T> {
         items
@@ -114,6 +114,30 @@ impl Shard {
             .filter(|(i, _)| i % self.count == self.index)
             .map(|(_, item)| item)
             .collect()
+    }
+}
+
+/// The number in the variable `name` (`None` when unset).
+fn number(var: &impl Fn(&str) -> Option<String>, name: &str) -> Result<Option<usize>, String> {
+    var(name)
+        .map(|value| {
+            value
+                .trim()
+                .parse()
+                .map_err(|_| format!("{name}={value:?} is not a non-negative integer"))
+        })
+        .transpose()
+}
+
+/// The index and count in the variables `index` and `count`, when both are set.
+fn variable_pair(
+    var: &impl Fn(&str) -> Option<String>,
+    index: &str,
+    count: &str,
+) -> Result<Option<Shard>, String> {
+    match (number(var, index)?, number(var, count)?) {
+        (Some(index), Some(count)) => Ok(Some(Shard { index, count })),
+        _ => Ok(None),
     }
 }
 

@@ -18,6 +18,7 @@
 
 use std::fs;
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Instant;
@@ -33,6 +34,7 @@ use crate::config::RunConfig;
 use crate::data::StepBatch;
 use crate::data::validation::{ValidationMetrics, ValidationPair};
 use crate::data::{BatchLoader, TrainingSamples, ValidationSet};
+use crate::distributed::{Collective, agree, check_same_weights};
 use crate::error::TrainError;
 use crate::precision::check_support;
 use crate::step::{S3Trainer, StepReport};
@@ -146,6 +148,14 @@ pub fn initial_weights(path: &Path) -> Result<StateDict, TrainError> {
     }
 }
 
+/// What every process of a distributed run must hold alike: the settings
+/// and the manifest's digest.
+pub fn run_identity(config: &RunConfig, manifest: &Path) -> Result<serde_json::Value, TrainError> {
+    let digest =
+        mbs_dataset::checksum::sha256_file(manifest).map_err(|e| TrainError::data(manifest, e))?;
+    Ok(serde_json::json!({"settings": config.to_json()?, "manifest_sha256": digest}))
+}
+
 /// A training run in an output folder.
 pub struct TrainingRun {
     out: PathBuf,
@@ -155,6 +165,8 @@ pub struct TrainingRun {
     trainer: S3Trainer<StereoNetwork>,
     /// The first device holds the weights; all share each step's batch.
     devices: Vec<Device>,
+    /// The processes the run is spread over (`None`: this one alone).
+    processes: Option<Rc<dyn Collective>>,
     report: RunReport,
 }
 
@@ -166,7 +178,7 @@ impl TrainingRun {
         out: &Path,
         config: RunConfig,
     ) -> Result<(Self, Start), TrainError> {
-        Self::open_on(manifest, out, config, vec![Device::flex()], None)
+        Self::open_on(manifest, out, config, vec![Device::flex()], None, None)
     }
 
     /// Opens the run in `out` on the training data of `manifest`, training on
@@ -176,17 +188,41 @@ impl TrainingRun {
     /// from the weights of `init` when given (see [`initial_weights`]; a
     /// resumed run ignores it). Resuming with a configuration that changes
     /// what is computed is refused.
+    ///
+    /// With `processes`, the run is one rank of a data-parallel run over
+    /// several processes (an MPI job, see [`S3Trainer::step_distributed`]),
+    /// each on one device: the ranks first [`agree`] on the settings, the
+    /// manifest and the checkpoint they found (before any file is
+    /// written), then rank 0 alone writes the run's files and validates.
     pub fn open_on(
         manifest: &Path,
         out: &Path,
         config: RunConfig,
         devices: Vec<Device>,
         init: Option<&Path>,
+        processes: Option<Rc<dyn Collective>>,
     ) -> Result<(Self, Start), TrainError> {
         config.validate()?;
         let Some(device) = devices.first().cloned() else {
             return Err(TrainError::Config("no device to train on".into()));
         };
+        if let Some(processes) = &processes {
+            if devices.len() > 1 {
+                return Err(TrainError::Distributed(format!(
+                    "each of the {} processes trains on one device, not {}: give one device \
+                     per process",
+                    processes.size(),
+                    devices.len()
+                )));
+            }
+            if config.data.batch_size < processes.size() {
+                return Err(TrainError::Config(format!(
+                    "data.batch_size {} is smaller than the {} processes that share it",
+                    config.data.batch_size,
+                    processes.size()
+                )));
+            }
+        }
         if config.data.batch_size < devices.len() {
             return Err(TrainError::Config(format!(
                 "data.batch_size {} is smaller than the {} devices that share it",
@@ -209,6 +245,13 @@ impl TrainingRun {
         )?;
         let train_device = device.clone().autodiff();
         let latest = Checkpoint::latest(out)?;
+        if let Some(processes) = &processes {
+            let mut identity = run_identity(&config, manifest)?;
+            identity["checkpoint"] = latest.as_ref().map(|c| c.state.steps).into();
+            identity["init"] = init.map(|p| p.display().to_string()).into();
+            agree(processes.as_ref(), &identity)?;
+        }
+        let writer = processes.as_ref().is_none_or(|p| p.rank() == 0);
         // Fresh weights are drawn on the CPU and moved, so a seed gives the
         // same network on every device. Only they need the seed; a
         // checkpoint has its own.
@@ -241,12 +284,14 @@ impl TrainingRun {
                     steps,
                     checkpoint.state.loss_scale,
                 );
-                truncate_log(&out.join(TRAIN_LOG), steps)?;
-                truncate_log(&out.join(VAL_LOG), steps)?;
+                if writer {
+                    truncate_log(&out.join(TRAIN_LOG), steps)?;
+                    truncate_log(&out.join(VAL_LOG), steps)?;
+                }
                 Start::Resumed(steps)
             }
             None => {
-                for log in [TRAIN_LOG, VAL_LOG] {
+                for log in [TRAIN_LOG, VAL_LOG].into_iter().filter(|_| writer) {
                     let path = out.join(log);
                     if path.exists() {
                         fs::remove_file(&path).map_err(|e| TrainError::data(&path, e))?;
@@ -255,10 +300,19 @@ impl TrainingRun {
                 Start::Fresh
             }
         };
-        let config_json = serde_json::to_vec_pretty(&config.to_json()?)
-            .map_err(|e| TrainError::Config(e.to_string()))?;
-        let config_path = out.join(CONFIG_FILE);
-        write_bytes_atomic(&config_path, &config_json)?;
+        if let Some(processes) = &processes {
+            let steps = trainer.steps_taken();
+            check_same_weights(
+                processes.as_ref(),
+                &[trainer.student(), trainer.teacher()],
+                steps,
+            )?;
+        }
+        if writer {
+            let config_json = serde_json::to_vec_pretty(&config.to_json()?)
+                .map_err(|e| TrainError::Config(e.to_string()))?;
+            write_bytes_atomic(&out.join(CONFIG_FILE), &config_json)?;
+        }
         let resumed_after = match &start {
             Start::Resumed(steps) => Some(*steps),
             Start::Fresh => None,
@@ -273,9 +327,16 @@ impl TrainingRun {
                 validation,
                 trainer,
                 devices,
+                processes,
             },
             start,
         ))
+    }
+
+    /// Whether this process writes the run's files and validates: the only
+    /// process, or rank 0 of several.
+    pub fn is_writer(&self) -> bool {
+        self.processes.as_ref().is_none_or(|p| p.rank() == 0)
     }
 
     /// The run's configuration.
@@ -308,7 +369,7 @@ impl TrainingRun {
         stop: &AtomicBool,
     ) -> Result<End, TrainError> {
         let result = self.take_steps(observer, stop);
-        if result.is_err() {
+        if result.is_err() && self.is_writer() {
             let saved = Checkpoint::latest(&self.out)
                 .ok()
                 .flatten()
@@ -346,7 +407,8 @@ impl TrainingRun {
         let mut watch = CollapseWatch::default();
         let mut alert = None;
         let mut metrics = None;
-        if first == 0 {
+        let writer = self.is_writer();
+        if first == 0 && writer {
             metrics = self.validate(observer)?;
         }
         // The untrained network's score, from this session or the log.
@@ -381,7 +443,10 @@ impl TrainingRun {
                 &self.config.augment,
                 self.config.seed,
             );
-            let report = self.trainer.step_parallel(batch, &self.devices)?;
+            let report = match &self.processes {
+                Some(processes) => self.trainer.step_distributed(batch, processes.as_ref())?,
+                None => self.trainer.step_parallel(batch, &self.devices)?,
+            };
             let taken = report.step + 1;
             interval.add(&report);
             observer.on_step(&report, interval.samples_per_second(data.batch_size));
@@ -390,7 +455,12 @@ impl TrainingRun {
                 alert = Some(message);
             }
             // Validation first, so that its warning goes into this step's log line.
-            if taken % self.config.val_every == 0 || taken == total {
+            let validating = taken % self.config.val_every == 0 || taken == total;
+            if let (Some(processes), true) = (&self.processes, validating) {
+                let networks = [self.trainer.student(), self.trainer.teacher()];
+                check_same_weights(processes.as_ref(), &networks, taken)?;
+            }
+            if validating && writer {
                 metrics = self.validate(observer)?;
                 let out3 = metrics.as_ref().and_then(|m| m.all().out(3.0));
                 if let (Some(untrained), Some(out3)) = (untrained_out3, out3)
@@ -400,7 +470,7 @@ impl TrainingRun {
                     alert = Some(message);
                 }
             }
-            if taken % self.config.log_every == 0 || taken == total {
+            if (taken % self.config.log_every == 0 || taken == total) && writer {
                 let mut line = interval.json(taken, data.batch_size);
                 if let Some(message) = alert.take() {
                     line["warning"] = message.into();
@@ -416,15 +486,26 @@ impl TrainingRun {
                 warn(observer, logged);
                 interval = Interval::new();
             }
-            let stopping = stop.load(Ordering::Relaxed);
-            if taken % self.config.checkpoint_every == 0 || taken == total || stopping {
+            let mut stopping = stop.load(Ordering::Relaxed);
+            if let Some(processes) = &self.processes {
+                // Every rank stops at the same step when any was asked to.
+                stopping = processes
+                    .gather(&[u8::from(stopping)])
+                    .iter()
+                    .any(|b| b[0] == 1);
+            }
+            let checkpointing =
+                taken % self.config.checkpoint_every == 0 || taken == total || stopping;
+            if checkpointing && writer {
                 self.checkpoint(observer)?;
             }
             if stopping && taken < total {
                 return Ok(End::Stopped(taken));
             }
         }
-        warn(observer, self.report.curves());
+        if writer {
+            warn(observer, self.report.curves());
+        }
         Ok(End::Finished {
             metrics: metrics.map(Box::new),
         })

@@ -4,16 +4,20 @@
 
 mod report;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Context, bail};
 use clap::Parser;
 use mbs_nets::checkpoint::CHECKPOINTS_DIR;
-use mbs_train::RunConfig;
-use mbs_train::run::{End, Start, TrainingRun};
+use mbs_nets::device::device_of_process;
+use mbs_train::distributed::{Collective, agree, all_succeeded};
+use mbs_train::run::{End, Quiet, Start, TrainingRun, run_identity};
+use mbs_train::{RunConfig, TrainError};
 
+use crate::cli::processes::ReportedByRankZero;
 use report::Report;
 
 /// Arguments of `train`.
@@ -30,6 +34,8 @@ use report::Report;
   mbs-tool train mbs20k.json --out runs/vk --device vulkan          # any Vulkan GPU
   mbs-tool train mbs20k.json --out runs/dp --device cuda:0,cuda:1   # data parallel (--features cuda)
   mbs-tool train mbs20k.json --out runs/amp --device cuda --precision bf16  # mixed precision
+  mpirun -np 8 mbs-tool train mbs20k.json --out runs/mpi --device cuda  # 8 processes (--features mpi)
+  srun --ntasks-per-node=8 --gpus-per-node=8 mbs-tool train mbs20k.json --out runs/slurm --device cuda
 
 Training uses the manifest's `train` samples; validation scores the
 teacher on the `val` samples (or `test` when there is no `val`) that have
@@ -43,7 +49,14 @@ sheets: tensorboard --logdir RUN), checkpoints/step-N/.
 Ctrl-C saves a checkpoint and stops; running the same command again
 resumes from the newest checkpoint (--restart discards them). The settings
 are the paper's defaults, overlaid by --config, then by the named flags,
-then by --set KEY=VALUE (see schemas/train-config.schema.json).")]
+then by --set KEY=VALUE (see schemas/train-config.schema.json).
+
+Under mpirun or srun (a build with `--features mpi`), each process is one
+rank of a data-parallel run: the ranks check that they run the same settings
+on the same manifest, share each batch (the global --batch-size, drawn as one
+process would), sum their gradients with MPI, and compare their weights at
+every validation; rank 0 alone validates and writes --out (on storage every
+rank can read, for resuming). A run resumes on any number of ranks.")]
 pub struct Args {
     /// The dataset manifest (see `mbs-tool scan`, `synth`, `extrapolate`).
     #[arg(required_unless_present = "print_config")]
@@ -95,7 +108,10 @@ pub struct Args {
     /// Where to train: cpu, vulkan[:N] (any Vulkan GPU; N counts discrete
     /// GPUs), or cuda[:N] in a build with `--features cuda`. A comma-separated
     /// list (cuda:0,cuda:1) trains data parallel: each device takes a share of
-    /// every batch and the gradients are summed on the first one.
+    /// every batch and the gradients are summed on the first one. Under
+    /// mpirun or srun each process takes one device: `cuda` (or `vulkan`)
+    /// means GPU LOCAL_RANK, the process's rank on its machine (from MPI,
+    /// whatever the launcher), so N processes per node use its first N GPUs.
     #[arg(long, default_value = "cpu", value_parser = crate::cli::values::devices)]
     pub device: String,
     /// The format the networks compute in (trainer.precision): f32, or mixed
@@ -172,7 +188,8 @@ impl Args {
     }
 }
 
-/// Runs `train`.
+/// Runs `train`: in this process alone, or as one rank of the processes
+/// `mpirun`/`srun` started (a build with `--features mpi`).
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.run_config()?;
     if args.print_config {
@@ -183,53 +200,173 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("give a MANIFEST and --out DIR");
     };
     crate::cli::set_threads(args.jobs)?;
+    let Some(processes) = crate::cli::processes::join()? else {
+        return train(&args, config, manifest, out, None);
+    };
+    match train(&args, config, manifest, out, Some(&processes)) {
+        Ok(()) => Ok(()),
+        // Met by every rank alike: printed once.
+        Err(e) if met_by_every_rank(&e) || e.is::<ReportedByRankZero>() => match processes.rank() {
+            0 => Err(e),
+            _ => Err(ReportedByRankZero.into()),
+        },
+        // Met by this rank alone while the others wait for it: end them all.
+        Err(e) => {
+            eprintln!(
+                "error: rank {} of {}: {}",
+                processes.rank(),
+                processes.size(),
+                crate::cli::report_error::describe(&e)
+            );
+            processes.abort(1)
+        }
+    }
+}
+
+/// Whether `error` came from a check every rank made together, so that
+/// every rank has it.
+fn met_by_every_rank(error: &anyhow::Error) -> bool {
+    error
+        .chain()
+        .any(|cause| matches!(cause.downcast_ref(), Some(TrainError::Distributed(_))))
+}
+
+/// Trains into `out`; with `processes`, as this process's rank of them.
+fn train(
+    args: &Args,
+    config: RunConfig,
+    manifest: &Path,
+    out: &Path,
+    processes: Option<&Rc<dyn Collective>>,
+) -> anyhow::Result<()> {
+    let device_list = match processes {
+        Some(processes) => device_of_process(&args.device, processes.local_rank())?,
+        None => args.device.clone(),
+    };
     // Before anything is removed or written: a bad device name is an input error.
-    let devices = mbs_nets::device::open_devices(&args.device)?;
-    let names = args.device.split(',').map(|name| name.trim().to_string());
+    let devices = mbs_nets::device::open_devices(&device_list);
+    if let Some(processes) = processes {
+        let outcome = devices.as_ref().map(drop).map_err(|e| e.to_string());
+        all_succeeded(processes.as_ref(), outcome)?;
+    }
+    let devices = devices?;
+    let names = device_list.split(',').map(|name| name.trim().to_string());
     mbs_train::precision::check_support(config.trainer.precision, names.zip(&devices))?;
-    let device_names = args
-        .device
+    let device_names = device_list
         .split(',')
         .map(|name| name.trim().parse())
         .collect::<Result<Vec<_>, _>>()?;
-    if let Some(warning) = mbs_train::memory::check(&config, &device_names)? {
+    let writer = processes.is_none_or(|p| p.rank() == 0);
+    if let Some(warning) = mbs_train::memory::check(&config, &device_names)?
+        && writer
+    {
         eprintln!("warning: {warning}");
     }
-    if args.restart {
-        let checkpoints = out.join(CHECKPOINTS_DIR);
-        if checkpoints.exists() {
-            std::fs::remove_dir_all(&checkpoints)
-                .with_context(|| format!("cannot remove {}", checkpoints.display()))?;
-        }
-    }
     crate::cli::require_file(manifest, "manifest")?;
-    crate::cli::prepare_out(out)?;
+    if let Some(processes) = processes {
+        // Agreed before rank 0 touches the folder, so that a mismatch
+        // leaves nothing behind.
+        let mut command = run_identity(&config, manifest)?;
+        command["restart"] = args.restart.into();
+        command["device"] = args.device.clone().into();
+        agree(processes.as_ref(), &command)?;
+    }
+    if writer {
+        if args.restart {
+            let checkpoints = out.join(CHECKPOINTS_DIR);
+            if checkpoints.exists() {
+                std::fs::remove_dir_all(&checkpoints)
+                    .with_context(|| format!("cannot remove {}", checkpoints.display()))?;
+            }
+        }
+        crate::cli::prepare_out(out)?;
+    }
     if let Some(init) = &args.init
         && !init.exists()
     {
         bail!("--init {}: no such file or folder", init.display());
     }
-    let (mut training, start) =
-        TrainingRun::open_on(manifest, out, config, devices, args.init.as_deref())?;
+    if let Some(processes) = processes {
+        // The others wait until rank 0 has prepared the folder.
+        processes.gather(&[]);
+    }
+    let (mut training, start) = TrainingRun::open_on(
+        manifest,
+        out,
+        config,
+        devices,
+        args.init.as_deref(),
+        processes.cloned(),
+    )?;
     let total = training.config().steps();
-    match start {
-        Start::Fresh => match &args.init {
-            Some(init) => eprintln!(
-                "train: {total} steps into {}, starting from {}",
-                out.display(),
-                init.display()
-            ),
-            None => eprintln!("train: {total} steps into {}", out.display()),
-        },
-        Start::Resumed(steps) if steps >= total => {
+    if let Start::Resumed(steps) = start
+        && steps >= total
+    {
+        if writer {
             eprintln!(
                 "train: {} is complete ({steps} of {total} steps); --restart to train again",
                 out.display()
             );
-            return Ok(());
         }
+        return Ok(());
+    }
+    if writer {
+        announce(args, &training, start, out, processes);
+    }
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    ctrlc::set_handler(move || {
+        if flag.swap(true, Ordering::Relaxed) {
+            // A second Ctrl-C while the checkpoint is written: give up now.
+            std::process::exit(130);
+        }
+    })
+    .context("cannot install the Ctrl-C handler")?;
+    if !writer {
+        return match training.run(&mut Quiet, &stop)? {
+            End::Stopped(_) => Err(ReportedByRankZero.into()),
+            End::Finished { .. } => Ok(()),
+        };
+    }
+    let mut report = Report::new(out, training.config(), training.steps_taken())?;
+    let end = training.run(&mut report, &stop)?;
+    report.finish()?;
+    match end {
+        End::Stopped(steps) => bail!(
+            "stopped after step {steps} of {total}; a checkpoint is saved, run the same command to resume"
+        ),
+        End::Finished { metrics } => {
+            report.summary(metrics.as_deref());
+            Ok(())
+        }
+    }
+}
+
+/// Says what the run does: where it starts, on how many processes, and
+/// whether it validates.
+fn announce(
+    args: &Args,
+    training: &TrainingRun,
+    start: Start,
+    out: &Path,
+    processes: Option<&Rc<dyn Collective>>,
+) {
+    let total = training.config().steps();
+    let spread = match processes {
+        Some(processes) => format!(" on {} processes", processes.size()),
+        None => String::new(),
+    };
+    match start {
+        Start::Fresh => match &args.init {
+            Some(init) => eprintln!(
+                "train: {total} steps into {}{spread}, starting from {}",
+                out.display(),
+                init.display()
+            ),
+            None => eprintln!("train: {total} steps into {}{spread}", out.display()),
+        },
         Start::Resumed(steps) => eprintln!(
-            "train: resuming {} at step {steps} of {total}{}",
+            "train: resuming {} at step {steps} of {total}{spread}{}",
             out.display(),
             if args.init.is_some() {
                 " (its checkpoint's weights; --init applies to new runs)"
@@ -243,26 +380,5 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "train: no held-out sample has ground truth for {:?}: validation is off",
             training.config().data.val_pairs
         );
-    }
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = Arc::clone(&stop);
-    ctrlc::set_handler(move || {
-        if flag.swap(true, Ordering::Relaxed) {
-            // A second Ctrl-C while the checkpoint is written: give up now.
-            std::process::exit(130);
-        }
-    })
-    .context("cannot install the Ctrl-C handler")?;
-    let mut report = Report::new(out, training.config(), training.steps_taken())?;
-    let end = training.run(&mut report, &stop)?;
-    report.finish()?;
-    match end {
-        End::Stopped(steps) => bail!(
-            "stopped after step {steps} of {total}; a checkpoint is saved, run the same command to resume"
-        ),
-        End::Finished { metrics } => {
-            report.summary(metrics.as_deref());
-            Ok(())
-        }
     }
 }

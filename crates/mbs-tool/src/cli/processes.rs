@@ -1,0 +1,50 @@
+//! The processes a launcher (`mpirun`, `srun`) started for one command:
+//! joined into an MPI job in a build with `--features mpi`, refused in one
+//! without, where each process would run alone and all would write the
+//! same files.
+
+use std::rc::Rc;
+
+use mbs_train::distributed::Collective;
+
+use super::shard::Shard;
+
+/// The MPI job this process belongs to, when its launcher started several
+/// processes; `None` when it runs alone.
+pub fn join() -> anyhow::Result<Option<Rc<dyn Collective>>> {
+    let launch = Shard::of_launch(|name| std::env::var(name).ok()).map_err(anyhow::Error::msg)?;
+    let Some(launch) = launch.filter(|launch| launch.count > 1) else {
+        return Ok(None);
+    };
+    join_mpi(launch.count)
+}
+
+#[cfg(feature = "mpi")]
+fn join_mpi(_launched: usize) -> anyhow::Result<Option<Rc<dyn Collective>>> {
+    let processes = mbs_mpi::MpiProcesses::join()
+        .ok_or_else(|| anyhow::anyhow!("MPI was already initialised in this process"))?;
+    Ok(Some(Rc::new(processes)))
+}
+
+#[cfg(not(feature = "mpi"))]
+fn join_mpi(launched: usize) -> anyhow::Result<Option<Rc<dyn Collective>>> {
+    anyhow::bail!(
+        "the launcher started {launched} processes, but this mbs-tool was built without MPI, \
+         so each would train alone into the same folder: build it with \
+         `cargo build --release -p mbs-tool --features mpi` (needs an MPI library and libclang; \
+         Debian: apt-get install libopenmpi-dev libclang-dev), or run one process"
+    )
+}
+
+/// An error every rank met alike (the ranks disagree, a rank's device
+/// failed): rank 0 reports it, the others end with it unprinted.
+#[derive(Debug)]
+pub struct ReportedByRankZero;
+
+impl std::fmt::Display for ReportedByRankZero {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("reported by rank 0")
+    }
+}
+
+impl std::error::Error for ReportedByRankZero {}

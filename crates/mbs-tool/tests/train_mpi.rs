@@ -1,0 +1,386 @@
+//! `mbs-tool train` over the processes of an MPI job (`mpirun -np N`), as a
+//! user launches it: the ranks train the weights one process trains, rank 0
+//! alone writes the run, checkpoints resume on any number of ranks, a killed
+//! rank ends the job, and ranks that disagree are refused before anything
+//! is written.
+//!
+//! These need the binary built with `--features mpi` and Open MPI's
+//! `mpirun`; `tools/test.sh` provides both (it tests the workspace with
+//! `--features mbs-tool/mpi`). Without them they fail, never skip: a
+//! binary without MPI refuses to run under `mpirun`.
+
+mod common;
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use burn::tensor::Device;
+use common::{SMALL, lines, synth, text};
+use mbs_nets::checkpoint::TrainedNetworks;
+
+/// Settings of every run here: SMALL's tiny compact network at batch 3,
+/// so that 2 ranks share it unevenly (2 + 1 items) and 3 ranks evenly.
+fn settings(steps: usize) -> Vec<String> {
+    let mut args: Vec<String> = SMALL.iter().map(|s| s.to_string()).collect();
+    args[1] = "3".into(); // --batch-size
+    let steps = steps.to_string();
+    args.extend(
+        [
+            "--steps",
+            &steps,
+            "--val-every",
+            "2",
+            "--checkpoint-every",
+            "2",
+            "--jobs",
+            "1",
+            "--set",
+            "log_every=1",
+            "--set",
+            "keep_checkpoints=5",
+        ]
+        .map(String::from),
+    );
+    args
+}
+
+fn is_root() -> bool {
+    Command::new("id")
+        .arg("-u")
+        .output()
+        .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).trim() == "0")
+}
+
+/// `mpirun -np N` (oversubscribed: this machine may have fewer cores) for
+/// the test binary.
+fn mpirun(ranks: usize) -> Command {
+    let mut command = Command::new("mpirun");
+    command.args(["-np", &ranks.to_string(), "--oversubscribe"]);
+    if is_root() {
+        command.arg("--allow-run-as-root");
+    }
+    command
+}
+
+fn train_args(manifest: &str, out: &Path, steps: usize) -> Vec<String> {
+    let mut args = vec![
+        "train".to_string(),
+        manifest.to_string(),
+        "--out".into(),
+        out.display().to_string(),
+    ];
+    args.extend(settings(steps));
+    args
+}
+
+/// Trains into `out` on `ranks` processes (1: without mpirun).
+fn train(ranks: usize, manifest: &str, out: &Path, steps: usize) -> Output {
+    let output = match ranks {
+        1 => common::mbs_tool()
+            .args(train_args(manifest, out, steps))
+            .output(),
+        _ => mpirun(ranks)
+            .arg(env!("CARGO_BIN_EXE_mbs-tool"))
+            .args(train_args(manifest, out, steps))
+            .output(),
+    }
+    .expect("the run starts (tools/test.sh installs Open MPI's mpirun)");
+    assert!(output.status.success(), "{ranks} ranks: {}", text(&output));
+    output
+}
+
+/// The files of a run, relative to it; TensorBoard's event files counted,
+/// since their names carry the host and the time.
+fn files(dir: &Path) -> BTreeSet<String> {
+    walk(dir)
+        .into_iter()
+        .map(|path| {
+            let name = path
+                .strip_prefix(dir)
+                .expect("inside")
+                .display()
+                .to_string();
+            match name.starts_with("tensorboard/") {
+                true => "tensorboard/<events>".into(),
+                false => name,
+            }
+        })
+        .collect()
+}
+
+fn walk(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(dir).expect("readable") {
+        let path = entry.expect("entry").path();
+        if path.is_dir() {
+            out.extend(walk(&path));
+        } else {
+            out.push(path);
+        }
+    }
+    out
+}
+
+/// Student and teacher weights of a run's checkpoint after `steps`.
+fn weights(run: &Path, steps: usize) -> Vec<f32> {
+    let dir = run.join(format!("checkpoints/step-{steps:07}"));
+    let networks = TrainedNetworks::open(&dir).expect("a checkpoint");
+    let device = Device::flex();
+    let mut values = Vec::new();
+    for network in [networks.student(&device), networks.teacher(&device)] {
+        let (state, _) = network.expect("loads").state_dict();
+        for tensor in state.tensors.into_values() {
+            values.extend(tensor.values);
+        }
+    }
+    values
+}
+
+/// The largest difference between two runs' weights after `steps`.
+fn weight_difference(a: &Path, b: &Path, steps: usize) -> f32 {
+    let (a, b) = (weights(a, steps), weights(b, steps));
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(&b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
+}
+
+/// The losses a run logged, step by step.
+fn losses(run: &Path) -> Vec<(u64, f64)> {
+    lines(&run.join("train.jsonl"))
+        .iter()
+        .map(|line| {
+            (
+                line["step"].as_u64().expect("step"),
+                line["loss"].as_f64().expect("loss"),
+            )
+        })
+        .collect()
+}
+
+fn assert_same_losses(a: &Path, b: &Path) {
+    let (a, b) = (losses(a), losses(b));
+    assert_eq!(a.len(), b.len(), "{a:?} {b:?}");
+    for ((step_a, loss_a), (step_b, loss_b)) in a.iter().zip(&b) {
+        assert_eq!(step_a, step_b);
+        assert!(
+            (loss_a - loss_b).abs() <= 1e-4 * loss_a.abs(),
+            "step {step_a}: {loss_a} and {loss_b}"
+        );
+    }
+}
+
+/// Copies a finished run without its last checkpoint, as if it had been
+/// stopped after the one before.
+fn cut_back(run: &Path, to: &Path, last: usize) {
+    let status = Command::new("cp")
+        .arg("-r")
+        .arg(run)
+        .arg(to)
+        .status()
+        .expect("cp");
+    assert!(status.success());
+    std::fs::remove_dir_all(to.join(format!("checkpoints/step-{last:07}"))).expect("remove");
+}
+
+/// Weights equal within float summation order: 2 and 3 ranks sum the
+/// shares' gradients in another order than one process computes the whole
+/// batch's. After 4 Adam steps the compact network's weights were within
+/// 5.7e-7 (2 ranks) and 4.5e-8 (3 ranks) of the one-process run's when
+/// written; a wrong share or weighting moves them by about the learning
+/// rate (2e-4).
+const WEIGHT_TOLERANCE: f32 = 2e-5;
+
+#[test]
+fn two_and_three_ranks_train_what_one_process_trains_and_resume_on_any_count() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let manifest = synth(&dir.path().join("data"));
+    let run = |name: &str| dir.path().join(name);
+    let one = train(1, &manifest, &run("one"), 4);
+    let two = train(2, &manifest, &run("two"), 4);
+    train(3, &manifest, &run("three"), 4);
+    assert!(
+        String::from_utf8_lossy(&two.stderr).contains("on 2 processes"),
+        "{}",
+        text(&two)
+    );
+    for ranks in ["two", "three"] {
+        let worst = weight_difference(&run("one"), &run(ranks), 4);
+        println!("{ranks} ranks: weights within {worst} of one process's");
+        assert!(worst <= WEIGHT_TOLERANCE, "{ranks}: {worst}");
+        assert_same_losses(&run("one"), &run(ranks));
+        // Rank 0 alone wrote: the same files as one process, each once.
+        assert_eq!(files(&run("one")), files(&run(ranks)), "{ranks}");
+        let validations: Vec<u64> = lines(&run(ranks).join("val.jsonl"))
+            .iter()
+            .map(|l| l["step"].as_u64().expect("step"))
+            .collect();
+        assert_eq!(validations, [0, 2, 4], "{ranks}");
+    }
+    // The summary is printed once.
+    let summary = |output: &Output| {
+        String::from_utf8_lossy(&output.stderr)
+            .matches("Outputs in")
+            .count()
+    };
+    assert_eq!(summary(&one), 1);
+    assert_eq!(summary(&two), 1, "{}", text(&two));
+
+    // A checkpoint of 2 ranks resumes on one process, and one of one
+    // process on 2 ranks, each as the uninterrupted run goes on.
+    cut_back(&run("two"), &run("two-then-one"), 4);
+    let resumed = train(1, &manifest, &run("two-then-one"), 4);
+    assert!(
+        String::from_utf8_lossy(&resumed.stderr).contains("resuming"),
+        "{}",
+        text(&resumed)
+    );
+    cut_back(&run("one"), &run("one-then-two"), 4);
+    let resumed = train(2, &manifest, &run("one-then-two"), 4);
+    assert!(
+        String::from_utf8_lossy(&resumed.stderr).contains("at step 2 of 4 on 2 processes"),
+        "{}",
+        text(&resumed)
+    );
+    for name in ["two-then-one", "one-then-two"] {
+        assert_same_losses(&run("one"), &run(name));
+        let worst = weight_difference(&run("one"), &run(name), 4);
+        assert!(worst <= WEIGHT_TOLERANCE, "{name}: {worst}");
+    }
+}
+
+/// The processes whose command lines train into `out` (mpirun's too).
+fn processes_writing(out: &Path) -> Vec<u32> {
+    let listed = Command::new("pgrep")
+        .args(["-f", &format!("mbs-tool train .* --out {}", out.display())])
+        .output()
+        .expect("pgrep runs");
+    String::from_utf8_lossy(&listed.stdout)
+        .lines()
+        .filter_map(|pid| pid.trim().parse().ok())
+        .collect()
+}
+
+/// Seconds within which the other ranks are gone once one is killed.
+const KILL_BOUND: Duration = Duration::from_secs(30);
+
+#[test]
+fn a_killed_rank_ends_every_rank_and_the_same_command_resumes() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let manifest = synth(&dir.path().join("data"));
+    let out = dir.path().join("killed");
+    let steps = 40;
+    let mut job = mpirun(2)
+        .arg(env!("CARGO_BIN_EXE_mbs-tool"))
+        .args(train_args(&manifest, &out, steps))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("mpirun starts (tools/test.sh installs Open MPI)");
+    let start = Instant::now();
+    let checkpoints = out.join("checkpoints");
+    while !checkpoints.join("step-0000004").exists() {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no checkpoint after 2 minutes"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let ranks: Vec<u32> = processes_writing(&out)
+        .into_iter()
+        .filter(|pid| *pid != job.id())
+        .collect();
+    assert_eq!(ranks.len(), 2, "{ranks:?}");
+    let killed = Command::new("kill")
+        .args(["-9", &ranks[1].to_string()])
+        .status()
+        .expect("kill");
+    assert!(killed.success());
+    let killed_at = Instant::now();
+    let status = loop {
+        if let Some(status) = job.try_wait().expect("wait") {
+            break status;
+        }
+        assert!(
+            killed_at.elapsed() < KILL_BOUND,
+            "mpirun still runs {KILL_BOUND:?} after a rank was killed"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let ended_in = killed_at.elapsed();
+    println!("every rank ended {ended_in:?} after one was killed");
+    assert!(!status.success(), "the job reports the failure");
+    assert!(processes_writing(&out).is_empty(), "no rank is left");
+
+    // The newest checkpoint is whole: the same command resumes from it
+    // and finishes.
+    let saved: Vec<usize> = std::fs::read_dir(&checkpoints)
+        .expect("checkpoints")
+        .filter_map(|e| {
+            let name = e.ok()?.file_name().to_string_lossy().to_string();
+            name.strip_prefix("step-")?.parse().ok()
+        })
+        .collect();
+    let newest = *saved.iter().max().expect("a checkpoint");
+    assert!(newest < steps, "killed before the end: {saved:?}");
+    let output = train(2, &manifest, &out, steps);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    let resumed = format!(
+        "resuming {} at step {newest} of {steps} on 2 processes",
+        out.display()
+    );
+    assert!(stderr.contains(&resumed), "{stderr}");
+    let logged: Vec<u64> = losses(&out).iter().map(|(step, _)| *step).collect();
+    assert_eq!(
+        logged,
+        (1..=steps as u64).collect::<Vec<_>>(),
+        "each step logged once"
+    );
+}
+
+/// An MPMD launch (`mpirun -np 1 A : -np 1 B`): two ranks given different
+/// command lines.
+fn mismatched(manifest: &str, out: &Path, rank_one_extra: &[&str]) -> Output {
+    let binary = env!("CARGO_BIN_EXE_mbs-tool");
+    let mut command = mpirun(1);
+    command
+        .arg(binary)
+        .args(train_args(manifest, out, 4))
+        .args([":", "-np", "1", binary])
+        .args(train_args(manifest, out, 4))
+        .args(rank_one_extra);
+    command.output().expect("mpirun starts")
+}
+
+#[test]
+fn ranks_that_disagree_or_cannot_open_their_device_are_refused_before_anything_is_written() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let manifest = synth(&dir.path().join("data"));
+    let out = dir.path().join("refused");
+
+    let output = mismatched(&manifest, &out, &["--lr", "0.001"]);
+    assert!(!output.status.success(), "{}", text(&output));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    let expected = "settings.trainer.lr.max_lr is 0.001 on rank 1 and 0.0002 on rank 0";
+    assert_eq!(
+        stderr.matches(expected).count(),
+        1,
+        "printed once: {stderr}"
+    );
+    assert!(!out.exists(), "nothing was written");
+
+    let output = mismatched(&manifest, &out, &["--device", "cuda:5"]);
+    assert!(!output.status.success(), "{}", text(&output));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(
+        stderr
+            .matches("error: rank 1 of 2: device `cuda:5`")
+            .count(),
+        1,
+        "one line names the rank and its device: {stderr}"
+    );
+    assert!(!out.exists(), "nothing was written");
+}
