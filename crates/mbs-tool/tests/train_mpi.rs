@@ -268,7 +268,7 @@ fn processes_writing(out: &Path) -> Vec<u32> {
 const KILL_BOUND: Duration = Duration::from_secs(30);
 
 #[test]
-fn a_killed_rank_ends_every_rank_and_the_same_command_resumes() {
+fn a_killed_rank_ends_every_rank_ctrl_c_stops_them_and_the_same_command_resumes() {
     let dir = tempfile::tempdir().expect("temp dir");
     let manifest = synth(&dir.path().join("data"));
     let out = dir.path().join("killed");
@@ -326,10 +326,56 @@ fn a_killed_rank_ends_every_rank_and_the_same_command_resumes() {
         .collect();
     let newest = *saved.iter().max().expect("a checkpoint");
     assert!(newest < steps, "killed before the end: {saved:?}");
+
+    // Ctrl-C on mpirun (which sends its ranks SIGTERM): every rank stops
+    // at the same step, rank 0 saves a checkpoint there, the job fails.
+    let mut job = mpirun(2)
+        .arg(env!("CARGO_BIN_EXE_mbs-tool"))
+        .args(train_args(&manifest, &out, steps))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("mpirun starts");
+    let resumed_at = Instant::now();
+    while losses(&out)
+        .last()
+        .is_none_or(|(step, _)| *step <= newest as u64 + 1)
+    {
+        assert!(
+            resumed_at.elapsed() < Duration::from_secs(120),
+            "did not resume"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let interrupted = Command::new("kill")
+        .args(["-INT", &job.id().to_string()])
+        .status()
+        .expect("kill");
+    assert!(interrupted.success());
+    let interrupted_at = Instant::now();
+    let status = loop {
+        if let Some(status) = job.try_wait().expect("wait") {
+            break status;
+        }
+        assert!(
+            interrupted_at.elapsed() < KILL_BOUND,
+            "Ctrl-C did not end the job"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(!status.success());
+    assert!(processes_writing(&out).is_empty(), "no rank is left");
+    let (last_logged, _) = *losses(&out).last().expect("logged");
+    assert!(last_logged < steps as u64, "stopped before the end");
+    assert!(
+        checkpoints.join(format!("step-{last_logged:07}")).exists(),
+        "a checkpoint at the step the ranks stopped at ({last_logged})"
+    );
+
     let output = train(2, &manifest, &out, steps);
     let stderr = String::from_utf8_lossy(&output.stderr);
     let resumed = format!(
-        "resuming {} at step {newest} of {steps} on 2 processes",
+        "resuming {} at step {last_logged} of {steps} on 2 processes",
         out.display()
     );
     assert!(stderr.contains(&resumed), "{stderr}");

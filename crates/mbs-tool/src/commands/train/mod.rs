@@ -223,13 +223,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 }
 
-/// Whether `error` came from a check every rank made together, so that
-/// every rank has it.
+/// Whether every rank has `error`: it came from a check the ranks made
+/// together, or the ranks stopped together.
 fn met_by_every_rank(error: &anyhow::Error) -> bool {
-    error
-        .chain()
-        .any(|cause| matches!(cause.downcast_ref(), Some(TrainError::Distributed(_))))
+    error.chain().any(|cause| {
+        matches!(cause.downcast_ref(), Some(TrainError::Distributed(_))) || cause.is::<Stopped>()
+    })
 }
+
+/// The run stopped on request (Ctrl-C, SIGTERM) with a checkpoint.
+#[derive(Debug)]
+struct Stopped {
+    steps: usize,
+    total: usize,
+}
+
+impl std::fmt::Display for Stopped {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "stopped after step {} of {}; a checkpoint is saved, run the same command to resume",
+            self.steps, self.total
+        )
+    }
+}
+
+impl std::error::Error for Stopped {}
 
 /// Trains into `out`; with `processes`, as this process's rank of them.
 fn train(
@@ -332,9 +351,7 @@ fn train(
     let end = training.run(&mut report, &stop)?;
     report.finish()?;
     match end {
-        End::Stopped(steps) => bail!(
-            "stopped after step {steps} of {total}; a checkpoint is saved, run the same command to resume"
-        ),
+        End::Stopped(steps) => Err(Stopped { steps, total }.into()),
         End::Finished { metrics } => {
             report.summary(metrics.as_deref());
             Ok(())
