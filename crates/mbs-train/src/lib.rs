@@ -3,7 +3,9 @@
 //! Everything runs on burn's run-time selected device (`Device::flex()` on
 //! CPU, Vulkan or CUDA through [`mbs_nets::device::open_device`],
 //! `.autodiff()` for training; [`step::S3Trainer::step_parallel`] shares a
-//! step among several); see `docs/design.md` for the choice of burn.
+//! step among several, [`step::S3Trainer::step_distributed`] among processes
+//! through a [`distributed::Collective`]); see `docs/design.md` for the
+//! choice of burn.
 //!
 //! One step, as [`step::S3Trainer::step`] runs it:
 //!
