@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
-"""The networks' convolutions one layer at a time: burn's flex CPU backend
-(the release example `conv_layers`, crates/mbs-nets/examples) against
-PyTorch on the CPU, same shapes, batch 1, f32, 2 threads each, each in its
-own process (issue 29).
+"""The networks' convolutions one layer at a time: mbs's (mbs-conv's
+kernels, as the networks run them) and burn's flex CPU backend alone (the
+release example `conv_layers`, crates/mbs-nets/examples, with and without
+--burn) against PyTorch on the CPU, same shapes, batch 1, f32, 2 threads
+each, each in its own process (issue 29).
 
 Three timings per layer, each the median of --rounds after one warm-up:
 the forward pass alone (PyTorch under no_grad), forward + backward for the
@@ -29,11 +30,11 @@ ROOT = Path(__file__).resolve().parents[2]
 THREADS = 2
 
 
-def burn_layers(rounds):
+def rust_layers(rounds, *flags):
     subprocess.run(["cargo", "build", "--release", "-q", "-p", "mbs-nets", "--example", "conv_layers"],
                    cwd=ROOT, check=True)
     env = {**os.environ, "RAYON_NUM_THREADS": str(THREADS)}
-    out = subprocess.run([ROOT / "target/release/examples/conv_layers", str(rounds)], env=env,
+    out = subprocess.run([ROOT / "target/release/examples/conv_layers", str(rounds), *flags], env=env,
                          check=True, stdout=subprocess.PIPE, text=True).stdout
     return [json.loads(line) for line in out.splitlines()]
 
@@ -99,21 +100,22 @@ def main():
     except ImportError:
         sys.exit("this benchmark needs PyTorch: pip install torch (not part of CI)")
     load_before = os.getloadavg()[0]
-    ours = burn_layers(args.rounds)
+    ours = rust_layers(args.rounds)
+    burn = {layer["name"]: layer for layer in rust_layers(args.rounds, "--burn")}
     names = json.dumps([layer["name"] for layer in ours])
     out = subprocess.run([sys.executable, __file__, "--torch-only", "--rounds", str(args.rounds), "--names", names],
                          check=True, stdout=subprocess.PIPE, text=True).stdout
     theirs = {layer["name"]: layer for layer in map(json.loads, out.splitlines())}
     print(f"torch {torch.__version__}, {THREADS} threads each, median of {args.rounds}, "
           f"load average {load_before:.2f} before / {os.getloadavg()[0]:.2f} after\n")
-    print("| layer | forward flex / torch (ms) | ratio | weight grad flex / torch (ms) | ratio "
-          "| both grads flex / torch (ms) | ratio |")
+    print("| layer | forward mbs / flex / torch (ms) | mbs / torch | weight grad mbs / flex / torch (ms) "
+          "| mbs / torch | both grads mbs / flex / torch (ms) | mbs / torch |")
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
     for layer in ours:
-        peer = theirs[layer["name"]]
+        peer, flex = theirs[layer["name"]], burn[layer["name"]]
         cells = []
         for key in ("forward_ms", "weight_grad_ms", "both_grads_ms"):
-            cells += [f"{layer[key]:.1f} / {peer[key]:.1f}", f"{layer[key] / peer[key]:.2f}"]
+            cells += [f"{layer[key]:.1f} / {flex[key]:.1f} / {peer[key]:.1f}", f"{layer[key] / peer[key]:.2f}"]
         print(f"| {layer['name']} | " + " | ".join(cells) + " |")
 
 

@@ -1,12 +1,14 @@
 //! Times the convolutions of RAFT-Stereo and IGEV-Stereo one layer at a
-//! time on burn's `flex` CPU backend (batch 1, f32): the forward pass
+//! time on the CPU (batch 1, f32), as the networks run them
+//! (`Convolve::convolve`: mbs-conv's kernels), or with `--burn` as burn's
+//! `flex` backend alone runs them (`Conv2d::forward`): the forward pass
 //! alone (no autodiff), forward and backward for the weight gradient only
 //! (the input does not require one), and forward and backward for both
 //! gradients. `tools/bench/conv_layers_vs_torch.py` runs it beside the same
 //! layers in PyTorch (issue 29). Run in release:
 //!
 //! ```text
-//! RAYON_NUM_THREADS=2 cargo run --release -p mbs-nets --example conv_layers -- [ROUNDS]
+//! RAYON_NUM_THREADS=2 cargo run --release -p mbs-nets --example conv_layers -- [ROUNDS] [--burn]
 //! ```
 //!
 //! Prints one JSON line per layer: `name`, `forward_ms`, `weight_grad_ms`,
@@ -17,6 +19,7 @@ use std::time::Instant;
 use burn::nn::conv::{Conv2dConfig, Conv3dConfig};
 use burn::nn::{PaddingConfig2d, PaddingConfig3d};
 use burn::tensor::{Device, Distribution, Tensor};
+use mbs_nets::cpu_conv::Convolve;
 
 /// One convolution of the networks: channels, kernel side, stride, groups
 /// and input size (`depth` 0 for a 2-D layer).
@@ -150,6 +153,7 @@ fn main() {
         .nth(1)
         .map(|r| r.parse().expect("ROUNDS is a number"))
         .unwrap_or(5);
+    let burn_only = std::env::args().any(|a| a == "--burn");
     for layer in &LAYERS {
         let [from, to] = layer.channels;
         let (k, s, p) = (layer.kernel, layer.stride, layer.kernel / 2);
@@ -169,7 +173,11 @@ fn main() {
                         .with_padding(PaddingConfig2d::Explicit(p, p, p, p))
                         .with_groups(layer.groups)
                         .init(device);
-                    move |x| conv.forward(x)
+                    #[allow(clippy::disallowed_methods)] // burn's own, the baseline
+                    move |x| match burn_only {
+                        true => conv.forward(x),
+                        false => conv.convolve(x),
+                    }
                 },
             )
         } else {
@@ -188,7 +196,11 @@ fn main() {
                         .with_padding(PaddingConfig3d::Explicit(p, p, p))
                         .with_groups(layer.groups)
                         .init(device);
-                    move |x| conv.forward(x)
+                    #[allow(clippy::disallowed_methods)] // burn's own, the baseline
+                    move |x| match burn_only {
+                        true => conv.forward(x),
+                        false => conv.convolve(x),
+                    }
                 },
             )
         };

@@ -4,6 +4,7 @@
 //! correlation as candidate logits, soft-argmin and bilinear upsampling
 //! (two matrix products) to full resolution.
 
+use crate::cpu_conv::Convolve;
 use burn::config::Config;
 use burn::module::Module;
 use burn::nn::PaddingConfig2d;
@@ -92,9 +93,9 @@ pub struct CostVolumeNet {
 impl CostVolumeNet {
     /// Features at 1/4 resolution of images in `[0, 1]`.
     fn features(&self, images: Tensor<4>) -> Tensor<4> {
-        let x = relu(self.stem.forward(images * 2.0 - 1.0));
-        let x = relu(self.down.forward(x));
-        self.refine.forward(x)
+        let x = relu(self.stem.convolve(images * 2.0 - 1.0));
+        let x = relu(self.down.convolve(x));
+        self.refine.convolve(x)
     }
 
     /// Correlation volume `[B, candidates, h, w]`: cosine similarity of
@@ -133,10 +134,10 @@ impl Backbone for CostVolumeNet {
         let volume = self.correlation(left.clone(), right);
         let x = relu(
             self.aggregate_in
-                .forward(Tensor::cat(vec![volume.clone(), left], 1)),
+                .convolve(Tensor::cat(vec![volume.clone(), left], 1)),
         );
-        let x = relu(self.aggregate_mid.forward(x));
-        let logits = self.logits.forward(x) + volume * self.correlation_weight;
+        let x = relu(self.aggregate_mid.convolve(x));
+        let logits = self.logits.convolve(x) + volume * self.correlation_weight;
         let probabilities = softmax(logits, 1);
         let candidates =
             counting(self.candidates, &probabilities).reshape([1, self.candidates, 1, 1]);

@@ -9,6 +9,7 @@
 
 pub mod checkpoint;
 pub mod cost_volume;
+pub mod cpu_conv;
 pub mod device;
 pub mod error;
 pub mod host;

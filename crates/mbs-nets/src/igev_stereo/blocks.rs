@@ -4,6 +4,7 @@
 //! the feature-guided excitation of a cost volume and the 3-D hourglass
 //! that aggregates it.
 
+use crate::cpu_conv::Convolve;
 use burn::module::Module;
 use burn::nn::PaddingConfig2d;
 use burn::nn::PaddingConfig3d;
@@ -62,7 +63,7 @@ impl Conv2dAny {
 
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         match self {
-            Conv2dAny::Plain(c) => c.forward(x),
+            Conv2dAny::Plain(c) => c.convolve(x),
             Conv2dAny::Transposed(c) => c.forward(x),
         }
     }
@@ -217,7 +218,7 @@ impl BasicConv3d {
     /// Convolution, normalisation, activation of `[B, C, D, H, W]`.
     pub fn forward(&self, x: Tensor<5>) -> Tensor<5> {
         let mut x = match &self.conv {
-            Conv3dAny::Plain(c) => c.forward(x),
+            Conv3dAny::Plain(c) => c.convolve(x),
             Conv3dAny::Transposed(c) => c.forward(x),
         };
         if self.normalise {
@@ -283,7 +284,7 @@ impl FeatureAtt {
 
     /// The volume `[B, C, D, H, W]` weighted by the features `[B, F, H, W]`.
     pub fn forward(&self, volume: Tensor<5>, features: Tensor<4>) -> Tensor<5> {
-        let weights = self.excite.forward(self.reduce.forward(features));
+        let weights = self.excite.convolve(self.reduce.forward(features));
         let [b, c, h, w] = weights.dims();
         sigmoid(weights).reshape([b, c, 1, h, w]) * volume
     }

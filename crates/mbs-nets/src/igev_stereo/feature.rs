@@ -3,6 +3,7 @@
 //! convolutions back up to 1/4 with skip connections. Parameter names follow
 //! timm 0.5.4, which the official code was written for.
 
+use crate::cpu_conv::Convolve;
 use burn::module::Module;
 use burn::nn::PaddingConfig2d;
 use burn::nn::conv::{Conv2d, Conv2dConfig};
@@ -59,8 +60,8 @@ impl DepthwiseSeparable {
     }
 
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let y = relu6(self.bn1.forward(self.conv_dw.forward(x.clone())));
-        let y = self.bn2.forward(self.conv_pw.forward(y));
+        let y = relu6(self.bn1.forward(self.conv_dw.convolve(x.clone())));
+        let y = self.bn2.forward(self.conv_pw.convolve(y));
         if self.skip { y + x } else { y }
     }
 }
@@ -94,9 +95,9 @@ impl InvertedResidual {
     }
 
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let y = relu6(self.bn1.forward(self.conv_pw.forward(x.clone())));
-        let y = relu6(self.bn2.forward(self.conv_dw.forward(y)));
-        let y = self.bn3.forward(self.conv_pwl.forward(y));
+        let y = relu6(self.bn1.forward(self.conv_pw.convolve(x.clone())));
+        let y = relu6(self.bn2.forward(self.conv_dw.convolve(y)));
+        let y = self.bn3.forward(self.conv_pwl.convolve(y));
         if self.skip { y + x } else { y }
     }
 }
@@ -160,7 +161,7 @@ impl Feature {
     /// Features of images in `[-1, 1]` (sides multiples of 32) at 1/4, 1/8,
     /// 1/16 and 1/32 resolution.
     pub fn forward(&self, x: Tensor<4>) -> [Tensor<4>; 4] {
-        let x = relu6(self.bn1.forward(self.conv_stem.forward(x)));
+        let x = relu6(self.bn1.forward(self.conv_stem.convolve(x)));
         let x2 = self.block0.iter().flatten().fold(x, |x, b| b.forward(x));
         let x4 = run(&self.block1, x2);
         let x8 = run(&self.block2, x4.clone());

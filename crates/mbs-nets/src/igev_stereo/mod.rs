@@ -18,6 +18,7 @@ mod feature;
 mod geometry;
 mod update;
 
+use crate::cpu_conv::Convolve;
 use burn::config::Config;
 use burn::module::Module;
 use burn::nn::PaddingConfig3d;
@@ -170,7 +171,7 @@ impl Stem {
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         relu(
             self.norm
-                .forward(self.conv.forward(self.conv_in.forward(x))),
+                .forward(self.conv.convolve(self.conv_in.forward(x))),
         )
     }
 }
@@ -235,7 +236,7 @@ impl IgevStereo {
         let stem_4 = self.stem_4.forward(stem_2.clone());
         let f4 = Tensor::cat(vec![f4, stem_4], 1);
         let (matching_left, matching_right) =
-            halves(self.desc.forward(self.conv.forward(f4.clone())), batch);
+            halves(self.desc.convolve(self.conv.forward(f4.clone())), batch);
         let left = |x: Tensor<4>| x.narrow(0, 0, batch);
         let left_features = [left(f4), left(f8), left(f16), left(f32)];
         let stem_2x = left(stem_2);
@@ -251,7 +252,7 @@ impl IgevStereo {
             .corr_feature_att
             .forward(volume, left_features[0].clone());
         let geometry = self.cost_agg.forward(volume, &left_features);
-        let logits = self.classifier.forward(geometry.clone());
+        let logits = self.classifier.convolve(geometry.clone());
         let [b, _, d, h, w] = logits.dims();
         let init = regress_disparity(logits.reshape([b, d, h, w]));
 

@@ -3,6 +3,7 @@
 //! and the disparity, a disparity head and the features of the upsampling
 //! weights.
 
+use crate::cpu_conv::Convolve;
 use burn::module::Module;
 use burn::nn::conv::Conv2d;
 use burn::tensor::activation::relu;
@@ -26,12 +27,12 @@ pub struct MotionEncoder {
 
 impl MotionEncoder {
     fn forward(&self, disparity: Tensor<4>, lookup: Tensor<4>) -> Tensor<4> {
-        let c = relu(self.convc2.forward(relu(self.convc1.forward(lookup))));
+        let c = relu(self.convc2.convolve(relu(self.convc1.convolve(lookup))));
         let d = relu(
             self.convd2
-                .forward(relu(self.convd1.forward(disparity.clone()))),
+                .convolve(relu(self.convd1.convolve(disparity.clone()))),
         );
-        let out = relu(self.conv.forward(Tensor::cat(vec![c, d], 1)));
+        let out = relu(self.conv.convolve(Tensor::cat(vec![c, d], 1)));
         Tensor::cat(vec![out, disparity], 1)
     }
 }
@@ -97,8 +98,8 @@ impl UpdateBlock {
         let delta = self
             .disp_head
             .conv2
-            .forward(relu(self.disp_head.conv1.forward(h[0].clone())));
-        let features = relu(self.mask_feat_4[0].forward(h[0].clone()));
+            .convolve(relu(self.disp_head.conv1.convolve(h[0].clone())));
+        let features = relu(self.mask_feat_4[0].convolve(h[0].clone()));
         (features, delta)
     }
 }

@@ -3,6 +3,7 @@
 //! and 128 channels down to `1 / 2^n_downsample` resolution; the context
 //! encoder goes on to 1/2 and 1/4 of that for the coarser GRU levels.
 
+use crate::cpu_conv::Convolve;
 use burn::module::Module;
 use burn::nn::conv::Conv2d;
 use burn::tensor::Device;
@@ -50,10 +51,10 @@ impl ResidualBlock {
 
     /// `relu(x' + y)` with `y` the two convolutions and `x'` the projected input.
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let y = relu(self.norm1.forward(self.conv1.forward(x.clone())));
-        let y = relu(self.norm2.forward(self.conv2.forward(y)));
+        let y = relu(self.norm1.forward(self.conv1.convolve(x.clone())));
+        let y = relu(self.norm2.forward(self.conv2.convolve(y)));
         let x = match &self.downsample {
-            Some(projection) => projection.norm.forward(projection.conv.forward(x)),
+            Some(projection) => projection.norm.forward(projection.conv.convolve(x)),
             None => x,
         };
         relu(x + y)
@@ -101,7 +102,7 @@ impl Trunk {
     }
 
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let x = relu(self.norm1.forward(self.conv1.forward(x)));
+        let x = relu(self.norm1.forward(self.conv1.convolve(x)));
         let x = run_layer(&self.layer1, x);
         let x = run_layer(&self.layer2, x);
         run_layer(&self.layer3, x)
@@ -127,7 +128,7 @@ impl FeatureEncoder {
 
     /// Features of `images` (`[B, 3, H, W]` in `[-1, 1]`).
     pub fn forward(&self, images: Tensor<4>) -> Tensor<4> {
-        self.conv2.forward(self.trunk.forward(images))
+        self.conv2.convolve(self.trunk.forward(images))
     }
 }
 
@@ -141,7 +142,7 @@ pub struct ContextHead {
 
 impl ContextHead {
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        self.conv.forward(self.block.forward(x))
+        self.conv.convolve(self.block.forward(x))
     }
 }
 
@@ -191,8 +192,8 @@ impl ContextEncoder {
             if levels >= 3 {
                 let z = run_layer(&self.layer5, y);
                 outputs.push([
-                    self.outputs32[0].forward(z.clone()),
-                    self.outputs32[1].forward(z),
+                    self.outputs32[0].convolve(z.clone()),
+                    self.outputs32[1].convolve(z),
                 ]);
             }
         }

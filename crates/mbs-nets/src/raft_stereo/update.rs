@@ -3,6 +3,7 @@
 //! convolutional GRU per level exchanging states with its neighbours, the
 //! disparity head and the convex-upsampling mask head.
 
+use crate::cpu_conv::Convolve;
 use burn::module::Module;
 use burn::nn::conv::Conv2d;
 use burn::tensor::Device;
@@ -41,11 +42,11 @@ impl MotionEncoder {
     /// Motion features `[B, 128, h, w]` of the flow `[B, 2, h, w]` and the
     /// correlation lookup.
     fn forward(&self, flow: Tensor<4>, correlation: Tensor<4>) -> Tensor<4> {
-        let c = relu(self.convc1.forward(correlation));
-        let c = relu(self.convc2.forward(c));
-        let f = relu(self.convf1.forward(flow.clone()));
-        let f = relu(self.convf2.forward(f));
-        let out = relu(self.conv.forward(Tensor::cat(vec![c, f], 1)));
+        let c = relu(self.convc1.convolve(correlation));
+        let c = relu(self.convc2.convolve(c));
+        let f = relu(self.convf1.convolve(flow.clone()));
+        let f = relu(self.convf2.convolve(f));
+        let out = relu(self.conv.convolve(Tensor::cat(vec![c, f], 1)));
         Tensor::cat(vec![out, flow], 1)
     }
 }
@@ -79,10 +80,10 @@ impl ConvGru {
     ) -> Tensor<4> {
         let x = Tensor::cat(inputs, 1);
         let hx = Tensor::cat(vec![h.clone(), x.clone()], 1);
-        let z = sigmoid(self.convz.forward(hx.clone()) + context[0].clone());
-        let r = sigmoid(self.convr.forward(hx) + context[1].clone());
+        let z = sigmoid(self.convz.convolve(hx.clone()) + context[0].clone());
+        let r = sigmoid(self.convr.convolve(hx) + context[1].clone());
         let q =
-            tanh(self.convq.forward(Tensor::cat(vec![r * h.clone(), x], 1)) + context[2].clone());
+            tanh(self.convq.convolve(Tensor::cat(vec![r * h.clone(), x], 1)) + context[2].clone());
         (z.clone().neg() + 1.0) * h + z * q
     }
 }
@@ -144,7 +145,7 @@ impl GruState {
         };
         for ([hidden, context], zqr) in outputs.into_iter().zip(zqr_convs) {
             state.hidden.push(tanh(hidden));
-            let terms = zqr.forward(relu(context));
+            let terms = zqr.convolve(relu(context));
             let third = terms.dims()[1] / 3;
             state.context.push([
                 terms.clone().narrow(1, 0, third),
@@ -256,11 +257,11 @@ impl UpdateBlock {
         let delta = self
             .flow_head
             .conv2
-            .forward(relu(self.flow_head.conv1.forward(finest.clone())));
+            .convolve(relu(self.flow_head.conv1.convolve(finest.clone())));
         let mask = self
             .mask
             .conv2
-            .forward(relu(self.mask.conv1.forward(finest)))
+            .convolve(relu(self.mask.conv1.convolve(finest)))
             * 0.25;
         (delta, mask)
     }

@@ -1,0 +1,140 @@
+//! Convolutions with one input channel per group (depthwise, and their
+//! channel multipliers) as direct loops over each channel's plane: as
+//! products they would have a single row.
+
+use rayon::prelude::*;
+
+use crate::unfold::valid;
+use crate::{Conv, planes_mut};
+
+/// Calls `visit(output offset, input offset, run)` for each tap's run of
+/// output positions along the width whose input lies inside the input,
+/// for one tap: `run` output positions from the output offset, inputs
+/// `stride` apart from the input offset.
+fn runs(conv: &Conv, tap: usize, mut visit: impl FnMut(usize, usize, usize)) {
+    let [out_d, out_h, out_w] = conv.output();
+    let [in_d, in_h, in_w] = conv.input;
+    let [_, kernel_h, kernel_w] = conv.kernel;
+    let position = [
+        tap / (kernel_h * kernel_w),
+        tap / kernel_w % kernel_h,
+        tap % kernel_w,
+    ];
+    let offset: [isize; 3] = std::array::from_fn(|axis| {
+        (position[axis] * conv.dilation[axis]) as isize - conv.padding[axis][0] as isize
+    });
+    let depths = valid(out_d, conv.stride[0], offset[0], in_d);
+    let heights = valid(out_h, conv.stride[1], offset[1], in_h);
+    let widths = valid(out_w, conv.stride[2], offset[2], in_w);
+    if widths.is_empty() {
+        return;
+    }
+    for od in depths {
+        let id = ((od * conv.stride[0]) as isize + offset[0]) as usize;
+        for oh in heights.clone() {
+            let ih = ((oh * conv.stride[1]) as isize + offset[1]) as usize;
+            let iw = ((widths.start * conv.stride[2]) as isize + offset[2]) as usize;
+            visit(
+                (od * out_h + oh) * out_w + widths.start,
+                (id * in_h + ih) * in_w + iw,
+                widths.len(),
+            );
+        }
+    }
+}
+
+/// Output channels per input channel.
+fn multiplier(conv: &Conv) -> usize {
+    conv.out_channels / conv.in_channels
+}
+
+pub fn forward(conv: &Conv, input: &[f32], weight: &[f32], output: &mut [f32]) {
+    let (taps, in_plane, out_plane) = (conv.taps(), conv.input_plane(), conv.output_plane());
+    let stride = conv.stride[2];
+    planes_mut(output, out_plane)
+        .enumerate()
+        .for_each(|(index, y)| {
+            let (item, out_channel) = (index / conv.out_channels, index % conv.out_channels);
+            let channel = out_channel / multiplier(conv);
+            let x = &input[(item * conv.in_channels + channel) * in_plane..][..in_plane];
+            let w = &weight[out_channel * taps..][..taps];
+            for (tap, &w) in w.iter().enumerate() {
+                runs(conv, tap, |o, i, run| {
+                    let y = &mut y[o..o + run];
+                    match stride {
+                        1 => y
+                            .iter_mut()
+                            .zip(&x[i..i + run])
+                            .for_each(|(y, x)| *y += w * x),
+                        _ => y
+                            .iter_mut()
+                            .enumerate()
+                            .for_each(|(k, y)| *y += w * x[i + k * stride]),
+                    }
+                });
+            }
+        });
+}
+
+pub fn input_gradient(conv: &Conv, weight: &[f32], output_gradient: &[f32], gradient: &mut [f32]) {
+    let (taps, in_plane, out_plane) = (conv.taps(), conv.input_plane(), conv.output_plane());
+    let stride = conv.stride[2];
+    let multiplier = multiplier(conv);
+    planes_mut(gradient, in_plane)
+        .enumerate()
+        .for_each(|(index, dx)| {
+            let (item, channel) = (index / conv.in_channels, index % conv.in_channels);
+            for out_channel in channel * multiplier..(channel + 1) * multiplier {
+                let dy = &output_gradient[(item * conv.out_channels + out_channel) * out_plane..]
+                    [..out_plane];
+                let w = &weight[out_channel * taps..][..taps];
+                for (tap, &w) in w.iter().enumerate() {
+                    runs(conv, tap, |o, i, run| match stride {
+                        1 => dx[i..i + run]
+                            .iter_mut()
+                            .zip(&dy[o..o + run])
+                            .for_each(|(dx, dy)| *dx += w * dy),
+                        _ => dy[o..o + run]
+                            .iter()
+                            .enumerate()
+                            .for_each(|(k, dy)| dx[i + k * stride] += w * dy),
+                    });
+                }
+            }
+        });
+}
+
+pub fn weight_gradient(conv: &Conv, input: &[f32], output_gradient: &[f32], gradient: &mut [f32]) {
+    let (taps, in_plane, out_plane) = (conv.taps(), conv.input_plane(), conv.output_plane());
+    let stride = conv.stride[2];
+    let multiplier = multiplier(conv);
+    gradient
+        .par_chunks_mut(taps)
+        .enumerate()
+        .for_each(|(out_channel, dw)| {
+            let channel = out_channel / multiplier;
+            for item in 0..conv.batch {
+                let x = &input[(item * conv.in_channels + channel) * in_plane..][..in_plane];
+                let dy = &output_gradient[(item * conv.out_channels + out_channel) * out_plane..]
+                    [..out_plane];
+                for (tap, dw) in dw.iter_mut().enumerate() {
+                    let mut sum = 0.0f32;
+                    runs(conv, tap, |o, i, run| {
+                        sum += match stride {
+                            1 => dy[o..o + run]
+                                .iter()
+                                .zip(&x[i..i + run])
+                                .map(|(a, b)| a * b)
+                                .sum::<f32>(),
+                            _ => dy[o..o + run]
+                                .iter()
+                                .enumerate()
+                                .map(|(k, a)| a * x[i + k * stride])
+                                .sum::<f32>(),
+                        };
+                    });
+                    *dw += sum;
+                }
+            }
+        });
+}

@@ -1,0 +1,371 @@
+//! Convolutions on the CPU on f32 slices, forward, input gradient and weight gradient, for any stride, padding, dilation and groups: unfolded input times weights through gemm, depthwise ones as direct loops.
+//!
+//! Tensors are contiguous in PyTorch's (and burn's) layout: input
+//! `[N, C_in, D, H, W]`, weights `[C_out, C_in / groups, kD, kH, kW]`,
+//! output `[N, C_out, D', H', W']`; a 2-D convolution is a 3-D one of
+//! depth one. With `K = C_in / groups * kD * kH * kW` and `P = D' H' W'`,
+//! per item and group:
+//!
+//! ```text
+//! forward          Y[C_out/g, P]  = W[C_out/g, K] x U[K, P]          U: the unfolded input (im2col)
+//! weight gradient  dW[C_out/g, K] += dY[C_out/g, P] x U[K, P]^T      summed over the items
+//! input gradient   dU[K, P]       = W[C_out/g, K]^T x dY[C_out/g, P], folded back (col2im)
+//! ```
+//!
+//! `U` is built a block of output rows at a time in one buffer per call
+//! (at most [`UNFOLD_BUDGET`] values), and a 1x1 convolution of stride 1
+//! without padding uses the input itself. Convolutions with one input
+//! channel per group (depthwise) run as direct loops over each channel's
+//! plane instead of products with one row.
+
+mod depthwise;
+mod matmul;
+mod unfold;
+
+use rayon::prelude::*;
+
+use matmul::{Matrix, matmul};
+use unfold::{fold, unfold};
+
+/// The most parts a weight gradient's output positions are shared among.
+const PARTS: usize = 8;
+
+/// Multiply-adds below which a weight gradient is not split further.
+const PART_WORK: usize = 1 << 22;
+
+/// The most values the unfolded input of one block holds (16 MB of f32):
+/// large enough for long products, small enough to stay in cache levels
+/// that matter and to bound the memory a layer adds.
+pub const UNFOLD_BUDGET: usize = 1 << 22;
+
+/// The geometry of one convolution.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Conv {
+    /// Items in the batch.
+    pub batch: usize,
+    /// Input channels (all groups).
+    pub in_channels: usize,
+    /// Output channels (all groups).
+    pub out_channels: usize,
+    /// Groups; both channel counts are multiples of it.
+    pub groups: usize,
+    /// Input depth, height and width (depth 1 for 2-D).
+    pub input: [usize; 3],
+    /// Kernel depth, height and width.
+    pub kernel: [usize; 3],
+    /// Strides along depth, height and width.
+    pub stride: [usize; 3],
+    /// Zero padding before and after, along depth, height and width.
+    pub padding: [[usize; 2]; 3],
+    /// Dilations along depth, height and width.
+    pub dilation: [usize; 3],
+}
+
+impl Conv {
+    /// Output depth, height and width.
+    pub fn output(&self) -> [usize; 3] {
+        std::array::from_fn(|axis| {
+            let padded = self.input[axis] + self.padding[axis][0] + self.padding[axis][1];
+            let reach = self.dilation[axis] * (self.kernel[axis] - 1) + 1;
+            if padded < reach {
+                0
+            } else {
+                (padded - reach) / self.stride[axis] + 1
+            }
+        })
+    }
+
+    /// Why the geometry is not a convolution this crate computes, if it is not.
+    pub fn check(&self) -> Result<(), String> {
+        let positive = [self.batch, self.in_channels, self.out_channels, self.groups];
+        if positive.contains(&0)
+            || self.kernel.contains(&0)
+            || self.stride.contains(&0)
+            || self.dilation.contains(&0)
+        {
+            return Err(format!("a size, stride or dilation of 0 in {self:?}"));
+        }
+        if self.in_channels % self.groups != 0 || self.out_channels % self.groups != 0 {
+            return Err(format!(
+                "{} input and {} output channels do not split into {} groups",
+                self.in_channels, self.out_channels, self.groups
+            ));
+        }
+        if self.output().contains(&0) {
+            return Err(format!(
+                "the kernel does not fit the padded input in {self:?}"
+            ));
+        }
+        Ok(())
+    }
+
+    /// Input values per item and channel.
+    fn input_plane(&self) -> usize {
+        self.input.iter().product()
+    }
+
+    /// Output values per item and channel.
+    fn output_plane(&self) -> usize {
+        self.output().iter().product()
+    }
+
+    /// Kernel taps per input channel.
+    fn taps(&self) -> usize {
+        self.kernel.iter().product()
+    }
+
+    fn in_per_group(&self) -> usize {
+        self.in_channels / self.groups
+    }
+
+    fn out_per_group(&self) -> usize {
+        self.out_channels / self.groups
+    }
+
+    /// Rows of the unfolded input of one group: `C_in / groups * taps`.
+    fn unfolded_rows(&self) -> usize {
+        self.in_per_group() * self.taps()
+    }
+
+    /// Lengths of the input, weight and output slices.
+    pub fn lengths(&self) -> [usize; 3] {
+        [
+            self.batch * self.in_channels * self.input_plane(),
+            self.out_channels * self.unfolded_rows(),
+            self.batch * self.out_channels * self.output_plane(),
+        ]
+    }
+
+    /// Whether the unfolded input is the input itself: 1x1 kernel, stride
+    /// 1, no padding.
+    fn is_pointwise(&self) -> bool {
+        self.kernel == [1, 1, 1] && self.stride == [1, 1, 1] && self.padding == [[0, 0]; 3]
+    }
+
+    /// One input channel per group: direct loops ([`depthwise`]).
+    fn is_depthwise(&self) -> bool {
+        self.in_per_group() == 1 && self.groups > 1
+    }
+
+    /// Output rows (of the flattened depth x height) per unfolded block
+    /// of at most `budget` values.
+    fn block_rows(&self, budget: usize) -> usize {
+        let [depth, height, width] = self.output();
+        let per_row = self.unfolded_rows() * width;
+        (budget / per_row.max(1)).clamp(1, depth * height)
+    }
+
+    /// The blocks of output rows: (first row, rows).
+    fn blocks(&self, budget: usize) -> impl Iterator<Item = (usize, usize)> {
+        let [depth, height, _] = self.output();
+        let rows = depth * height;
+        let step = self.block_rows(budget);
+        (0..rows)
+            .step_by(step)
+            .map(move |first| (first, step.min(rows - first)))
+    }
+
+    fn assert_lengths(&self, input: usize, weight: usize, output: usize) {
+        if let Err(reason) = self.check() {
+            panic!("mbs-conv: {reason}");
+        }
+        assert_eq!(
+            [input, weight, output],
+            self.lengths(),
+            "mbs-conv: slice lengths (input, weight, output) for {self:?}"
+        );
+    }
+
+    /// The convolution of `input` with `weight` (no bias).
+    pub fn forward(&self, input: &[f32], weight: &[f32]) -> Vec<f32> {
+        self.forward_within(input, weight, UNFOLD_BUDGET)
+    }
+
+    /// [`Self::forward`] unfolding at most `budget` values at a time.
+    fn forward_within(&self, input: &[f32], weight: &[f32], budget: usize) -> Vec<f32> {
+        let mut output = vec![0.0; self.lengths()[2]];
+        self.assert_lengths(input.len(), weight.len(), output.len());
+        if self.is_depthwise() {
+            depthwise::forward(self, input, weight, &mut output);
+            return output;
+        }
+        let (rows, plane) = (self.unfolded_rows(), self.output_plane());
+        let width = self.output()[2];
+        let mut unfolded = vec![0.0; rows * self.block_rows(budget) * width];
+        for item in 0..self.batch {
+            for group in 0..self.groups {
+                let x = self.group_input(input, item, group);
+                let w = Matrix::rows(&weight[self.group_weight(group)], rows);
+                let y = &mut output[self.group_output(item, group)];
+                if self.is_pointwise() {
+                    matmul(y, plane, w, Matrix::rows(x, plane), false, true);
+                    continue;
+                }
+                for (first, count) in self.blocks(budget) {
+                    let columns = count * width;
+                    let u = &mut unfolded[..rows * columns];
+                    unfold(self, x, first, count, u);
+                    let at = first * width;
+                    matmul(
+                        &mut y[at..],
+                        plane,
+                        w,
+                        Matrix::rows(u, columns),
+                        false,
+                        true,
+                    );
+                }
+            }
+        }
+        output
+    }
+
+    /// The gradient of a loss with respect to the weights, given the
+    /// input and the gradient with respect to the output.
+    pub fn weight_gradient(&self, input: &[f32], output_gradient: &[f32]) -> Vec<f32> {
+        self.weight_gradient_within(input, output_gradient, UNFOLD_BUDGET)
+    }
+
+    /// [`Self::weight_gradient`] unfolding at most `budget` values at a time.
+    fn weight_gradient_within(
+        &self,
+        input: &[f32],
+        output_gradient: &[f32],
+        budget: usize,
+    ) -> Vec<f32> {
+        let mut gradient = vec![0.0; self.lengths()[1]];
+        self.assert_lengths(input.len(), gradient.len(), output_gradient.len());
+        if self.is_depthwise() {
+            depthwise::weight_gradient(self, input, output_gradient, &mut gradient);
+            return gradient;
+        }
+        let (rows, plane) = (self.unfolded_rows(), self.output_plane());
+        let width = self.output()[2];
+        let block_rows = self.block_rows(budget);
+        // The items' blocks of output rows, shared among at most PARTS
+        // parts, each summing its products into a gradient of its own:
+        // parallel over the output positions, which a product of few rows
+        // and columns (out channels x kernel) cannot be inside, and summed
+        // in a fixed order, so the result does not depend on the threads.
+        let units: Vec<(usize, usize, usize)> = (0..self.batch)
+            .flat_map(|item| {
+                self.blocks(budget)
+                    .map(move |(first, count)| (item, first, count))
+            })
+            .collect();
+        let work = self.batch * plane * rows * self.out_per_group();
+        let parts = units.len().min(PARTS).min(work.div_ceil(PART_WORK)).max(1);
+        let per_part = units.len().div_ceil(parts);
+        let group_size = self.out_per_group() * rows;
+        for group in 0..self.groups {
+            let partials: Vec<Vec<f32>> = units
+                .par_chunks(per_part)
+                .map(|units| {
+                    let mut dw = vec![0.0; group_size];
+                    let mut unfolded = match self.is_pointwise() {
+                        true => Vec::new(),
+                        false => vec![0.0; rows * block_rows * width],
+                    };
+                    for (index, &(item, first, count)) in units.iter().enumerate() {
+                        let x = self.group_input(input, item, group);
+                        let dy = &output_gradient[self.group_output(item, group)];
+                        let (at, columns) = (first * width, count * width);
+                        let u = match self.is_pointwise() {
+                            true => Matrix::strided(&x[at..], rows, columns, plane),
+                            false => {
+                                let u = &mut unfolded[..rows * columns];
+                                unfold(self, x, first, count, u);
+                                Matrix::rows(u, columns)
+                            }
+                        };
+                        let dy = Matrix::strided(&dy[at..], self.out_per_group(), columns, plane);
+                        let parallel = parts == 1;
+                        matmul(&mut dw, rows, dy, u.transposed(), index > 0, parallel);
+                    }
+                    dw
+                })
+                .collect();
+            let dw = &mut gradient[self.group_weight(group)];
+            for partial in partials {
+                dw.iter_mut()
+                    .zip(partial)
+                    .for_each(|(sum, value)| *sum += value);
+            }
+        }
+        gradient
+    }
+
+    /// The gradient of a loss with respect to the input, given the weights
+    /// and the gradient with respect to the output.
+    pub fn input_gradient(&self, weight: &[f32], output_gradient: &[f32]) -> Vec<f32> {
+        self.input_gradient_within(weight, output_gradient, UNFOLD_BUDGET)
+    }
+
+    /// [`Self::input_gradient`] unfolding at most `budget` values at a time.
+    fn input_gradient_within(
+        &self,
+        weight: &[f32],
+        output_gradient: &[f32],
+        budget: usize,
+    ) -> Vec<f32> {
+        let mut gradient = vec![0.0; self.lengths()[0]];
+        self.assert_lengths(gradient.len(), weight.len(), output_gradient.len());
+        if self.is_depthwise() {
+            depthwise::input_gradient(self, weight, output_gradient, &mut gradient);
+            return gradient;
+        }
+        let (rows, plane) = (self.unfolded_rows(), self.output_plane());
+        let width = self.output()[2];
+        let mut unfolded = vec![0.0; rows * self.block_rows(budget) * width];
+        for item in 0..self.batch {
+            for group in 0..self.groups {
+                let w = Matrix::rows(&weight[self.group_weight(group)], rows).transposed();
+                let dy = &output_gradient[self.group_output(item, group)];
+                let range = self.group_input_range(item, group);
+                let dx = &mut gradient[range];
+                if self.is_pointwise() {
+                    matmul(dx, plane, w, Matrix::rows(dy, plane), false, true);
+                    continue;
+                }
+                for (first, count) in self.blocks(budget) {
+                    let columns = count * width;
+                    let du = &mut unfolded[..rows * columns];
+                    let at = first * width;
+                    let dy = Matrix::strided(&dy[at..], self.out_per_group(), columns, plane);
+                    matmul(du, columns, w, dy, false, true);
+                    fold(self, du, first, count, dx);
+                }
+            }
+        }
+        gradient
+    }
+
+    fn group_input_range(&self, item: usize, group: usize) -> std::ops::Range<usize> {
+        let size = self.in_per_group() * self.input_plane();
+        let start = (item * self.groups + group) * size;
+        start..start + size
+    }
+
+    fn group_input<'a>(&self, input: &'a [f32], item: usize, group: usize) -> &'a [f32] {
+        &input[self.group_input_range(item, group)]
+    }
+
+    fn group_weight(&self, group: usize) -> std::ops::Range<usize> {
+        let size = self.out_per_group() * self.unfolded_rows();
+        group * size..(group + 1) * size
+    }
+
+    fn group_output(&self, item: usize, group: usize) -> std::ops::Range<usize> {
+        let size = self.out_per_group() * self.output_plane();
+        let start = (item * self.groups + group) * size;
+        start..start + size
+    }
+}
+
+/// Splits `values` into consecutive planes of `plane` values, in parallel.
+fn planes_mut(values: &mut [f32], plane: usize) -> rayon::slice::ChunksMut<'_, f32> {
+    values.par_chunks_mut(plane.max(1))
+}
+
+#[cfg(test)]
+mod tests;
