@@ -27,16 +27,18 @@ use rayon::prelude::*;
 use matmul::{Matrix, matmul};
 use unfold::{fold, unfold};
 
-/// The most parts a weight gradient's output positions are shared among.
-const PARTS: usize = 8;
+/// The most parts the blocks of a forward pass or weight gradient are
+/// shared among (run side by side on rayon's threads).
+const PARTS: usize = 16;
 
-/// Multiply-adds below which a weight gradient is not split further.
+/// Multiply-adds below which a forward pass or weight gradient is not
+/// split further.
 const PART_WORK: usize = 1 << 22;
 
-/// The most values the unfolded input of one block holds (16 MB of f32):
-/// large enough for long products, small enough to stay in cache levels
-/// that matter and to bound the memory a layer adds.
-pub const UNFOLD_BUDGET: usize = 1 << 22;
+/// The most values the unfolded input of one block holds (4 MB of f32):
+/// large enough for long products, small enough to stay in the caches
+/// (2^18 to 2^22 measured on the networks' layers: 2^20 was fastest).
+pub const UNFOLD_BUDGET: usize = 1 << 20;
 
 /// The geometry of one convolution.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -191,30 +193,63 @@ impl Conv {
         }
         let (rows, plane) = (self.unfolded_rows(), self.output_plane());
         let width = self.output()[2];
-        let mut unfolded = vec![0.0; rows * self.block_rows(budget) * width];
-        for item in 0..self.batch {
-            for group in 0..self.groups {
-                let x = self.group_input(input, item, group);
-                let w = Matrix::rows(&weight[self.group_weight(group)], rows);
+        let block_rows = self.block_rows(budget);
+        let cout = self.out_per_group();
+        // The blocks of every item and group, shared among parts as the
+        // weight gradient's (products of few rows run faster side by side
+        // than each split across threads); each part writes its blocks
+        // into a buffer of its own, copied into the output after.
+        let units: Vec<(usize, usize, usize, usize)> = (0..self.batch)
+            .flat_map(|item| (0..self.groups).map(move |group| (item, group)))
+            .flat_map(|(item, group)| {
+                self.blocks(budget)
+                    .map(move |(first, count)| (item, group, first, count))
+            })
+            .collect();
+        let work = self.batch * plane * rows * self.out_channels;
+        let parts = units.len().min(PARTS).min(work.div_ceil(PART_WORK)).max(1);
+        let per_part = units.len().div_ceil(parts);
+        let results: Vec<Vec<f32>> = units
+            .par_chunks(per_part)
+            .map(|units| {
+                let columns_total: usize = units.iter().map(|u| u.3 * width).sum();
+                let mut out = vec![0.0; cout * columns_total];
+                let mut unfolded = match self.is_pointwise() {
+                    true => Vec::new(),
+                    false => vec![0.0; rows * block_rows * width],
+                };
+                let mut offset = 0;
+                for &(item, group, first, count) in units {
+                    let x = self.group_input(input, item, group);
+                    let w = Matrix::rows(&weight[self.group_weight(group)], rows);
+                    let (at, columns) = (first * width, count * width);
+                    let u = match self.is_pointwise() {
+                        true => Matrix::strided(&x[at..], rows, columns, plane),
+                        false => {
+                            let u = &mut unfolded[..rows * columns];
+                            unfold(self, x, first, count, u);
+                            Matrix::rows(u, columns)
+                        }
+                    };
+                    let y = &mut out[offset..offset + cout * columns];
+                    matmul(y, columns, w, u, false, parts == 1);
+                    offset += cout * columns;
+                }
+                out
+            })
+            .collect();
+        for (units, out) in units.chunks(per_part).zip(results) {
+            let mut offset = 0;
+            for &(item, group, first, count) in units {
+                let (at, columns) = (first * width, count * width);
                 let y = &mut output[self.group_output(item, group)];
-                if self.is_pointwise() {
-                    matmul(y, plane, w, Matrix::rows(x, plane), false, true);
-                    continue;
+                for (channel, block) in out[offset..offset + cout * columns]
+                    .chunks(columns)
+                    .enumerate()
+                {
+                    y[channel * plane + at..][..columns].copy_from_slice(block);
                 }
-                for (first, count) in self.blocks(budget) {
-                    let columns = count * width;
-                    let u = &mut unfolded[..rows * columns];
-                    unfold(self, x, first, count, u);
-                    let at = first * width;
-                    matmul(
-                        &mut y[at..],
-                        plane,
-                        w,
-                        Matrix::rows(u, columns),
-                        false,
-                        true,
-                    );
-                }
+                offset += cout * columns;
             }
         }
         output
@@ -314,6 +349,9 @@ impl Conv {
             depthwise::input_gradient(self, weight, output_gradient, &mut gradient);
             return gradient;
         }
+        if let Some((transposed, flipped)) = self.transposed(weight) {
+            return transposed.forward_within(output_gradient, &flipped, budget);
+        }
         let (rows, plane) = (self.unfolded_rows(), self.output_plane());
         let width = self.output()[2];
         let mut unfolded = vec![0.0; rows * self.block_rows(budget) * width];
@@ -338,6 +376,46 @@ impl Conv {
             }
         }
         gradient
+    }
+
+    /// For a convolution of stride 1 (not pointwise), the convolution
+    /// whose forward pass is this one's input gradient, with its weights
+    /// made from `weight`: channels in and out swapped within each group,
+    /// the kernel flipped, each side padded by the kernel's reach less the
+    /// original padding (a "full" convolution). `None` for other strides,
+    /// or padding beyond the kernel's reach, where the gradient is folded.
+    fn transposed(&self, weight: &[f32]) -> Option<(Conv, Vec<f32>)> {
+        if self.stride != [1, 1, 1] || self.is_pointwise() {
+            return None;
+        }
+        let reach: [usize; 3] = std::array::from_fn(|a| self.dilation[a] * (self.kernel[a] - 1));
+        if (0..3).any(|a| self.padding[a].iter().any(|&p| p > reach[a])) {
+            return None;
+        }
+        let [d, h, w] = self.output();
+        let transposed = Conv {
+            in_channels: self.out_channels,
+            out_channels: self.in_channels,
+            input: [d, h, w],
+            padding: std::array::from_fn(|a| {
+                [reach[a] - self.padding[a][0], reach[a] - self.padding[a][1]]
+            }),
+            ..*self
+        };
+        let (taps, cin, cout) = (self.taps(), self.in_per_group(), self.out_per_group());
+        let mut flipped = vec![0.0; weight.len()];
+        for group in 0..self.groups {
+            for o in 0..cout {
+                for i in 0..cin {
+                    let from = ((group * cout + o) * cin + i) * taps;
+                    let to = ((group * cin + i) * cout + o) * taps;
+                    for tap in 0..taps {
+                        flipped[to + taps - 1 - tap] = weight[from + tap];
+                    }
+                }
+            }
+        }
+        Some((transposed, flipped))
     }
 
     fn group_input_range(&self, item: usize, group: usize) -> std::ops::Range<usize> {

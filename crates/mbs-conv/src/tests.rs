@@ -98,6 +98,9 @@ fn cases() -> Vec<Conv> {
         conv2d([2, 5, 7, 1], [10, 7], 3, 1, [2, 2], 2),  // dilation
         conv2d([2, 8, 4, 1], [6, 5], 1, 1, [0, 0], 1),   // pointwise
         conv2d([1, 8, 8, 1], [6, 5], 1, 2, [0, 0], 1),   // 1x1 of stride 2
+        conv2d([2, 6, 4, 2], [7, 9], 3, 1, [1, 1], 1),   // groups, stride 1 (transposed)
+        conv2d([1, 3, 5, 1], [8, 7], 5, 1, [2, 1], 1),   // asymmetric padding, stride 1
+        conv2d([1, 3, 5, 1], [8, 7], 3, 1, [3, 1], 1),   // padding past the reach (folded)
         conv2d([2, 6, 6, 6], [9, 10], 3, 1, [1, 1], 1),  // depthwise
         conv2d([1, 4, 8, 4], [9, 10], 3, 2, [1, 1], 1),  // depthwise x 2, stride 2
         conv2d([1, 4, 4, 4], [7, 8], 3, 1, [2, 2], 2),   // depthwise, dilated
