@@ -192,6 +192,19 @@ impl Conv {
             return output;
         }
         let (rows, plane) = (self.unfolded_rows(), self.output_plane());
+        if self.is_pointwise() {
+            // One product per item and group, the input as it is, split
+            // across threads by gemm.
+            for item in 0..self.batch {
+                for group in 0..self.groups {
+                    let x = Matrix::rows(self.group_input(input, item, group), plane);
+                    let w = Matrix::rows(&weight[self.group_weight(group)], rows);
+                    let y = &mut output[self.group_output(item, group)];
+                    matmul(y, plane, w, x, false, true);
+                }
+            }
+            return output;
+        }
         let width = self.output()[2];
         let block_rows = self.block_rows(budget);
         let cout = self.out_per_group();
@@ -214,25 +227,16 @@ impl Conv {
             .map(|units| {
                 let columns_total: usize = units.iter().map(|u| u.3 * width).sum();
                 let mut out = vec![0.0; cout * columns_total];
-                let mut unfolded = match self.is_pointwise() {
-                    true => Vec::new(),
-                    false => vec![0.0; rows * block_rows * width],
-                };
+                let mut unfolded = vec![0.0; rows * block_rows * width];
                 let mut offset = 0;
                 for &(item, group, first, count) in units {
                     let x = self.group_input(input, item, group);
                     let w = Matrix::rows(&weight[self.group_weight(group)], rows);
-                    let (at, columns) = (first * width, count * width);
-                    let u = match self.is_pointwise() {
-                        true => Matrix::strided(&x[at..], rows, columns, plane),
-                        false => {
-                            let u = &mut unfolded[..rows * columns];
-                            unfold(self, x, first, count, u);
-                            Matrix::rows(u, columns)
-                        }
-                    };
+                    let columns = count * width;
+                    let u = &mut unfolded[..rows * columns];
+                    unfold(self, x, first, count, u);
                     let y = &mut out[offset..offset + cout * columns];
-                    matmul(y, columns, w, u, false, parts == 1);
+                    matmul(y, columns, w, Matrix::rows(u, columns), false, parts == 1);
                     offset += cout * columns;
                 }
                 out
