@@ -27,9 +27,12 @@ use rayon::prelude::*;
 use matmul::{Matrix, matmul};
 use unfold::{fold, unfold};
 
-/// The most parts the blocks of a forward pass or weight gradient are
-/// shared among (run side by side on rayon's threads).
-const PARTS: usize = 16;
+/// The most parts the blocks of a weight gradient are shared among (run
+/// side by side on rayon's threads). Fixed, not the thread count: the
+/// parts' sums are added in order, and the gradient must not depend on
+/// the machine. A forward pass uses one part per thread (each output is
+/// one product, whatever the parts).
+const PARTS: usize = 8;
 
 /// Multiply-adds below which a forward pass or weight gradient is not
 /// split further.
@@ -220,7 +223,8 @@ impl Conv {
             })
             .collect();
         let work = self.batch * plane * rows * self.out_channels;
-        let parts = units.len().min(PARTS).min(work.div_ceil(PART_WORK)).max(1);
+        let threads = rayon::current_num_threads();
+        let parts = units.len().min(threads).min(work.div_ceil(PART_WORK)).max(1);
         let per_part = units.len().div_ceil(parts);
         let results: Vec<Vec<f32>> = units
             .par_chunks(per_part)
