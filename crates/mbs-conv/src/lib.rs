@@ -224,7 +224,11 @@ impl Conv {
             .collect();
         let work = self.batch * plane * rows * self.out_channels;
         let threads = rayon::current_num_threads();
-        let parts = units.len().min(threads).min(work.div_ceil(PART_WORK)).max(1);
+        let parts = units
+            .len()
+            .min(threads)
+            .min(work.div_ceil(PART_WORK))
+            .max(1);
         let per_part = units.len().div_ceil(parts);
         let results: Vec<Vec<f32>> = units
             .par_chunks(per_part)
