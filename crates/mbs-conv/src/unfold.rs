@@ -43,12 +43,24 @@ fn tap_offsets(conv: &Conv, tap: usize) -> [isize; 3] {
     })
 }
 
+/// Where, in a channel's plane, the input line starts that output row `q`
+/// (flattened depth x height) reads for a tap of depth and height offsets
+/// `offsets`; `None` when that line lies in the padding.
+fn input_line(conv: &Conv, q: usize, offsets: [isize; 2]) -> Option<usize> {
+    let [_, out_h, _] = conv.output();
+    let [in_d, in_h, in_w] = conv.input;
+    let id = ((q / out_h) * conv.stride[0]) as isize + offsets[0];
+    let ih = ((q % out_h) * conv.stride[1]) as isize + offsets[1];
+    let inside = (0..in_d as isize).contains(&id) && (0..in_h as isize).contains(&ih);
+    inside.then(|| (id as usize * in_h + ih as usize) * in_w)
+}
+
 /// Writes into `unfolded` (`[C_in / groups * taps, count * W']`) the input
 /// values `input` (one item's group of channels) each output position of
 /// rows `first..first + count` (flattened depth x height) multiplies with
 /// each weight.
 pub fn unfold(conv: &Conv, input: &[f32], first: usize, count: usize, unfolded: &mut [f32]) {
-    let [_, out_h, out_w] = conv.output();
+    let [_, _, out_w] = conv.output();
     let [in_d, in_h, in_w] = conv.input;
     let (taps, plane) = (conv.taps(), in_d * in_h * in_w);
     let columns = count * out_w;
@@ -60,15 +72,11 @@ pub fn unfold(conv: &Conv, input: &[f32], first: usize, count: usize, unfolded: 
             let [offset_d, offset_h, offset_w] = tap_offsets(conv, row % taps);
             let span = valid(out_w, conv.stride[2], offset_w, in_w);
             for (slot, values) in values.chunks_mut(out_w).enumerate() {
-                let q = first + slot;
-                let (od, oh) = (q / out_h, q % out_h);
-                let id = (od * conv.stride[0]) as isize + offset_d;
-                let ih = (oh * conv.stride[1]) as isize + offset_h;
-                if !(0..in_d as isize).contains(&id) || !(0..in_h as isize).contains(&ih) {
+                let Some(line) = input_line(conv, first + slot, [offset_d, offset_h]) else {
                     values.fill(0.0);
                     continue;
-                }
-                let line = &channel[(id as usize * in_h + ih as usize) * in_w..][..in_w];
+                };
+                let line = &channel[line..][..in_w];
                 values[..span.start].fill(0.0);
                 values[span.end..].fill(0.0);
                 let start = (span.start * conv.stride[2]) as isize + offset_w;
@@ -90,7 +98,7 @@ pub fn unfold(conv: &Conv, input: &[f32], first: usize, count: usize, unfolded: 
 /// rows `first..first + count` onto `input_gradient` (one item's group of
 /// channels), each value onto the input position it was read from.
 pub fn fold(conv: &Conv, unfolded: &[f32], first: usize, count: usize, input_gradient: &mut [f32]) {
-    let [_, out_h, out_w] = conv.output();
+    let [_, _, out_w] = conv.output();
     let [in_d, in_h, in_w] = conv.input;
     let (taps, plane) = (conv.taps(), in_d * in_h * in_w);
     let columns = count * out_w;
@@ -105,14 +113,10 @@ pub fn fold(conv: &Conv, unfolded: &[f32], first: usize, count: usize, input_gra
                 let [offset_d, offset_h, offset_w] = tap_offsets(conv, tap);
                 let span = valid(out_w, conv.stride[2], offset_w, in_w);
                 for (slot, values) in values.chunks(out_w).enumerate() {
-                    let q = first + slot;
-                    let (od, oh) = (q / out_h, q % out_h);
-                    let id = (od * conv.stride[0]) as isize + offset_d;
-                    let ih = (oh * conv.stride[1]) as isize + offset_h;
-                    if !(0..in_d as isize).contains(&id) || !(0..in_h as isize).contains(&ih) {
+                    let Some(line) = input_line(conv, first + slot, [offset_d, offset_h]) else {
                         continue;
-                    }
-                    let line = &mut gradient[(id as usize * in_h + ih as usize) * in_w..][..in_w];
+                    };
+                    let line = &mut gradient[line..][..in_w];
                     let start = (span.start * conv.stride[2]) as isize + offset_w;
                     for (k, value) in values[span.clone()].iter().enumerate() {
                         line[start as usize + k * conv.stride[2]] += value;

@@ -82,7 +82,7 @@ fn main() -> std::process::ExitCode {
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
-        // Another rank of the same MPI job printed it.
+        // Rank 0 of the MPI job printed it.
         Err(e) if e.is::<cli::processes::ReportedByRankZero>() => std::process::ExitCode::FAILURE,
         Err(e) => {
             eprintln!("error: {}", cli::report_error::describe(&e));

@@ -267,12 +267,29 @@ fn processes_writing(out: &Path) -> Vec<u32> {
 /// Seconds within which the other ranks are gone once one is killed.
 const KILL_BOUND: Duration = Duration::from_secs(30);
 
+/// The exit status of `job`, which must end within [`KILL_BOUND`] (`when`
+/// says after what, for the failure message).
+fn exit_within(job: &mut std::process::Child, when: &str) -> std::process::ExitStatus {
+    let start = Instant::now();
+    loop {
+        if let Some(status) = job.try_wait().expect("wait") {
+            return status;
+        }
+        assert!(
+            start.elapsed() < KILL_BOUND,
+            "mpirun still runs {KILL_BOUND:?} {when}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
 #[test]
 fn a_killed_rank_ends_every_rank_ctrl_c_stops_them_and_the_same_command_resumes() {
     let dir = tempfile::tempdir().expect("temp dir");
     let manifest = synth(&dir.path().join("data"));
     let out = dir.path().join("killed");
-    let steps = 40;
+    // Long enough that Ctrl-C (below) lands before the end.
+    let steps = 150;
     let mut job = mpirun(2)
         .arg(env!("CARGO_BIN_EXE_mbs-tool"))
         .args(train_args(&manifest, &out, steps))
@@ -300,16 +317,7 @@ fn a_killed_rank_ends_every_rank_ctrl_c_stops_them_and_the_same_command_resumes(
         .expect("kill");
     assert!(killed.success());
     let killed_at = Instant::now();
-    let status = loop {
-        if let Some(status) = job.try_wait().expect("wait") {
-            break status;
-        }
-        assert!(
-            killed_at.elapsed() < KILL_BOUND,
-            "mpirun still runs {KILL_BOUND:?} after a rank was killed"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    };
+    let status = exit_within(&mut job, "after a rank was killed");
     let ended_in = killed_at.elapsed();
     println!("every rank ended {ended_in:?} after one was killed");
     assert!(!status.success(), "the job reports the failure");
@@ -352,17 +360,7 @@ fn a_killed_rank_ends_every_rank_ctrl_c_stops_them_and_the_same_command_resumes(
         .status()
         .expect("kill");
     assert!(interrupted.success());
-    let interrupted_at = Instant::now();
-    let status = loop {
-        if let Some(status) = job.try_wait().expect("wait") {
-            break status;
-        }
-        assert!(
-            interrupted_at.elapsed() < KILL_BOUND,
-            "Ctrl-C did not end the job"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    };
+    let status = exit_within(&mut job, "after Ctrl-C");
     assert!(!status.success());
     assert!(processes_writing(&out).is_empty(), "no rank is left");
     let (last_logged, _) = *losses(&out).last().expect("logged");

@@ -37,7 +37,8 @@ fn join_mpi(launched: usize) -> anyhow::Result<Option<Rc<dyn Collective>>> {
 }
 
 /// An error every rank met alike (the ranks disagree, a rank's device
-/// failed): rank 0 reports it, the others end with it unprinted.
+/// failed, the run stopped), which rank 0 has printed: every rank ends
+/// with a failure and prints nothing more.
 #[derive(Debug)]
 pub struct ReportedByRankZero;
 

@@ -205,11 +205,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     match train(&args, config, manifest, out, Some(&processes)) {
         Ok(()) => Ok(()),
-        // Met by every rank alike: printed once.
-        Err(e) if met_by_every_rank(&e) || e.is::<ReportedByRankZero>() => match processes.rank() {
-            0 => Err(e),
-            _ => Err(ReportedByRankZero.into()),
-        },
+        // Met by every rank alike: printed once, by rank 0, before any rank
+        // ends (the launcher ends the others as soon as one fails).
+        Err(e) if met_by_every_rank(&e) || e.is::<ReportedByRankZero>() => {
+            if processes.rank() == 0 && !e.is::<ReportedByRankZero>() {
+                eprintln!("error: {}", crate::cli::report_error::describe(&e));
+            }
+            processes.gather(&[]);
+            Err(ReportedByRankZero.into())
+        }
         // Met by this rank alone while the others wait for it: end them all.
         Err(e) => {
             eprintln!(
