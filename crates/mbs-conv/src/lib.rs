@@ -12,11 +12,14 @@
 //! input gradient   dU[K, P]       = W[C_out/g, K]^T x dY[C_out/g, P], folded back (col2im)
 //! ```
 //!
-//! `U` is built a block of output rows at a time in one buffer per call
-//! (at most [`UNFOLD_BUDGET`] values), and a 1x1 convolution of stride 1
-//! without padding uses the input itself. Convolutions with one input
-//! channel per group (depthwise) run as direct loops over each channel's
-//! plane instead of products with one row.
+//! `U` is built a block of output rows at a time (at most
+//! [`UNFOLD_BUDGET`] values), the blocks shared among parts that run side
+//! by side, each with its own buffer, its products on one thread; a 1x1
+//! convolution of stride 1 without padding uses the input itself. The
+//! input gradient of a stride-1 convolution is the forward pass of its
+//! transpose (flipped kernel, full padding) rather than a fold.
+//! Convolutions with one input channel per group (depthwise) run as direct
+//! loops over each channel's plane instead of products with one row.
 
 mod depthwise;
 mod matmul;
