@@ -63,6 +63,23 @@ fn dot(a: &[f32], b: &[f32]) -> f32 {
     lanes.iter().sum::<f32>() + tail
 }
 
+/// The dot product of `a` with every `stride`-th value of `b`: the
+/// strided values gathered 64 at a time, then [`dot`].
+fn dot_strided(a: &[f32], b: &[f32], stride: usize) -> f32 {
+    let mut gathered = [0.0f32; 64];
+    let mut strided = b.iter().step_by(stride);
+    a.chunks(64)
+        .map(|a| {
+            let chunk = &mut gathered[..a.len()];
+            chunk
+                .iter_mut()
+                .zip(&mut strided)
+                .for_each(|(g, b)| *g = *b);
+            dot(a, chunk)
+        })
+        .sum()
+}
+
 /// Output channels per input channel.
 fn multiplier(conv: &Conv) -> usize {
     conv.out_channels / conv.in_channels
@@ -142,11 +159,7 @@ pub fn weight_gradient(conv: &Conv, input: &[f32], output_gradient: &[f32], grad
                     runs(conv, tap, |o, i, run| {
                         sum += match stride {
                             1 => dot(&dy[o..o + run], &x[i..i + run]),
-                            _ => dy[o..o + run]
-                                .iter()
-                                .zip(x[i..].iter().step_by(stride))
-                                .map(|(a, b)| a * b)
-                                .sum::<f32>(),
+                            _ => dot_strided(&dy[o..o + run], &x[i..], stride),
                         };
                     });
                     *dw += sum;
