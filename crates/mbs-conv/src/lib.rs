@@ -226,12 +226,7 @@ impl Conv {
             })
             .collect();
         let work = self.batch * plane * rows * self.out_channels;
-        let threads = rayon::current_num_threads();
-        let parts = units
-            .len()
-            .min(threads)
-            .min(work.div_ceil(PART_WORK))
-            .max(1);
+        let parts = parts(units.len(), rayon::current_num_threads(), work);
         let per_part = units.len().div_ceil(parts);
         let results: Vec<Vec<f32>> = units
             .par_chunks(per_part)
@@ -304,7 +299,7 @@ impl Conv {
             })
             .collect();
         let work = self.batch * plane * rows * self.out_per_group();
-        let parts = units.len().min(PARTS).min(work.div_ceil(PART_WORK)).max(1);
+        let parts = parts(units.len(), PARTS, work);
         let per_part = units.len().div_ceil(parts);
         let group_size = self.out_per_group() * rows;
         for group in 0..self.groups {
@@ -453,6 +448,13 @@ impl Conv {
         let start = (item * self.groups + group) * size;
         start..start + size
     }
+}
+
+/// How many parts `units` blocks of `work` multiply-adds in all are shared
+/// among: at least one, at most `most` and at most one per [`PART_WORK`]
+/// multiply-adds.
+fn parts(units: usize, most: usize, work: usize) -> usize {
+    units.min(most).min(work.div_ceil(PART_WORK)).max(1)
 }
 
 /// Splits `values` into consecutive planes of `plane` values, in parallel.

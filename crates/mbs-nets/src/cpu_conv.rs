@@ -20,6 +20,7 @@ use burn::backend::{
     Autodiff, BackendTensor, DispatchAutodiffContext, DispatchTensor, DispatchTensorKind, Flex,
     GradientCheckpointingStrategy,
 };
+use burn::module::Param;
 use burn::nn::PaddingConfig2d;
 use burn::nn::PaddingConfig3d;
 use burn::nn::conv::{Conv2d, Conv3d};
@@ -53,14 +54,9 @@ impl Convolve<4> for Conv2d {
             dilation: [1, self.dilation[0], self.dilation[1]],
         };
         #[allow(clippy::disallowed_methods)] // burn's own, off the CPU
-        let convolved = match convolve(geometry, input, self.weight.val()) {
-            Ok(output) => output,
-            Err((input, _)) => return self.forward(input),
-        };
-        match &self.bias {
-            Some(bias) => convolved + bias.val().reshape([1, -1, 1, 1]),
-            None => convolved,
-        }
+        layer_output(geometry, input, &self.weight, &self.bias, |x| {
+            self.forward(x)
+        })
     }
 }
 
@@ -85,14 +81,33 @@ impl Convolve<5> for Conv3d {
             dilation: self.dilation,
         };
         #[allow(clippy::disallowed_methods)] // burn's own, off the CPU
-        let convolved = match convolve(geometry, input, self.weight.val()) {
-            Ok(output) => output,
-            Err((input, _)) => return self.forward(input),
-        };
-        match &self.bias {
-            Some(bias) => convolved + bias.val().reshape([1, -1, 1, 1, 1]),
-            None => convolved,
+        layer_output(geometry, input, &self.weight, &self.bias, |x| {
+            self.forward(x)
+        })
+    }
+}
+
+/// A layer's output for `input`: its convolution by `geometry` with
+/// `weight`, plus `bias` per output channel, by `mbs-conv` when input and
+/// weights are f32 on the CPU, else `burn_forward(input)`.
+fn layer_output<const D: usize>(
+    geometry: Conv,
+    input: Tensor<D>,
+    weight: &Param<Tensor<D>>,
+    bias: &Option<Param<Tensor<1>>>,
+    burn_forward: impl FnOnce(Tensor<D>) -> Tensor<D>,
+) -> Tensor<D> {
+    let convolved = match convolve(geometry, input, weight.val()) {
+        Ok(output) => output,
+        Err(input) => return burn_forward(input),
+    };
+    match bias {
+        Some(bias) => {
+            let mut channels = [1; D];
+            channels[1] = -1;
+            convolved + bias.val().reshape(channels)
         }
+        None => convolved,
     }
 }
 
@@ -125,16 +140,16 @@ fn route(tensor: &DispatchTensor) -> Option<Route> {
 }
 
 /// The convolution of `input` with `weight` by `mbs-conv` when both are
-/// f32 on the CPU; otherwise both back, for burn's own convolution.
-#[allow(clippy::result_large_err)] // the error hands the tensors back
+/// f32 on the CPU; otherwise the input back, for burn's own convolution.
+#[allow(clippy::result_large_err)] // the error hands the input back
 fn convolve<const D: usize>(
     geometry: Conv,
     input: Tensor<D>,
     weight: Tensor<D>,
-) -> Result<Tensor<D>, (Tensor<D>, Tensor<D>)> {
+) -> Result<Tensor<D>, Tensor<D>> {
     let f32s = input.dtype() == DType::F32 && weight.dtype() == DType::F32;
     if !f32s || geometry.check().is_err() {
-        return Err((input, weight));
+        return Err(input);
     }
     let (input, weight) = (input.into_dispatch(), weight.into_dispatch());
     let both = route(&input).filter(|r| Some(*r) == route(&weight));
@@ -170,7 +185,7 @@ fn convolve<const D: usize>(
             };
             Ok(Tensor::from_primitive::<Autodiff<Flex>>(output))
         }
-        None => Err((primitive(input), primitive(weight))),
+        None => Err(primitive(input)),
     }
 }
 

@@ -99,6 +99,17 @@ pub fn sequence_weights(n: usize, gamma: f64, final_only: bool) -> Vec<f64> {
     (0..n).map(|i| adjusted.powi((n - 1 - i) as i32)).collect()
 }
 
+/// Why a batch of `items` cannot be shared by `sharers` devices or
+/// processes (`what`), if it cannot: each needs at least one item.
+fn unshareable(items: usize, sharers: usize, what: &str) -> Option<String> {
+    (items < sharers).then(|| {
+        format!(
+            "a batch of {items} cannot be shared by {sharers} {what}: use a batch size of at \
+             least the number of {what}"
+        )
+    })
+}
+
 /// What one step reports.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepReport {
@@ -593,12 +604,8 @@ impl<B: Backbone> S3Trainer<B> {
             return self.step(batch);
         }
         let items = batch.reference.dims()[0];
-        if items < devices.len() {
-            return Err(TrainError::Config(format!(
-                "a batch of {items} cannot be shared by {} devices: use a batch size of at least \
-                 the number of devices",
-                devices.len()
-            )));
+        if let Some(message) = unshareable(items, devices.len(), "devices") {
+            return Err(TrainError::Config(message));
         }
         let shares = batch.split(devices.len());
         self.objective.geometry_weight = self.geometry_weight();
@@ -661,11 +668,8 @@ impl<B: Backbone> S3Trainer<B> {
     ) -> Result<StepReport, TrainError> {
         let ranks = collective.size();
         let items = batch.reference.dims()[0];
-        if items < ranks {
-            return Err(TrainError::Distributed(format!(
-                "a batch of {items} cannot be shared by {ranks} processes: use a batch size of \
-                 at least the number of processes"
-            )));
+        if let Some(message) = unshareable(items, ranks, "processes") {
+            return Err(TrainError::Distributed(message));
         }
         let share = batch.split(ranks).swap_remove(collective.rank());
         let weight = share.reference.dims()[0] as f64 / items as f64;

@@ -206,28 +206,23 @@ impl TrainingRun {
         let Some(device) = devices.first().cloned() else {
             return Err(TrainError::Config("no device to train on".into()));
         };
-        if let Some(processes) = &processes {
-            if devices.len() > 1 {
-                return Err(TrainError::Distributed(format!(
-                    "each of the {} processes trains on one device, not {}: give one device \
-                     per process",
-                    processes.size(),
-                    devices.len()
-                )));
-            }
-            if config.data.batch_size < processes.size() {
-                return Err(TrainError::Config(format!(
-                    "data.batch_size {} is smaller than the {} processes that share it",
-                    config.data.batch_size,
-                    processes.size()
-                )));
-            }
-        }
-        if config.data.batch_size < devices.len() {
-            return Err(TrainError::Config(format!(
-                "data.batch_size {} is smaller than the {} devices that share it",
-                config.data.batch_size,
+        if let Some(processes) = processes.as_ref().filter(|_| devices.len() > 1) {
+            return Err(TrainError::Distributed(format!(
+                "each of the {} processes trains on one device, not {}: give one device per \
+                 process",
+                processes.size(),
                 devices.len()
+            )));
+        }
+        // What shares each batch: the processes, or this one's devices.
+        let (sharers, what) = match &processes {
+            Some(processes) => (processes.size(), "processes"),
+            None => (devices.len(), "devices"),
+        };
+        if config.data.batch_size < sharers {
+            return Err(TrainError::Config(format!(
+                "data.batch_size {} is smaller than the {sharers} {what} that share it",
+                config.data.batch_size
             )));
         }
         let named = devices.iter().map(|device| (format!("{device:?}"), device));
