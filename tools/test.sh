@@ -29,7 +29,9 @@ if [ ! -x .venv-test/bin/python ]; then
         python3 -m venv .venv-test
     }
 fi
-.venv-test/bin/python -m pip install --quiet --disable-pip-version-check \
+# Without pip's cache: PyTorch and its CUDA libraries are about 4 GB of
+# wheels that would otherwise stay on disk twice.
+.venv-test/bin/python -m pip install --quiet --disable-pip-version-check --no-cache-dir \
     -r python/requirements-test.txt ./python
 MBS_TOOL="$PWD/target/debug/mbs-tool" \
     .venv-test/bin/python -m pytest -q -p no:cacheprovider python/tests
