@@ -142,13 +142,14 @@ fn every_path_matches_the_definition_in_value_and_gradients() {
             random(ly, &mut rng),
         );
         let [y, dx, dw] = reference(&conv, &x, &w, &dy);
-        // One block, and blocks of one output row (several for every case).
-        for budget in [UNFOLD_BUDGET, 1] {
+        // The blocks of every-day use, and blocks of one output row
+        // (several for every case).
+        for budget in [PART_BUDGET, FOLD_BUDGET, 1] {
             assert_close("forward", &conv, &conv.forward_within(&x, &w, budget), &y);
             assert_close(
                 "input gradient",
                 &conv,
-                &conv.input_gradient_within(&w, &dy, budget),
+                &conv.input_gradient_within(&w, &dy, [budget, budget]),
                 &dx,
             );
             assert_close(
