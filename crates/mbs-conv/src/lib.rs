@@ -228,8 +228,10 @@ impl Conv {
         let cout = self.out_per_group();
         // The blocks of every item and group, shared among parts as the
         // weight gradient's (products of few rows run faster side by side
-        // than each split across threads); each part writes its blocks
-        // into a buffer of its own, copied into the output after.
+        // than each split across threads). Each block's output is one
+        // piece of each of its group's channel planes: the pieces are
+        // handed to the blocks up front, and each part writes a block's
+        // product into a buffer the size of one block, then into them.
         let units: Vec<(usize, usize, usize, usize)> = (0..self.batch)
             .flat_map(|item| (0..self.groups).map(move |group| (item, group)))
             .flat_map(|(item, group)| {
@@ -237,43 +239,40 @@ impl Conv {
                     .map(move |(first, count)| (item, group, first, count))
             })
             .collect();
+        let mut pieces: Vec<Vec<&mut [f32]>> = units.iter().map(|_| Vec::new()).collect();
+        let blocks_per_group = self.blocks(budget).count();
+        for (row, mut plane_values) in output.chunks_mut(plane).enumerate() {
+            // Channel planes run item by item, channel by channel, so a
+            // group's blocks are consecutive units.
+            let first_unit = row / cout * blocks_per_group;
+            for (unit, (_, count)) in self.blocks(budget).enumerate() {
+                let (piece, rest) = plane_values.split_at_mut(count * width);
+                pieces[first_unit + unit].push(piece);
+                plane_values = rest;
+            }
+        }
         let work = self.batch * plane * rows * self.out_channels;
         let parts = parts(units.len(), rayon::current_num_threads(), work);
         let per_part = units.len().div_ceil(parts);
-        let results: Vec<Vec<f32>> = units
+        units
             .par_chunks(per_part)
-            .map(|units| {
-                let columns_total: usize = units.iter().map(|u| u.3 * width).sum();
-                let mut out = vec![0.0; cout * columns_total];
+            .zip(pieces.par_chunks_mut(per_part))
+            .for_each(|(units, pieces)| {
+                let mut product = vec![0.0; cout * block_rows * width];
                 let mut unfolded = vec![0.0; rows * block_rows * width];
-                let mut offset = 0;
-                for &(item, group, first, count) in units {
+                for (&(item, group, first, count), pieces) in units.iter().zip(pieces) {
                     let x = self.group_input(input, item, group);
                     let w = Matrix::rows(&weight[self.group_weight(group)], rows);
                     let columns = count * width;
                     let u = &mut unfolded[..rows * columns];
                     unfold(self, x, first, count, u);
-                    let y = &mut out[offset..offset + cout * columns];
+                    let y = &mut product[..cout * columns];
                     matmul(y, columns, w, Matrix::rows(u, columns), false, parts == 1);
-                    offset += cout * columns;
+                    for (piece, values) in pieces.iter_mut().zip(y.chunks(columns)) {
+                        piece.copy_from_slice(values);
+                    }
                 }
-                out
-            })
-            .collect();
-        for (units, out) in units.chunks(per_part).zip(results) {
-            let mut offset = 0;
-            for &(item, group, first, count) in units {
-                let (at, columns) = (first * width, count * width);
-                let y = &mut output[self.group_output(item, group)];
-                for (channel, block) in out[offset..offset + cout * columns]
-                    .chunks(columns)
-                    .enumerate()
-                {
-                    y[channel * plane + at..][..columns].copy_from_slice(block);
-                }
-                offset += cout * columns;
-            }
-        }
+            });
         output
     }
 
