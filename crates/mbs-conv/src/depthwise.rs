@@ -131,10 +131,11 @@ pub fn input_gradient(conv: &Conv, weight: &[f32], output_gradient: &[f32], grad
                             .iter_mut()
                             .zip(&dy[o..o + run])
                             .for_each(|(dx, dy)| *dx += w * dy),
-                        _ => dy[o..o + run]
-                            .iter()
-                            .enumerate()
-                            .for_each(|(k, dy)| dx[i + k * stride] += w * dy),
+                        _ => dx[i..]
+                            .iter_mut()
+                            .step_by(stride)
+                            .zip(&dy[o..o + run])
+                            .for_each(|(dx, dy)| *dx += w * dy),
                     });
                 }
             }
