@@ -88,6 +88,11 @@ fn multiplier(conv: &Conv) -> usize {
 pub fn forward(conv: &Conv, input: &[f32], weight: &[f32], output: &mut [f32]) {
     let (taps, in_plane, out_plane) = (conv.taps(), conv.input_plane(), conv.output_plane());
     let stride = conv.stride[2];
+    // Strided 2-D kernels sum in registers; with stride 1 adding tap by
+    // tap along contiguous rows is as fast (0.8 ms against 1.0-1.8 for
+    // IGEV-Stereo's 96-channel layer; stride 2: 0.95 against 0.65-0.73).
+    let in_registers =
+        stride > 1 && conv.kernel[0] == 1 && conv.input[0] == 1 && conv.dilation == [1, 1, 1];
     planes_mut(output, out_plane)
         .enumerate()
         .for_each(|(index, y)| {
@@ -95,6 +100,9 @@ pub fn forward(conv: &Conv, input: &[f32], weight: &[f32], output: &mut [f32]) {
             let channel = out_channel / multiplier(conv);
             let x = &input[(item * conv.in_channels + channel) * in_plane..][..in_plane];
             let w = &weight[out_channel * taps..][..taps];
+            if in_registers {
+                return forward_plane(conv, x, w, y);
+            }
             for (tap, &w) in w.iter().enumerate() {
                 runs(conv, tap, |o, i, run| {
                     let y = &mut y[o..o + run];
@@ -111,6 +119,64 @@ pub fn forward(conv: &Conv, input: &[f32], weight: &[f32], output: &mut [f32]) {
                 });
             }
         });
+}
+
+/// Output positions summed together in registers by [`forward_plane`].
+const LANES: usize = 8;
+
+/// One channel's plane of a strided 2-D undilated depthwise convolution, every
+/// output the sum of all its taps kept in registers, [`LANES`] outputs
+/// along the width at a time (adding tap by tap into the output would load
+/// and store it once per multiply-add). The input is first copied, zero
+/// padded, into one plane per phase of the width stride (`phases[p][r][c]`
+/// = padded `[r][c * stride + p]`), so that every tap reads its inputs
+/// contiguously.
+fn forward_plane(conv: &Conv, x: &[f32], w: &[f32], y: &mut [f32]) {
+    let out_w = conv.output()[2];
+    let [_, in_h, in_w] = conv.input;
+    let [_, kernel_h, kernel_w] = conv.kernel;
+    let [_, stride_h, stride] = conv.stride;
+    let [_, [top, bottom], [left, right]] = conv.padding;
+    let rows = in_h + top + bottom;
+    let phase_w = (in_w + left + right).div_ceil(stride);
+    let mut phases = vec![0.0f32; stride * rows * phase_w];
+    for phase in 0..stride {
+        // The first input column whose padded column lies in this phase.
+        let first = (phase + stride - left % stride) % stride;
+        let column = (first + left) / stride;
+        for (r, x_row) in x.chunks(in_w).enumerate() {
+            let at = (phase * rows + r + top) * phase_w + column;
+            let values = x_row.iter().skip(first).step_by(stride);
+            phases[at..]
+                .iter_mut()
+                .zip(values)
+                .for_each(|(p, &x)| *p = x);
+        }
+    }
+    let full = out_w / LANES * LANES;
+    let mut taps: Vec<(usize, f32)> = Vec::with_capacity(kernel_h * kernel_w);
+    for (oh, y_row) in y.chunks_mut(out_w).enumerate() {
+        taps.clear();
+        for ky in 0..kernel_h {
+            for kx in 0..kernel_w {
+                let row = (kx % stride * rows + oh * stride_h + ky) * phase_w + kx / stride;
+                taps.push((row, w[ky * kernel_w + kx]));
+            }
+        }
+        for start in (0..full).step_by(LANES) {
+            let mut sums = [0.0f32; LANES];
+            for &(row, w) in &taps {
+                let xs = &phases[row + start..][..LANES];
+                for lane in 0..LANES {
+                    sums[lane] += w * xs[lane];
+                }
+            }
+            y_row[start..start + LANES].copy_from_slice(&sums);
+        }
+        for (ow, y) in y_row.iter_mut().enumerate().skip(full) {
+            *y = taps.iter().map(|&(row, w)| w * phases[row + ow]).sum();
+        }
+    }
 }
 
 pub fn input_gradient(conv: &Conv, weight: &[f32], output_gradient: &[f32], gradient: &mut [f32]) {

@@ -104,6 +104,8 @@ fn cases() -> Vec<Conv> {
         conv2d([2, 6, 6, 6], [9, 10], 3, 1, [1, 1], 1),  // depthwise
         conv2d([1, 4, 8, 4], [9, 10], 3, 2, [1, 1], 1),  // depthwise x 2, stride 2
         conv2d([1, 4, 4, 4], [7, 8], 3, 1, [2, 2], 2),   // depthwise, dilated
+        conv2d([2, 3, 3, 3], [11, 21], 3, 2, [1, 0], 1), // depthwise, stride 2, odd width
+        conv2d([1, 2, 4, 2], [12, 19], 5, 3, [2, 1], 1), // depthwise x 2, 5x5, stride 3
         Conv {
             // IGEV-Stereo's cost-volume hourglass: 3x3x3, stride 2 in one run
             batch: 2,
