@@ -30,6 +30,17 @@ ROOT = Path(__file__).resolve().parents[2]
 THREADS = 2
 
 
+def median_ms(run, rounds):
+    """Median milliseconds of `rounds` calls of `run` after one warm-up."""
+    run()
+    times = []
+    for _ in range(rounds):
+        start = time.perf_counter()
+        run()
+        times.append((time.perf_counter() - start) * 1e3)
+    return sorted(times)[len(times) // 2]
+
+
 def rust_layers(rounds, *flags):
     subprocess.run(["cargo", "build", "--release", "-q", "-p", "mbs-nets", "--example", "conv_layers"],
                    cwd=ROOT, check=True)
@@ -58,18 +69,9 @@ def torch_layer(name, rounds):
     conv_type = torch.nn.Conv3d if len(size) == 3 else torch.nn.Conv2d
     conv = conv_type(cin, cout, k, stride=stride, padding=k // 2, groups=groups)
 
-    def median_ms(run):
-        run()
-        times = []
-        for _ in range(rounds):
-            start = time.perf_counter()
-            run()
-            times.append((time.perf_counter() - start) * 1e3)
-        return sorted(times)[len(times) // 2]
-
     x = torch.rand(1, cin, *size)
     with torch.no_grad():
-        forward = median_ms(lambda: conv(x))
+        forward = median_ms(lambda: conv(x), rounds)
 
     def grads(input_grad):
         inp = x.clone().requires_grad_(input_grad)
@@ -77,7 +79,7 @@ def torch_layer(name, rounds):
         def run():
             conv.zero_grad(set_to_none=True)
             conv(inp).sum().backward()
-        return median_ms(run)
+        return median_ms(run, rounds)
 
     return {"name": name, "forward_ms": forward, "weight_grad_ms": grads(False), "both_grads_ms": grads(True)}
 

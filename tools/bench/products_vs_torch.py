@@ -15,8 +15,9 @@ import json
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
+
+from conv_layers_vs_torch import median_ms
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "target" / "release" / "examples" / "product_rate"
@@ -26,15 +27,6 @@ def torch_cases(rounds):
     """The same cases as `product_rate`, in PyTorch, in this process."""
     import torch
 
-    def median_ms(run):
-        run()
-        times = []
-        for _ in range(rounds):
-            start = time.perf_counter()
-            run()
-            times.append((time.perf_counter() - start) * 1e3)
-        return sorted(times)[len(times) // 2]
-
     results = []
     with torch.no_grad():
         for name, channels, (height, width) in [("3x3 64->64 @192x256", 64, (192, 256)),
@@ -43,12 +35,12 @@ def torch_cases(rounds):
             rows = max(1, (1 << 18) // (k * width))  # mbs-conv's PART_BUDGET
             weight, block = torch.rand(channels, k), torch.rand(k, rows * width)
             out = torch.empty(channels, rows * width)
-            ms = median_ms(lambda: torch.mm(weight, block, out=out))
+            ms = median_ms(lambda: torch.mm(weight, block, out=out), rounds)
             flops = 2 * channels * k * rows * width
             results.append({"name": f"product of one block of {name}", "ms": ms, "gflops": flops / ms / 1e6})
             conv = torch.nn.Conv2d(channels, channels, 3, padding=1, bias=False)
             x = torch.rand(1, channels, height, width)
-            ms = median_ms(lambda: conv(x))
+            ms = median_ms(lambda: conv(x), rounds)
             flops = 2 * channels * k * height * width
             results.append({"name": f"layer {name}", "ms": ms, "gflops": flops / ms / 1e6})
     return results
