@@ -46,8 +46,9 @@ ALL/NOC/OCC), loss.png and val.png (curves), visuals/step-N/*.png (reference
 = seen by the teacher only), tensorboard/ (every logged number and the
 sheets: tensorboard --logdir RUN), checkpoints/step-N/.
 
-Ctrl-C saves a checkpoint and stops; running the same command again
-resumes from the newest checkpoint (--restart discards them). The settings
+Ctrl-C (or SIGTERM, or SIGUSR1) saves a checkpoint and stops; running the
+same command again resumes from the newest checkpoint (--restart discards
+them). The settings
 are the paper's defaults, overlaid by --config, then by the named flags,
 then by --set KEY=VALUE (see schemas/train-config.schema.json).
 
@@ -56,7 +57,9 @@ rank of a data-parallel run: the ranks check that they run the same settings
 on the same manifest, share each batch (the global --batch-size, drawn as one
 process would), sum their gradients with MPI, and compare their weights at
 every validation; rank 0 alone validates and writes --out (on storage every
-rank can read, for resuming). A run resumes on any number of ranks.")]
+rank can read, for resuming). A run resumes on any number of ranks. To stop
+one with a checkpoint, send mpirun SIGUSR1 (kill -USR1 PID; under SLURM:
+scancel --signal=USR1 JOB), which it forwards to every rank at once.")]
 pub struct Args {
     /// The dataset manifest (see `mbs-tool scan`, `synth`, `extrapolate`).
     #[arg(required_unless_present = "print_config")]
@@ -235,7 +238,7 @@ fn met_by_every_rank(error: &anyhow::Error) -> bool {
     })
 }
 
-/// The run stopped on request (Ctrl-C, SIGTERM) with a checkpoint.
+/// The run stopped on request (Ctrl-C, SIGTERM, SIGUSR1) with a checkpoint.
 #[derive(Debug)]
 struct Stopped {
     steps: usize,
@@ -345,6 +348,12 @@ fn train(
         }
     })
     .context("cannot install the Ctrl-C handler")?;
+    // SIGUSR1 stops the same way. mpirun forwards it to every rank at once,
+    // where its Ctrl-C reaches them as SIGTERM only after
+    // `odls_base_sigkill_timeout` seconds, with SIGKILL as long after.
+    #[cfg(unix)]
+    signal_hook::flag::register(signal_hook::consts::SIGUSR1, Arc::clone(&stop))
+        .context("cannot install the SIGUSR1 handler")?;
     if !writer {
         return match training.run(&mut Quiet, &stop)? {
             End::Stopped(_) => Err(ReportedByRankZero.into()),
