@@ -102,6 +102,13 @@ pub struct LossConfig {
     /// which mostly fails the tests); `false` keeps the border's verdict.
     #[config(default = true)]
     pub out_of_view_invalid: bool,
+    /// Average the photometric term over the student's mask `M_s` instead
+    /// of over every pixel. The paper's `L_p * M_s` leaves the reduction
+    /// open; over every pixel (`false`, the default) the term shrinks with
+    /// the mask, while the geometry term, averaged over every pixel
+    /// too but weighted by `A`, does not shrink with it.
+    #[config(default = false)]
+    pub photometric_mask_mean: bool,
 }
 
 impl LossConfig {
@@ -330,7 +337,10 @@ impl S3Loss {
             let m_s = validity_mask(p_s.clone(), identity.clone(), config.mask_parts());
             let m_s = self.in_view(m_s, student.clone(), &inputs.student_sides);
             if config.photometric {
-                let term = (m_s.clone() * p_s).mean();
+                let term = match config.photometric_mask_mean {
+                    true => (m_s.clone() * p_s).sum() / m_s.clone().sum().clamp_min(1.0),
+                    false => (m_s.clone() * p_s).mean(),
+                };
                 total = total + term.clone() * config.lambda_p;
                 out.photometric = Some(term);
             }

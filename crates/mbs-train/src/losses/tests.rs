@@ -114,6 +114,9 @@ fn ablation_switches() {
     assert!(out.geometry.is_none() && out.weight_map.is_none() && out.teacher_mask.is_none());
     let smooth = (-0.2f32).exp() / 3.0;
     assert!((values(out.total)[0] - (0.125 + 0.01 * smooth)).abs() < 1e-6);
+    // The photometric term over M_s = [0, 1, 1, 0] only: 0.05 / 2.
+    let out = compute(l1_config().with_photometric_mask_mean(true));
+    assert!((scalar(out.photometric) - 0.025).abs() < 1e-6);
     // Table 3 (B): geometry + photometric only.
     let out = compute(l1_config().with_smoothness(false));
     assert!(out.smoothness.is_none());
