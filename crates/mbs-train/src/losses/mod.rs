@@ -105,8 +105,9 @@ pub struct LossConfig {
     /// Average the photometric term over the student's mask `M_s` instead
     /// of over every pixel. The paper's `L_p * M_s` leaves the reduction
     /// open; over every pixel (`false`, the default) the term shrinks with
-    /// the mask, while the geometry term, averaged over every pixel
-    /// too but weighted by `A`, does not shrink with it.
+    /// the student's mask, while the geometry term's weight `A` grows
+    /// (`omega` instead of 1 where the student's mask has lost a pixel the
+    /// teacher's keeps).
     #[config(default = false)]
     pub photometric_mask_mean: bool,
 }
