@@ -54,13 +54,12 @@ fn main() {
         .nth(1)
         .and_then(|r| r.parse().ok())
         .unwrap_or(15);
-    // (name, the layer, the positions of one of its unfolded blocks)
     let layers = [
         ("3x3 64->64 @192x256", conv2d([64, 64], [192, 256], 3)),
         ("3x3 128->128 @48x64", conv2d([128, 128], [48, 64], 3)),
     ];
     for (name, layer) in layers {
-        let taps = 9;
+        let taps: usize = layer.kernel.iter().product();
         let k = layer.in_channels * taps;
         // The block's positions: whole output rows within PART_BUDGET.
         let width = layer.input[2];
