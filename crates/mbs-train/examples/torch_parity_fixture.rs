@@ -156,6 +156,12 @@ fn cases() -> Vec<Case> {
             1,
         ),
         case(
+            "photometric_mask_mean",
+            base().with_photometric_mask_mean(true),
+            1.0,
+            1,
+        ),
+        case(
             "other_weights",
             base()
                 .with_ssim_window(3)

@@ -15,7 +15,9 @@
 - ``R`` is the mean distance (px) of the student's disparities outside
   ``[0, W - 1]``: 0 for any plausible prediction, a way back for one that
   left the image;
-- ``g`` is the geometry weight of the step (the trainer's warm-up).
+- ``g`` is the geometry weight of the step (the trainer's warm-up);
+- with ``photometric_mask_mean``, ``mean(M_s P_s)`` becomes
+  ``sum(M_s P_s) / sum(M_s)``, the mean over the student's mask.
 
 ``range_weight=0`` and ``out_of_view_invalid=False`` are the paper's loss
 exactly; the defaults are ``mbs-tool train``'s.
@@ -215,6 +217,7 @@ class S3Loss(nn.Module):
         range_weight: float = 1.0,
         geometry_scale_match: bool = False,
         out_of_view_invalid: bool = True,
+        photometric_mask_mean: bool = False,
         sequence_gamma: float = 0.9,
         final_prediction_only: bool = False,
     ):
@@ -253,6 +256,7 @@ class S3Loss(nn.Module):
         self.range_weight = range_weight
         self.geometry_scale_match = geometry_scale_match
         self.out_of_view_invalid = out_of_view_invalid
+        self.photometric_mask_mean = photometric_mask_mean
         self.sequence_gamma = sequence_gamma
         self.final_prediction_only = final_prediction_only
 
@@ -315,7 +319,11 @@ class S3Loss(nn.Module):
             m_s = validity_mask(p_s, student_identity, self.threshold, self.auto_mask)
             m_s = self._in_view(m_s, student, signs)
             if self.photometric:
-                out.photometric = (m_s * p_s).mean()
+                masked = m_s * p_s
+                if self.photometric_mask_mean:
+                    out.photometric = masked.sum() / m_s.sum().clamp_min(1.0)
+                else:
+                    out.photometric = masked.mean()
                 total = total + out.photometric * self.lambda_p
             if teacher is not None:
                 m_t, teacher_disparity = teacher

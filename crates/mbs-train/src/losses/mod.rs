@@ -338,9 +338,10 @@ impl S3Loss {
             let m_s = validity_mask(p_s.clone(), identity.clone(), config.mask_parts());
             let m_s = self.in_view(m_s, student.clone(), &inputs.student_sides);
             if config.photometric {
+                let masked = m_s.clone() * p_s;
                 let term = match config.photometric_mask_mean {
-                    true => (m_s.clone() * p_s).sum() / m_s.clone().sum().clamp_min(1.0),
-                    false => (m_s.clone() * p_s).mean(),
+                    true => masked.sum() / m_s.clone().sum().clamp_min(1.0),
+                    false => masked.mean(),
                 };
                 total = total + term.clone() * config.lambda_p;
                 out.photometric = Some(term);
