@@ -154,15 +154,17 @@ fn forward_plane(conv: &Conv, x: &[f32], w: &[f32], y: &mut [f32]) {
         }
     }
     let full = out_w / LANES * LANES;
-    let mut taps: Vec<(usize, f32)> = Vec::with_capacity(kernel_h * kernel_w);
+    // Each tap's first input for output row 0; row `oh` starts
+    // `oh * stride_h` padded rows further.
+    let taps: Vec<(usize, f32)> = (0..kernel_h)
+        .flat_map(|ky| (0..kernel_w).map(move |kx| (ky, kx)))
+        .map(|(ky, kx)| {
+            let at = (kx % stride * rows + ky) * phase_w + kx / stride;
+            (at, w[ky * kernel_w + kx])
+        })
+        .collect();
     for (oh, y_row) in y.chunks_mut(out_w).enumerate() {
-        taps.clear();
-        for ky in 0..kernel_h {
-            for kx in 0..kernel_w {
-                let row = (kx % stride * rows + oh * stride_h + ky) * phase_w + kx / stride;
-                taps.push((row, w[ky * kernel_w + kx]));
-            }
-        }
+        let phases = &phases[oh * stride_h * phase_w..];
         for start in (0..full).step_by(LANES) {
             let mut sums = [0.0f32; LANES];
             for &(row, w) in &taps {

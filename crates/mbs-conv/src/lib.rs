@@ -374,10 +374,9 @@ impl Conv {
         if let Some((transposed, flipped)) = self.transposed(weight) {
             return transposed.forward_within(output_gradient, &flipped, part_budget);
         }
-        let budget = fold_budget;
         let (rows, plane) = (self.unfolded_rows(), self.output_plane());
         let width = self.output()[2];
-        let mut unfolded = vec![0.0; rows * self.block_rows(budget) * width];
+        let mut unfolded = vec![0.0; rows * self.block_rows(fold_budget) * width];
         for item in 0..self.batch {
             for group in 0..self.groups {
                 let w = Matrix::rows(&weight[self.group_weight(group)], rows).transposed();
@@ -388,7 +387,7 @@ impl Conv {
                     matmul(dx, plane, w, Matrix::rows(dy, plane), false, true);
                     continue;
                 }
-                for (first, count) in self.blocks(budget) {
+                for (first, count) in self.blocks(fold_budget) {
                     let columns = count * width;
                     let du = &mut unfolded[..rows * columns];
                     let at = first * width;

@@ -48,9 +48,9 @@ sheets: tensorboard --logdir RUN), checkpoints/step-N/.
 
 Ctrl-C (or SIGTERM, or SIGUSR1) saves a checkpoint and stops; running the
 same command again resumes from the newest checkpoint (--restart discards
-them). The settings
-are the paper's defaults, overlaid by --config, then by the named flags,
-then by --set KEY=VALUE (see schemas/train-config.schema.json).
+them). The settings are the paper's defaults, overlaid by --config, then by
+the named flags, then by --set KEY=VALUE (see
+schemas/train-config.schema.json).
 
 Under mpirun or srun (a build with `--features mpi`), each process is one
 rank of a data-parallel run: the ranks check that they run the same settings
