@@ -162,6 +162,14 @@ fn cases() -> Vec<Case> {
             1,
         ),
         case(
+            "outside_mask_weight",
+            base()
+                .with_outside_mask_weight(0.1)
+                .with_photometric_mask_mean(true),
+            1.0,
+            1,
+        ),
+        case(
             "other_weights",
             base()
                 .with_ssim_window(3)

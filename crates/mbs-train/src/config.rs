@@ -82,20 +82,57 @@ impl RunConfig {
         serde_json::from_str(&text).map_err(|e| TrainError::data(path, format!("not JSON: {e}")))
     }
 
-    /// The paper's defaults, overlaid with `file` (any subset of the keys)
-    /// and then with each `key.path=value` override, checked against the
-    /// schema and the ranges.
+    /// The paper's defaults, then the backbone's own
+    /// ([`RunConfig::backbone_defaults`]), overlaid with `file` (any subset
+    /// of the keys) and then with each `key.path=value` override, checked
+    /// against the schema and the ranges. The backbone is the one `file` and
+    /// the overrides pick.
     pub fn layered(file: Option<&Value>, overrides: &[String]) -> Result<Self, TrainError> {
+        let users = |document: &mut Value| -> Result<(), TrainError> {
+            if let Some(file) = file {
+                layered::merge(document, file);
+                // Checked before the overrides, which could hide a wrong value.
+                check_schema(document).map_err(|issues| {
+                    TrainError::Config(format!("the configuration file: {issues}"))
+                })?;
+            }
+            layered::apply_overrides(document, overrides).map_err(TrainError::Config)
+        };
+        let mut chosen = Self::paper().to_json()?;
+        users(&mut chosen)?;
+        let Ok(backbone) = serde_json::from_value(chosen["network"]["backbone"].clone()) else {
+            // Not a backbone: the schema check names the problem.
+            return Self::from_document(&chosen);
+        };
         let mut document = Self::paper().to_json()?;
-        if let Some(file) = file {
-            layered::merge(&mut document, file);
-            // Checked before the overrides, which could hide a wrong value.
-            check_schema(&document).map_err(|issues| {
-                TrainError::Config(format!("the configuration file: {issues}"))
-            })?;
-        }
-        layered::apply_overrides(&mut document, overrides).map_err(TrainError::Config)?;
+        layered::apply_overrides(&mut document, &Self::backbone_defaults(backbone))
+            .map_err(TrainError::Config)?;
+        users(&mut document)?;
         Self::from_document(&document)
+    }
+
+    /// The settings whose default depends on the backbone, as `key=value`
+    /// overrides under the user's own. RAFT-Stereo and IGEV-Stereo, whose
+    /// iterative updates can take the disparities anywhere, train from
+    /// random weights with the S3 safeguards (README, "S3 from random
+    /// weights"): the geometry term off for the first 30 % of the run and
+    /// rising over the next half, its target matched to the student's
+    /// scale, a photometric gradient outside the student's mask, and the
+    /// learning rate warmed up over 20 % of the run. The compact network,
+    /// whose soft-argmin stays in its range, keeps the paper's loss and
+    /// schedule, with which it learns best.
+    pub fn backbone_defaults(backbone: BackboneKind) -> Vec<String> {
+        let settings: &[&str] = match backbone {
+            BackboneKind::Compact => &["trainer.geometry_start=0", "trainer.geometry_warmup=0"],
+            BackboneKind::RaftStereo | BackboneKind::Igev => &[
+                "trainer.geometry_start=0.3",
+                "trainer.geometry_warmup=0.5",
+                "trainer.loss.geometry_scale_match=true",
+                "trainer.loss.outside_mask_weight=0.1",
+                "trainer.lr.pct_start=0.2",
+            ],
+        };
+        settings.iter().map(|s| s.to_string()).collect()
     }
 
     /// A complete configuration document (as saved in a checkpoint),
@@ -118,29 +155,10 @@ impl RunConfig {
             }
         }
         check_schema(&document).map_err(TrainError::Config)?;
-        let mut config: RunConfig =
+        let config: RunConfig =
             serde_json::from_value(document).map_err(|e| TrainError::Config(e.to_string()))?;
-        let (start, warmup) = Self::geometry_schedule(config.network.backbone);
-        let trainer = &mut config.trainer;
-        trainer.geometry_start.get_or_insert(start);
-        trainer.geometry_warmup.get_or_insert(warmup);
         config.validate()?;
         Ok(config)
-    }
-
-    /// When the geometry term comes in for a run of `backbone` that does
-    /// not set it (`trainer.geometry_start`, `trainer.geometry_warmup`):
-    /// for RAFT-Stereo and IGEV-Stereo, whose iterative updates can take
-    /// the disparities anywhere and which the paper's loss lets run away
-    /// from random weights (README, "S3 from random weights"), off for the
-    /// first 30 % of the run and then rising over the next half; from the
-    /// first step (the paper) for the compact network, whose soft-argmin
-    /// stays in its range and which learns best that way.
-    pub fn geometry_schedule(backbone: BackboneKind) -> (f64, f64) {
-        match backbone {
-            BackboneKind::Compact => (0.0, 0.0),
-            BackboneKind::RaftStereo | BackboneKind::Igev => (0.3, 0.5),
-        }
     }
 
     /// Checks every part's ranges.
@@ -329,21 +347,50 @@ mod tests {
     }
 
     #[test]
-    fn the_geometry_schedule_is_picked_by_backbone_unless_set() {
-        let schedule = |overrides: &[&str]| {
+    fn backbone_defaults_lie_under_the_users_settings() {
+        let trainer = |overrides: &[&str]| {
             let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
-            let trainer = RunConfig::layered(None, &overrides).expect("valid").trainer;
-            (trainer.geometry_start, trainer.geometry_warmup)
+            RunConfig::layered(None, &overrides).expect("valid").trainer
         };
-        let paper = (Some(0.0), Some(0.0));
-        assert_eq!(schedule(&[]), paper, "compact keeps the paper's loss");
+        let compact = trainer(&[]);
         assert_eq!(
-            schedule(&["network.backbone=raft-stereo"]),
-            (Some(0.3), Some(0.5))
+            (compact.geometry_start, compact.geometry_warmup),
+            (Some(0.0), Some(0.0)),
+            "compact keeps the paper's loss"
         );
-        assert_eq!(schedule(&["network.backbone=igev"]), (Some(0.3), Some(0.5)));
-        let set = schedule(&["network.backbone=igev", "trainer.geometry_warmup=0.2"]);
-        assert_eq!(set, (Some(0.3), Some(0.2)));
+        assert!(!compact.loss.geometry_scale_match);
+        assert_eq!(compact.loss.outside_mask_weight, 0.0);
+        assert_eq!(compact.lr.pct_start, 0.01);
+        for backbone in ["raft-stereo", "igev"] {
+            let iterative = trainer(&[&format!("network.backbone={backbone}")]);
+            assert_eq!(
+                (iterative.geometry_start, iterative.geometry_warmup),
+                (Some(0.3), Some(0.5))
+            );
+            assert!(iterative.loss.geometry_scale_match);
+            assert_eq!(iterative.loss.outside_mask_weight, 0.1);
+            assert_eq!(iterative.lr.pct_start, 0.2);
+        }
+        // The user's settings win, from a file as from an override.
+        let set = trainer(&[
+            "network.backbone=igev",
+            "trainer.geometry_warmup=0.2",
+            "trainer.loss.outside_mask_weight=0",
+        ]);
+        assert_eq!(
+            (set.geometry_start, set.geometry_warmup),
+            (Some(0.3), Some(0.2))
+        );
+        assert_eq!(set.loss.outside_mask_weight, 0.0);
+        let file =
+            json!({"network": {"backbone": "raft-stereo"}, "trainer": {"lr": {"pct_start": 0.05}}});
+        let from_file = RunConfig::layered(Some(&file), &[]).expect("valid").trainer;
+        assert_eq!(from_file.lr.pct_start, 0.05);
+        assert!(from_file.loss.geometry_scale_match);
+        let err = RunConfig::layered(None, &["network.backbone=raft".into()])
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("/network/backbone"), "{err}");
         let err = RunConfig::layered(
             None,
             &[

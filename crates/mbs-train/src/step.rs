@@ -37,7 +37,7 @@ pub struct TrainerConfig {
     /// photometric term before a teacher that is still random supervises
     /// it; 0 supervises from the first step (the paper). `None` (the
     /// default) is 0 here; a training run picks it by backbone
-    /// ([`crate::RunConfig::geometry_schedule`]).
+    /// ([`crate::RunConfig::backbone_defaults`]).
     #[config(default = "None")]
     pub geometry_start: Option<f64>,
     /// Share of the run's steps over which the geometry term's weight then

@@ -16,11 +16,17 @@
   ``[0, W - 1]``: 0 for any plausible prediction, a way back for one that
   left the image;
 - ``g`` is the geometry weight of the step (the trainer's warm-up);
+- with ``outside_mask_weight`` ``beta``, ``M_s`` in the photometric term
+  becomes ``M_s + beta (1 - M_s)``: pixels outside the student's mask keep
+  a photometric gradient;
 - with ``photometric_mask_mean``, ``mean(M_s P_s)`` becomes
   ``sum(M_s P_s) / sum(M_s)``, the mean over the student's mask.
 
 ``range_weight=0`` and ``out_of_view_invalid=False`` are the paper's loss
-exactly; the defaults are ``mbs-tool train``'s.
+exactly; the defaults are ``mbs-tool train``'s for its compact network,
+and for RAFT-Stereo and IGEV-Stereo it adds ``geometry_scale_match=True``
+and ``outside_mask_weight=0.1`` (with warm-ups of the geometry term and
+the learning rate: README, "S3 from random weights").
 """
 
 from dataclasses import dataclass
@@ -218,6 +224,7 @@ class S3Loss(nn.Module):
         geometry_scale_match: bool = False,
         out_of_view_invalid: bool = True,
         photometric_mask_mean: bool = False,
+        outside_mask_weight: float = 0.0,
         sequence_gamma: float = 0.9,
         final_prediction_only: bool = False,
     ):
@@ -232,6 +239,9 @@ class S3Loss(nn.Module):
         ]:
             _require(value >= 0, name, value, "a number >= 0")
         _require(0 <= alpha <= 1, "alpha", alpha, "a number in [0, 1]")
+        _require(
+            0 <= outside_mask_weight <= 1, "outside_mask_weight", outside_mask_weight, "a number in [0, 1]"
+        )
         _require(0 <= sequence_gamma <= 1, "sequence_gamma", sequence_gamma, "a number in [0, 1]")
         _require(
             isinstance(ssim_window, int) and ssim_window > 0 and ssim_window % 2 == 1,
@@ -257,6 +267,7 @@ class S3Loss(nn.Module):
         self.geometry_scale_match = geometry_scale_match
         self.out_of_view_invalid = out_of_view_invalid
         self.photometric_mask_mean = photometric_mask_mean
+        self.outside_mask_weight = outside_mask_weight
         self.sequence_gamma = sequence_gamma
         self.final_prediction_only = final_prediction_only
 
@@ -319,9 +330,10 @@ class S3Loss(nn.Module):
             m_s = validity_mask(p_s, student_identity, self.threshold, self.auto_mask)
             m_s = self._in_view(m_s, student, signs)
             if self.photometric:
-                masked = m_s * p_s
+                weights = m_s * (1.0 - self.outside_mask_weight) + self.outside_mask_weight
+                masked = weights * p_s
                 if self.photometric_mask_mean:
-                    out.photometric = masked.sum() / m_s.sum().clamp_min(1.0)
+                    out.photometric = masked.sum() / weights.sum().clamp_min(1.0)
                 else:
                     out.photometric = masked.mean()
                 total = total + out.photometric * self.lambda_p

@@ -110,6 +110,12 @@ pub struct LossConfig {
     /// teacher's keeps).
     #[config(default = false)]
     pub photometric_mask_mean: bool,
+    /// Weight of the photometric error at pixels the student's mask leaves
+    /// out (0 is the paper's `M_s P_s`). The mask depends on the student's
+    /// own prediction, and a pixel it drops has no photometric gradient to
+    /// bring it back; a small weight keeps one.
+    #[config(default = 0.0)]
+    pub outside_mask_weight: f64,
 }
 
 impl LossConfig {
@@ -144,6 +150,7 @@ impl LossConfig {
         ranges::unit("alpha", self.alpha)?;
         ranges::non_negative("max_target_disparity", self.max_target_disparity)?;
         ranges::non_negative("range_weight", self.range_weight)?;
+        ranges::unit("outside_mask_weight", self.outside_mask_weight)?;
         ranges::require(
             self.ssim_window % 2 == 1,
             "ssim_window",
@@ -338,9 +345,11 @@ impl S3Loss {
             let m_s = validity_mask(p_s.clone(), identity.clone(), config.mask_parts());
             let m_s = self.in_view(m_s, student.clone(), &inputs.student_sides);
             if config.photometric {
-                let masked = m_s.clone() * p_s;
+                let beta = config.outside_mask_weight;
+                let weights = m_s.clone() * (1.0 - beta) + beta;
+                let masked = weights.clone() * p_s;
                 let term = match config.photometric_mask_mean {
-                    true => masked.sum() / m_s.clone().sum().clamp_min(1.0),
+                    true => masked.sum() / weights.sum().clamp_min(1.0),
                     false => masked.mean(),
                 };
                 total = total + term.clone() * config.lambda_p;

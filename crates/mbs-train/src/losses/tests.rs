@@ -255,3 +255,45 @@ fn a_warp_that_leaves_the_target_is_no_match() {
     assert_close(&teacher_mask(false), &rows([0.0, 1.0, 0.0, 0.0]), 0.0);
     assert_close(&teacher_mask(true), &rows([0.0; 4]), 0.0);
 }
+
+#[test]
+fn a_pixel_outside_the_students_mask_keeps_a_photometric_gradient() {
+    // Pixel 3 (P_s = 0.15 > tau) is outside M_s. Its warp samples column
+    // 1 exactly, between 0.45 and 0.6: dP_s/dd_s = 0.15. With only the
+    // photometric term, the paper's M_s P_s gives it no gradient; a weight
+    // beta outside the mask gives lambda_p beta 0.15 / 8.
+    let device = Device::flex().autodiff();
+    let run = |beta: f64| {
+        let mut batch = inputs(&device);
+        batch.student_disparity = batch.student_disparity.require_grad();
+        let student = batch.student_disparity.clone();
+        let config = l1_config()
+            .with_geometry(false)
+            .with_smoothness(false)
+            .with_outside_mask_weight(beta);
+        let out = S3Loss::new(config)
+            .expect("valid")
+            .compute(batch)
+            .expect("shapes match");
+        let photometric = scalar(out.photometric.clone());
+        let grad = values(
+            student
+                .grad(&out.total.backward())
+                .expect("student gradient"),
+        );
+        (photometric, grad)
+    };
+    let (paper, paper_grad) = run(0.0);
+    assert!((paper - 0.0125).abs() < 1e-6);
+    assert_eq!(paper_grad[3], 0.0);
+    // Weights [0.5, 1, 1, 0.5] on P_s = [0.2, 0, 0.05, 0.15]: 0.225 / 4.
+    let (kept, kept_grad) = run(0.5);
+    assert!((kept - 0.05625).abs() < 1e-6, "{kept}");
+    assert!(
+        (kept_grad[3] - 10.0 * 0.5 * 0.15 / 8.0).abs() < 1e-5,
+        "{kept_grad:?}"
+    );
+    // Pixel 0's warp leaves the target (clamped): no gradient either way.
+    assert_eq!(kept_grad[0], 0.0);
+    assert!(S3Loss::new(l1_config().with_outside_mask_weight(1.5)).is_err());
+}
