@@ -88,8 +88,10 @@ pub struct LossConfig {
     /// weighted mean before comparing ([`geometry::match_scale`]), so the
     /// geometry term supervises the shape of the disparities and the
     /// photometric term their scale; `false` (the default) is the paper's
-    /// term. It stops a runaway of the disparities' scale but slows
-    /// learning (README, "S3 from random weights").
+    /// term. It stops a runaway of the disparities' scale; training runs of
+    /// RAFT-Stereo and IGEV-Stereo default to `true`
+    /// ([`crate::RunConfig::backbone_defaults`]; README, "S3 from random
+    /// weights").
     #[config(default = false)]
     pub geometry_scale_match: bool,
     /// Count pixels whose warp leaves the target image as invalid in both
@@ -113,7 +115,8 @@ pub struct LossConfig {
     /// Weight of the photometric error at pixels the student's mask leaves
     /// out (0 is the paper's `M_s P_s`). The mask depends on the student's
     /// own prediction, and a pixel it drops has no photometric gradient to
-    /// bring it back; a small weight keeps one.
+    /// bring it back; a small weight keeps one (0.1 for training runs of
+    /// RAFT-Stereo and IGEV-Stereo, [`crate::RunConfig::backbone_defaults`]).
     #[config(default = 0.0)]
     pub outside_mask_weight: f64,
 }
