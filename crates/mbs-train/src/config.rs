@@ -178,17 +178,19 @@ impl RunConfig {
     }
 }
 
-/// The settings added after the first checkpoints were written whose
-/// default differs from what runs did before them: the S3 safeguards
-/// (README, "S3 from random weights"), all off before they existed, and
-/// the teacher's iterations.
-fn legacy_values() -> [(&'static str, Value); 5] {
+/// The settings added after the first checkpoints were written, with what
+/// runs did before them: the S3 safeguards (README, "S3 from random
+/// weights"), all off before they existed, the teacher's iterations, and
+/// the photometric term's reduction.
+fn legacy_values() -> [(&'static str, Value); 7] {
     [
         ("trainer.teacher_test_iters", Value::from(true)),
         ("trainer.geometry_start", Value::from(0.0)),
         ("trainer.geometry_warmup", Value::from(0.0)),
         ("trainer.loss.range_weight", Value::from(0.0)),
         ("trainer.loss.out_of_view_invalid", Value::from(false)),
+        ("trainer.loss.photometric_mask_mean", Value::from(false)),
+        ("trainer.loss.outside_mask_weight", Value::from(0.0)),
     ]
 }
 
@@ -332,6 +334,8 @@ mod tests {
         let loss = trainer["loss"].as_object_mut().expect("an object");
         loss.remove("range_weight");
         loss.remove("out_of_view_invalid");
+        loss.remove("photometric_mask_mean");
+        loss.remove("outside_mask_weight");
         let old = RunConfig::from_document(&document).expect("valid");
         assert_eq!(
             (old.trainer.geometry_start, old.trainer.geometry_warmup),
@@ -339,6 +343,8 @@ mod tests {
         );
         assert_eq!(old.trainer.loss.range_weight, 0.0);
         assert!(!old.trainer.loss.out_of_view_invalid);
+        assert!(!old.trainer.loss.photometric_mask_mean);
+        assert_eq!(old.trainer.loss.outside_mask_weight, 0.0);
         assert!(old.trainer.teacher_test_iters);
         // A document that has the keys keeps them.
         let new = RunConfig::layered(None, &overrides).expect("valid");
