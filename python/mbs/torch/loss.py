@@ -20,7 +20,8 @@
   becomes ``M_s + beta (1 - M_s)``: pixels outside the student's mask keep
   a photometric gradient;
 - with ``photometric_mask_mean``, ``mean(M_s P_s)`` becomes
-  ``sum(M_s P_s) / sum(M_s)``, the mean over the student's mask.
+  ``sum(M_s P_s) / sum(M_s)``, the mean over the student's mask (those
+  weights).
 
 ``range_weight=0`` and ``out_of_view_invalid=False`` are the paper's loss
 exactly; the defaults are ``mbs-tool train``'s for its compact network,

@@ -104,8 +104,9 @@ pub struct LossConfig {
     /// which mostly fails the tests); `false` keeps the border's verdict.
     #[config(default = true)]
     pub out_of_view_invalid: bool,
-    /// Average the photometric term over the student's mask `M_s` instead
-    /// of over every pixel. The paper's `L_p * M_s` leaves the reduction
+    /// Average the photometric term over the student's mask `M_s` (its
+    /// weights, with [`LossConfig::outside_mask_weight`]) instead of over
+    /// every pixel. The paper's `L_p * M_s` leaves the reduction
     /// open; over every pixel (`false`, the default) the term shrinks with
     /// the student's mask, while the geometry term's weight `A` grows
     /// (`omega` instead of 1 where the student's mask has lost a pixel the
@@ -205,7 +206,9 @@ pub struct LossOutput {
     pub total: Tensor<1>,
     /// `mean(A |d_s - r d_t|)`, unweighted.
     pub geometry: Option<Tensor<1>>,
-    /// `mean(M_s P_s)`, before `lambda_p`.
+    /// `mean(M_s P_s)`, before `lambda_p` (with `M_s` weighted and the mean
+    /// taken as [`LossConfig::outside_mask_weight`] and
+    /// [`LossConfig::photometric_mask_mean`] say).
     pub photometric: Option<Tensor<1>>,
     /// `L_s`, before `lambda_s`.
     pub smoothness: Option<Tensor<1>>,
