@@ -78,7 +78,7 @@ def test_loss_matches_the_rust_trainer(case):
         if expected is not None:
             differ = (got != expected).sum().item()
             assert differ == 0, f"{name}/{part}: {differ} of {expected.numel()} pixels differ"
-    for part in ["total", "geometry", "photometric", "smoothness", "range"]:
+    for part in ["total", "geometry", "photometric", "smoothness", "range", "view"]:
         expected = TENSORS.get(f"{name}/{part}")
         got = getattr(out, part)
         assert (got is None) == (expected is None), f"{name}/{part}: switched on in one loss only"
@@ -130,6 +130,29 @@ def test_a_prediction_outside_the_image_is_pulled_back():
             assert (disparity.grad < 0).all()
         else:
             assert not out.total.requires_grad or torch.autograd.grad(out.total, disparity)[0].abs().max() == 0
+
+
+def test_a_warp_past_the_targets_edge_is_pulled_back():
+    """Disparities inside [0, W - 1] but too large for their column read
+    the clamped border: no photometric gradient, and the range term does
+    not see them. The view term lowers them toward the edge."""
+    torch.manual_seed(0)
+    reference, target = torch.rand(1, 3, 8, 16), torch.rand(1, 3, 8, 16)
+    for view_weight, pulls in [(1.0, True), (0.0, False)]:
+        # 12 px at every column: the warps of columns 0-11 land left of the target.
+        disparity = torch.full((1, 1, 8, 16), 12.0, requires_grad=True)
+        loss = S3Loss(view_weight=view_weight, geometry=False, smoothness=False)
+        out = loss(reference, target, target, disparity, disparity.detach(), ["right"], ["right"], [0.5])
+        assert out.range.item() == 0
+        grad = torch.autograd.grad(out.total, disparity)[0]
+        outside = grad[..., :11]
+        if pulls:
+            assert out.view.item() == pytest.approx(sum(12 - x for x in range(12)) / 16, rel=1e-6)
+            # Gradient descent lowers every disparity whose warp leaves the target.
+            assert (outside > 0).all()
+        else:
+            assert out.view is None
+            assert (outside == 0).all()
 
 
 def test_bad_arguments_name_themselves():

@@ -169,6 +169,7 @@ fn cases() -> Vec<Case> {
             1.0,
             1,
         ),
+        case("view", base().with_view_weight(0.5), 1.0, 1),
         case(
             "other_weights",
             base()
@@ -303,6 +304,7 @@ fn main() -> Result<(), Box<dyn Error>> {
             ("photometric", out.photometric),
             ("smoothness", out.smoothness),
             ("range", out.range),
+            ("view", out.view),
         ];
         for (part, value) in scalars {
             if let Some(value) = value {

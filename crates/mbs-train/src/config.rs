@@ -117,10 +117,10 @@ impl RunConfig {
     /// random weights with the S3 safeguards (README, "S3 from random
     /// weights"): the geometry term off for the first 30 % of the run and
     /// rising over the next half, its target matched to the student's
-    /// scale, a photometric gradient outside the student's mask, and the
-    /// learning rate warmed up over 20 % of the run. The compact network,
-    /// whose soft-argmin stays in its range, keeps the paper's loss and
-    /// schedule, with which it learns best.
+    /// scale, a photometric gradient outside the student's mask, the view
+    /// term, and the learning rate warmed up over 20 % of the run. The
+    /// compact network, whose soft-argmin stays in its range, keeps the
+    /// paper's loss and schedule, with which it learns best.
     pub fn backbone_defaults(backbone: BackboneKind) -> Vec<String> {
         let settings: &[&str] = match backbone {
             BackboneKind::Compact => &["trainer.geometry_start=0", "trainer.geometry_warmup=0"],
@@ -129,6 +129,7 @@ impl RunConfig {
                 "trainer.geometry_warmup=0.5",
                 "trainer.loss.geometry_scale_match=true",
                 "trainer.loss.outside_mask_weight=0.1",
+                "trainer.loss.view_weight=0.1",
                 "trainer.lr.pct_start=0.2",
             ],
         };
@@ -182,7 +183,7 @@ impl RunConfig {
 /// runs did before them: the S3 safeguards (README, "S3 from random
 /// weights"), all off before they existed, the teacher's iterations, and
 /// the photometric term's reduction.
-fn legacy_values() -> [(&'static str, Value); 7] {
+fn legacy_values() -> [(&'static str, Value); 8] {
     [
         ("trainer.teacher_test_iters", Value::from(true)),
         ("trainer.geometry_start", Value::from(0.0)),
@@ -191,6 +192,7 @@ fn legacy_values() -> [(&'static str, Value); 7] {
         ("trainer.loss.out_of_view_invalid", Value::from(false)),
         ("trainer.loss.photometric_mask_mean", Value::from(false)),
         ("trainer.loss.outside_mask_weight", Value::from(0.0)),
+        ("trainer.loss.view_weight", Value::from(0.0)),
     ]
 }
 
@@ -336,6 +338,7 @@ mod tests {
         loss.remove("out_of_view_invalid");
         loss.remove("photometric_mask_mean");
         loss.remove("outside_mask_weight");
+        loss.remove("view_weight");
         let old = RunConfig::from_document(&document).expect("valid");
         assert_eq!(
             (old.trainer.geometry_start, old.trainer.geometry_warmup),
@@ -345,6 +348,7 @@ mod tests {
         assert!(!old.trainer.loss.out_of_view_invalid);
         assert!(!old.trainer.loss.photometric_mask_mean);
         assert_eq!(old.trainer.loss.outside_mask_weight, 0.0);
+        assert_eq!(old.trainer.loss.view_weight, 0.0);
         assert!(old.trainer.teacher_test_iters);
         // A document that has the keys keeps them.
         let new = RunConfig::layered(None, &overrides).expect("valid");
@@ -366,6 +370,7 @@ mod tests {
         );
         assert!(!compact.loss.geometry_scale_match);
         assert_eq!(compact.loss.outside_mask_weight, 0.0);
+        assert_eq!(compact.loss.view_weight, 0.0);
         assert_eq!(compact.lr.pct_start, 0.01);
         for backbone in ["raft-stereo", "igev"] {
             let iterative = trainer(&[&format!("network.backbone={backbone}")]);
@@ -375,6 +380,7 @@ mod tests {
             );
             assert!(iterative.loss.geometry_scale_match);
             assert_eq!(iterative.loss.outside_mask_weight, 0.1);
+            assert_eq!(iterative.loss.view_weight, 0.1);
             assert_eq!(iterative.lr.pct_start, 0.2);
         }
         // The user's settings win, from a file as from an override.

@@ -143,6 +143,8 @@ pub struct LossTerms {
     pub smoothness: Option<f32>,
     /// The range term (`None` when its weight is 0).
     pub range: Option<f32>,
+    /// The view term (`None` when its weight is 0).
+    pub view: Option<f32>,
 }
 
 /// Maps of one batch for inspection (all `[B, 1, H, W]` row-major), taken
@@ -360,6 +362,7 @@ impl Objective {
                 photometric: read(out.photometric, "the photometric term")?,
                 smoothness: read(out.smoothness, "the smoothness term")?,
                 range: read(out.range, "the range term")?,
+                view: read(out.view, "the view term")?,
             },
             supervision: Supervision::read(measured)?,
         };
@@ -386,6 +389,7 @@ impl LossValues {
             self.terms.photometric,
             self.terms.smoothness,
             self.terms.range,
+            self.terms.view,
             s.student_mask,
             s.teacher_mask,
         ];
@@ -413,7 +417,7 @@ impl LossValues {
             .chunks_exact(8)
             .map(|chunk| f64::from_le_bytes(chunk.try_into().unwrap_or_default()))
             .collect();
-        if floats.len() != 19 || bytes.len() != 19 * 8 {
+        if floats.len() != 21 || bytes.len() != 21 * 8 {
             return None;
         }
         let optional = |i: usize| (floats[3 + 2 * i] == 1.0).then(|| floats[4 + 2 * i] as f32);
@@ -424,14 +428,15 @@ impl LossValues {
                 photometric: optional(1),
                 smoothness: optional(2),
                 range: optional(3),
+                view: optional(4),
             },
             supervision: Supervision {
-                student_mask: optional(4),
-                teacher_mask: optional(5),
-                disparity_min: floats[15] as f32,
-                disparity_mean: floats[16] as f32,
-                disparity_max: floats[17] as f32,
-                outside: floats[18] as f32,
+                student_mask: optional(5),
+                teacher_mask: optional(6),
+                disparity_min: floats[17] as f32,
+                disparity_mean: floats[18] as f32,
+                disparity_max: floats[19] as f32,
+                outside: floats[20] as f32,
             },
         };
         Some((values, floats[0], floats[1] as usize))
@@ -452,6 +457,7 @@ impl LossValues {
                 photometric: sum(|v| v.terms.photometric),
                 smoothness: sum(|v| v.terms.smoothness),
                 range: sum(|v| v.terms.range),
+                view: sum(|v| v.terms.view),
             },
             supervision: Supervision::combine(
                 &shares

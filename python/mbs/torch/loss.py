@@ -1,7 +1,7 @@
 """The S3 loss on PyTorch tensors (paper eq. 7), term for term the loss of
 ``mbs-tool train`` (crates/mbs-train/src/losses):
 
-``L = g mean(A |d_s - r d_t|) + lambda_p mean(M_s P_s) + lambda_s L_s + lambda_r R``
+``L = g mean(A |d_s - r d_t|) + lambda_p mean(M_s P_s) + lambda_s L_s + lambda_r R + lambda_v V``
 
 - ``P`` is the photometric error ``alpha (1 - SSIM) / 2 + (1 - alpha) L1``
   (box SSIM of side ``ssim_window``, reflection padding), averaged over
@@ -15,6 +15,9 @@
 - ``R`` is the mean distance (px) of the student's disparities outside
   ``[0, W - 1]``: 0 for any plausible prediction, a way back for one that
   left the image;
+- ``V`` is the mean distance (px) by which the student's warps land
+  outside the target image: a way back for disparities too large for
+  their pixel's column, where the clamped warp has no gradient;
 - ``g`` is the geometry weight of the step (the trainer's warm-up);
 - with ``outside_mask_weight`` ``beta``, ``M_s`` in the photometric term
   becomes ``M_s + beta (1 - M_s)``: pixels outside the student's mask keep
@@ -25,9 +28,9 @@
 
 ``range_weight=0`` and ``out_of_view_invalid=False`` are the paper's loss
 exactly; the defaults are ``mbs-tool train``'s for its compact network,
-and for RAFT-Stereo and IGEV-Stereo it adds ``geometry_scale_match=True``
-and ``outside_mask_weight=0.1`` (with warm-ups of the geometry term and
-the learning rate: README, "S3 from random weights").
+and for RAFT-Stereo and IGEV-Stereo it adds ``geometry_scale_match=True``,
+``outside_mask_weight=0.1`` and ``view_weight=0.1`` (with warm-ups of the
+geometry term and the learning rate: README, "S3 from random weights").
 """
 
 from dataclasses import dataclass
@@ -58,6 +61,7 @@ class S3LossOutput:
     photometric: Optional[torch.Tensor] = None
     smoothness: Optional[torch.Tensor] = None
     range: Optional[torch.Tensor] = None
+    view: Optional[torch.Tensor] = None
     student_mask: Optional[torch.Tensor] = None
     teacher_mask: Optional[torch.Tensor] = None
     weight_map: Optional[torch.Tensor] = None
@@ -168,6 +172,14 @@ def out_of_range(disparity: torch.Tensor) -> torch.Tensor:
     return ((-disparity).clamp(min=0.0) + (disparity - (width - 1)).clamp(min=0.0)).mean()
 
 
+def out_of_view(disparity: torch.Tensor, signs: torch.Tensor) -> torch.Tensor:
+    """``mean(max(0, -c) + max(0, c - (W - 1)))`` in pixels, ``c`` the
+    column each pixel samples in its target."""
+    columns = sample_columns(disparity, signs)
+    width = disparity.shape[3]
+    return ((-columns).clamp(min=0.0) + (columns - (width - 1)).clamp(min=0.0)).mean()
+
+
 def edge_aware_smoothness(disparity, image, normalise: bool) -> torch.Tensor:
     """Mean of ``|d(x+1) - d(x)| exp(-|I(x+1) - I(x)|)`` over horizontal
     pairs plus the same over vertical pairs (each map divided by its mean
@@ -222,6 +234,7 @@ class S3Loss(nn.Module):
         normalise_smoothness: bool = False,
         max_target_disparity: float = 0.0,
         range_weight: float = 1.0,
+        view_weight: float = 0.0,
         geometry_scale_match: bool = False,
         out_of_view_invalid: bool = True,
         photometric_mask_mean: bool = False,
@@ -237,6 +250,7 @@ class S3Loss(nn.Module):
             ("lambda_s_ratio", lambda_s_ratio),
             ("max_target_disparity", max_target_disparity),
             ("range_weight", range_weight),
+            ("view_weight", view_weight),
         ]:
             _require(value >= 0, name, value, "a number >= 0")
         _require(0 <= alpha <= 1, "alpha", alpha, "a number in [0, 1]")
@@ -265,6 +279,7 @@ class S3Loss(nn.Module):
         self.normalise_smoothness = normalise_smoothness
         self.cap = max_target_disparity if max_target_disparity > 0 else None
         self.range_weight = range_weight
+        self.view_weight = view_weight
         self.geometry_scale_match = geometry_scale_match
         self.out_of_view_invalid = out_of_view_invalid
         self.photometric_mask_mean = photometric_mask_mean
@@ -350,6 +365,9 @@ class S3Loss(nn.Module):
         if self.range_weight > 0:
             out.range = out_of_range(student)
             total = total + out.range * self.range_weight
+        if self.view_weight > 0:
+            out.view = out_of_view(student, signs)
+            total = total + out.view * self.view_weight
         if self.smoothness:
             out.smoothness = edge_aware_smoothness(student, reference, self.normalise_smoothness)
             total = total + out.smoothness * self.lambda_s

@@ -1,10 +1,12 @@
 //! The S3 loss (paper eq. 7):
 //! `L = mean(A |d_s - r d_t|) + lambda_p mean(M_s P_s) + lambda_s L_s`,
 //! with a switch for every term and every mask part (paper Tables 3 and 4),
-//! plus `lambda_r` times the range term, zero for any plausible prediction
-//! (see [`range`]), and masks that count warps leaving the target as
-//! invalid ([`LossConfig::out_of_view_invalid`]); `range_weight = 0` and
-//! `out_of_view_invalid = false` are the paper's loss exactly.
+//! plus `lambda_r` times the range term, zero for any plausible prediction,
+//! `lambda_v` times the view term, zero where every warp lands in the
+//! target (both in [`range`]), and masks that count warps leaving the
+//! target as invalid ([`LossConfig::out_of_view_invalid`]); `range_weight =
+//! 0` and `out_of_view_invalid = false` are the paper's loss exactly (the
+//! view term is off by default).
 
 pub mod geometry;
 pub mod photometric;
@@ -21,7 +23,7 @@ use crate::mask::{MaskParts, validity_mask, weight_map};
 use geometry::geometry_consistency;
 use mbs_nets::ranges;
 use photometric::photometric_map;
-use range::out_of_range;
+use range::{out_of_range, out_of_view};
 use smoothness::edge_aware_smoothness;
 use warp::{lands_inside, warp_to_reference};
 
@@ -84,6 +86,15 @@ pub struct LossConfig {
     /// collapses). 0 is the paper's loss.
     #[config(default = 1.0)]
     pub range_weight: f64,
+    /// Weight `lambda_v` of the view term, the mean distance (px) by which
+    /// the student's warps land outside the target image
+    /// ([`range::out_of_view`]): a way back for disparities that are
+    /// plausible for the image's width but too large for the pixel's
+    /// column, where the clamped warp has no gradient. 0 is the paper's
+    /// loss; training runs of RAFT-Stereo and IGEV-Stereo default to 0.1
+    /// ([`crate::RunConfig::backbone_defaults`]).
+    #[config(default = 0.0)]
+    pub view_weight: f64,
     /// Rescale each item's geometry target `r d_t` to the student's
     /// weighted mean before comparing ([`geometry::match_scale`]), so the
     /// geometry term supervises the shape of the disparities and the
@@ -154,6 +165,7 @@ impl LossConfig {
         ranges::unit("alpha", self.alpha)?;
         ranges::non_negative("max_target_disparity", self.max_target_disparity)?;
         ranges::non_negative("range_weight", self.range_weight)?;
+        ranges::non_negative("view_weight", self.view_weight)?;
         ranges::unit("outside_mask_weight", self.outside_mask_weight)?;
         ranges::require(
             self.ssim_window % 2 == 1,
@@ -214,6 +226,8 @@ pub struct LossOutput {
     pub smoothness: Option<Tensor<1>>,
     /// The range term, before `lambda_r` (`None` when its weight is 0).
     pub range: Option<Tensor<1>>,
+    /// The view term, before `lambda_v` (`None` when its weight is 0).
+    pub view: Option<Tensor<1>>,
     /// Student validity mask `M_s` (0/1), when the photometric or geometry term is on.
     pub student_mask: Option<Tensor<4>>,
     /// Teacher validity mask `M_t` (0/1), when the geometry term is on.
@@ -338,6 +352,7 @@ impl S3Loss {
             photometric: None,
             smoothness: None,
             range: None,
+            view: None,
             student_mask: None,
             teacher_mask: None,
             weight_map: None,
@@ -382,6 +397,11 @@ impl S3Loss {
             let term = out_of_range(student.clone());
             total = total + term.clone() * config.range_weight;
             out.range = Some(term);
+        }
+        if config.view_weight > 0.0 {
+            let term = out_of_view(student.clone(), &inputs.student_sides);
+            total = total + term.clone() * config.view_weight;
+            out.view = Some(term);
         }
         if config.smoothness {
             let term = edge_aware_smoothness(

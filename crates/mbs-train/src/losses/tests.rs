@@ -297,3 +297,43 @@ fn a_pixel_outside_the_students_mask_keeps_a_photometric_gradient() {
     assert_eq!(kept_grad[0], 0.0);
     assert!(S3Loss::new(l1_config().with_outside_mask_weight(1.5)).is_err());
 }
+
+#[test]
+fn a_warp_past_the_targets_edge_is_pulled_back_by_the_view_term_only() {
+    // d_s = 2.5 everywhere on a 4-pixel row: inside the range [0, 3], so
+    // the range term is zero, but pixels 0-2 sample columns -2.5, -1.5,
+    // -0.5 of the target on the right, read its clamped border and have no
+    // photometric gradient. The view term ((2.5 + 1.5 + 0.5) per row over
+    // 4 pixels) lowers them.
+    let device = Device::flex().autodiff();
+    let run = |view_weight: f64| {
+        let mut batch = inputs(&device);
+        batch.student_disparity = Tensor::full([1, 1, 2, 4], 2.5, &device).require_grad();
+        let student = batch.student_disparity.clone();
+        let config = l1_config()
+            .with_geometry(false)
+            .with_smoothness(false)
+            .with_view_weight(view_weight);
+        let out = S3Loss::new(config)
+            .expect("valid")
+            .compute(batch)
+            .expect("shapes match");
+        assert_eq!(scalar(out.range.clone()), 0.0);
+        let view = out.view.clone().map(|v| values(v)[0]);
+        let grad = values(
+            student
+                .grad(&out.total.backward())
+                .expect("student gradient"),
+        );
+        (view, grad)
+    };
+    let (paper, paper_grad) = run(0.0);
+    assert_eq!(paper, None);
+    assert_close(&paper_grad[..3], &[0.0; 3], 0.0);
+    let (view, grad) = run(1.0);
+    assert_close(&[view.expect("on")], &[1.125], 1e-6);
+    // Gradient descent lowers each overshooting disparity, 1/8 per pixel.
+    assert_close(&grad[..3], &[0.125; 3], 1e-6);
+    assert_close(&grad[4..7], &[0.125; 3], 1e-6);
+    assert!(S3Loss::new(l1_config().with_view_weight(-1.0)).is_err());
+}

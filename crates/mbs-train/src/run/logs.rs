@@ -82,6 +82,7 @@ pub(crate) struct Interval {
     photometric: f64,
     smoothness: f64,
     range: f64,
+    view: f64,
     student_mask: f64,
     teacher_mask: f64,
     outside: f64,
@@ -102,6 +103,7 @@ impl Interval {
             photometric: 0.0,
             smoothness: 0.0,
             range: 0.0,
+            view: 0.0,
             student_mask: 0.0,
             teacher_mask: 0.0,
             outside: 0.0,
@@ -125,6 +127,7 @@ impl Interval {
         self.photometric += f64::from(report.terms.photometric.unwrap_or(0.0));
         self.smoothness += f64::from(report.terms.smoothness.unwrap_or(0.0));
         self.range += f64::from(report.terms.range.unwrap_or(0.0));
+        self.view += f64::from(report.terms.view.unwrap_or(0.0));
         let supervision = &report.supervision;
         self.student_mask += f64::from(supervision.student_mask.unwrap_or(0.0));
         self.teacher_mask += f64::from(supervision.teacher_mask.unwrap_or(0.0));
@@ -164,6 +167,7 @@ impl Interval {
             "photometric": term(last.terms.photometric, self.photometric),
             "smoothness": term(last.terms.smoothness, self.smoothness),
             "range": term(last.terms.range, self.range),
+            "view": term(last.terms.view, self.view),
             "supervision": {
                 "student_mask": term(last.supervision.student_mask, self.student_mask),
                 "teacher_mask": term(last.supervision.teacher_mask, self.teacher_mask),
