@@ -415,20 +415,30 @@ fn ctrl_c_saves_a_checkpoint_and_the_same_command_resumes() {
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(!output.status.success(), "{stderr}");
     assert!(stderr.contains("a checkpoint is saved"), "{stderr}");
-    let state: Value = serde_json::from_str(
-        &std::fs::read_to_string(
-            std::fs::read_dir(out.join("checkpoints"))
-                .unwrap()
-                .map(|e| e.unwrap().path())
-                .find(|p| !p.to_string_lossy().ends_with(".partial"))
-                .unwrap()
-                .join("state.json"),
-        )
-        .unwrap(),
-    )
-    .unwrap();
+    let state_file = std::fs::read_dir(out.join("checkpoints"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| !p.to_string_lossy().ends_with(".partial"))
+        .unwrap()
+        .join("state.json");
+    let mut state: Value =
+        serde_json::from_str(&std::fs::read_to_string(&state_file).unwrap()).unwrap();
     let stopped = state["steps"].as_u64().unwrap();
     assert!((3..400).contains(&stopped), "{stopped}");
+    // As if the checkpoint came from a version whose default omega was 3:
+    // the same command resumes it with its own value, and one that sets
+    // today's value is refused.
+    state["config"]["trainer"]["loss"]["omega"] = 3.0.into();
+    std::fs::write(&state_file, state.to_string()).unwrap();
+    let mut explicit: Vec<&str> = args.iter().map(String::as_str).collect();
+    explicit.extend(["--set", "trainer.loss.omega=2"]);
+    let refused = run(&explicit);
+    assert!(!refused.status.success());
+    assert!(
+        String::from_utf8_lossy(&refused.stderr).contains("trainer.loss.omega: 3.0 -> 2.0"),
+        "{}",
+        text(&refused)
+    );
 
     // The same command resumes at that step (here with fewer total steps
     // refused: the schedule would change).
@@ -462,6 +472,9 @@ fn ctrl_c_saves_a_checkpoint_and_the_same_command_resumes() {
         stderr.contains(&format!("resuming {out_s} at step {stopped} of 400")),
         "{stderr}"
     );
+    let config: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("config.json")).unwrap()).unwrap();
+    assert_eq!(config["trainer"]["loss"]["omega"], 3.0);
     let steps: Vec<u64> = lines(&out.join("train.jsonl"))
         .iter()
         .map(|l| l["step"].as_u64().unwrap())

@@ -88,18 +88,8 @@ impl RunConfig {
     /// against the schema and the ranges. The backbone is the one `file` and
     /// the overrides pick.
     pub fn layered(file: Option<&Value>, overrides: &[String]) -> Result<Self, TrainError> {
-        let users = |document: &mut Value| -> Result<(), TrainError> {
-            if let Some(file) = file {
-                layered::merge(document, file);
-                // Checked before the overrides, which could hide a wrong value.
-                check_schema(document).map_err(|issues| {
-                    TrainError::Config(format!("the configuration file: {issues}"))
-                })?;
-            }
-            layered::apply_overrides(document, overrides).map_err(TrainError::Config)
-        };
         let mut chosen = Self::paper().to_json()?;
-        users(&mut chosen)?;
+        overlay_users(&mut chosen, file, overrides)?;
         let Ok(backbone) = serde_json::from_value(chosen["network"]["backbone"].clone()) else {
             // Not a backbone: the schema check names the problem.
             return Self::from_document(&chosen);
@@ -107,7 +97,23 @@ impl RunConfig {
         let mut document = Self::paper().to_json()?;
         layered::apply_overrides(&mut document, &Self::backbone_defaults(backbone))
             .map_err(TrainError::Config)?;
-        users(&mut document)?;
+        overlay_users(&mut document, file, overrides)?;
+        Self::from_document(&document)
+    }
+
+    /// The configuration of a run resumed from a checkpoint trained with
+    /// `saved`: `saved` overlaid with `file` and the overrides, as
+    /// [`RunConfig::layered`] overlays the defaults. A setting the user
+    /// does not give keeps the checkpoint's value, so a run resumes as it
+    /// was trained even after a default changed; one the user gives that
+    /// differs is refused when the run opens.
+    pub fn resumed(
+        saved: &RunConfig,
+        file: Option<&Value>,
+        overrides: &[String],
+    ) -> Result<Self, TrainError> {
+        let mut document = saved.to_json()?;
+        overlay_users(&mut document, file, overrides)?;
         Self::from_document(&document)
     }
 
@@ -177,6 +183,23 @@ impl RunConfig {
         }
         Ok(self.network.validate()?)
     }
+}
+
+/// Overlays `document` with the user's `file` (any subset of the keys,
+/// checked against the schema first) and then with each `key.path=value`
+/// override.
+fn overlay_users(
+    document: &mut Value,
+    file: Option<&Value>,
+    overrides: &[String],
+) -> Result<(), TrainError> {
+    if let Some(file) = file {
+        layered::merge(document, file);
+        // Checked before the overrides, which could hide a wrong value.
+        check_schema(document)
+            .map_err(|issues| TrainError::Config(format!("the configuration file: {issues}")))?;
+    }
+    layered::apply_overrides(document, overrides).map_err(TrainError::Config)
 }
 
 /// The settings added after the first checkpoints were written, with what

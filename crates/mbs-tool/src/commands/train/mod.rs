@@ -13,6 +13,7 @@ use anyhow::{Context, bail};
 use clap::Parser;
 use mbs_nets::checkpoint::CHECKPOINTS_DIR;
 use mbs_nets::device::device_of_process;
+use mbs_train::checkpoint::Checkpoint;
 use mbs_train::distributed::{Collective, agree, all_succeeded};
 use mbs_train::run::{End, Quiet, Start, TrainingRun, run_identity};
 use mbs_train::{RunConfig, TrainError};
@@ -48,9 +49,9 @@ sheets: tensorboard --logdir RUN), checkpoints/step-N/.
 
 Ctrl-C (or SIGTERM, or SIGUSR1) saves a checkpoint and stops; running the
 same command again resumes from the newest checkpoint (--restart discards
-them). The settings are the paper's defaults, overlaid by --config, then by
-the named flags, then by --set KEY=VALUE (see
-schemas/train-config.schema.json).
+them). The settings are the paper's defaults (a resumed run: its
+checkpoint's settings), overlaid by --config, then by the named flags, then
+by --set KEY=VALUE (see schemas/train-config.schema.json).
 
 Under mpirun or srun (a build with `--features mpi`), each process is one
 rank of a data-parallel run: the ranks check that they run the same settings
@@ -177,14 +178,26 @@ impl Args {
         out
     }
 
-    /// The effective configuration.
+    /// The effective configuration: over the defaults, or over the
+    /// settings of the checkpoint this run resumes from.
     fn run_config(&self) -> anyhow::Result<RunConfig> {
         let file = self
             .config
             .as_deref()
             .map(RunConfig::read_file)
             .transpose()?;
-        RunConfig::layered(file.as_ref(), &self.overrides()).with_context(|| match &self.config {
+        let resumed = match (&self.out, self.restart) {
+            (Some(out), false) => Checkpoint::latest(out)?,
+            _ => None,
+        };
+        let overrides = self.overrides();
+        let config = match &resumed {
+            Some(checkpoint) => {
+                RunConfig::resumed(&checkpoint.config()?, file.as_ref(), &overrides)
+            }
+            None => RunConfig::layered(file.as_ref(), &overrides),
+        };
+        config.with_context(|| match &self.config {
             Some(path) => format!("settings from {} and the flags", path.display()),
             None => "settings from the flags".into(),
         })
