@@ -123,23 +123,26 @@ impl RunConfig {
     /// random weights with the S3 safeguards (README, "S3 from random
     /// weights"): the geometry term off for the first 30 % of the run and
     /// rising over the next half, its target matched to the student's
-    /// scale, a photometric gradient outside the student's mask, the view
-    /// term, and the learning rate warmed up over 20 % of the run. The
-    /// compact network, whose soft-argmin stays in its range, keeps the
-    /// paper's loss and schedule, with which it learns best.
+    /// scale, a photometric gradient outside the student's mask, and the
+    /// learning rate warmed up over 20 % of the run. IGEV-Stereo, whose
+    /// first disparities lie in the middle of its cost volume, where many
+    /// warps leave the image, adds the view term. The compact network,
+    /// whose soft-argmin stays in its range, keeps the paper's loss and
+    /// schedule, with which it learns best.
     pub fn backbone_defaults(backbone: BackboneKind) -> Vec<String> {
-        let settings: &[&str] = match backbone {
-            BackboneKind::Compact => &["trainer.geometry_start=0", "trainer.geometry_warmup=0"],
-            BackboneKind::RaftStereo | BackboneKind::Igev => &[
-                "trainer.geometry_start=0.3",
-                "trainer.geometry_warmup=0.5",
-                "trainer.loss.geometry_scale_match=true",
-                "trainer.loss.outside_mask_weight=0.1",
-                "trainer.loss.view_weight=0.1",
-                "trainer.lr.pct_start=0.2",
-            ],
+        let iterative = [
+            "trainer.geometry_start=0.3",
+            "trainer.geometry_warmup=0.5",
+            "trainer.loss.geometry_scale_match=true",
+            "trainer.loss.outside_mask_weight=0.1",
+            "trainer.lr.pct_start=0.2",
+        ];
+        let settings: Vec<&str> = match backbone {
+            BackboneKind::Compact => vec!["trainer.geometry_start=0", "trainer.geometry_warmup=0"],
+            BackboneKind::RaftStereo => iterative.to_vec(),
+            BackboneKind::Igev => [&iterative[..], &["trainer.loss.view_weight=0.1"]].concat(),
         };
-        settings.iter().map(|s| s.to_string()).collect()
+        settings.into_iter().map(str::to_string).collect()
     }
 
     /// A complete configuration document (as saved in a checkpoint),
@@ -403,7 +406,8 @@ mod tests {
             );
             assert!(iterative.loss.geometry_scale_match);
             assert_eq!(iterative.loss.outside_mask_weight, 0.1);
-            assert_eq!(iterative.loss.view_weight, 0.1);
+            let view_weight = if backbone == "igev" { 0.1 } else { 0.0 };
+            assert_eq!(iterative.loss.view_weight, view_weight, "{backbone}");
             assert_eq!(iterative.lr.pct_start, 0.2);
         }
         // The user's settings win, from a file as from an override.

@@ -28,9 +28,10 @@
 
 ``range_weight=0`` and ``out_of_view_invalid=False`` are the paper's loss
 exactly; the defaults are ``mbs-tool train``'s for its compact network,
-and for RAFT-Stereo and IGEV-Stereo it adds ``geometry_scale_match=True``,
-``outside_mask_weight=0.1`` and ``view_weight=0.1`` (with warm-ups of the
-geometry term and the learning rate: README, "S3 from random weights").
+and for RAFT-Stereo and IGEV-Stereo it adds ``geometry_scale_match=True``
+and ``outside_mask_weight=0.1`` (with warm-ups of the geometry term and
+the learning rate), for IGEV-Stereo also ``view_weight=0.1`` (README, "S3
+from random weights").
 """
 
 from dataclasses import dataclass

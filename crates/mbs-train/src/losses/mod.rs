@@ -91,7 +91,7 @@ pub struct LossConfig {
     /// ([`range::out_of_view`]): a way back for disparities that are
     /// plausible for the image's width but too large for the pixel's
     /// column, where the clamped warp has no gradient. 0 is the paper's
-    /// loss; training runs of RAFT-Stereo and IGEV-Stereo default to 0.1
+    /// loss; training runs of IGEV-Stereo default to 0.1
     /// ([`crate::RunConfig::backbone_defaults`]).
     #[config(default = 0.0)]
     pub view_weight: f64,
