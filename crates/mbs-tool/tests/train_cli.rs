@@ -472,6 +472,10 @@ fn ctrl_c_saves_a_checkpoint_and_the_same_command_resumes() {
         stderr.contains(&format!("resuming {out_s} at step {stopped} of 400")),
         "{stderr}"
     );
+    assert!(
+        stderr.contains("keeps its checkpoint's settings where today's defaults differ (checkpoint -> default): trainer.loss.omega: 3.0 -> 2.0"),
+        "{stderr}"
+    );
     let config: Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("config.json")).unwrap()).unwrap();
     assert_eq!(config["trainer"]["loss"]["omega"], 3.0);

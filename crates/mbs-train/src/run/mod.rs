@@ -53,6 +53,7 @@ pub use logs::{TRAIN_LOG, VAL_LOG, read_log, validation_json};
 use report::RunReport;
 pub use report::{LOSS_PLOT, TENSORBOARD_DIR, VAL_PLOT, VISUALS_DIR};
 use resume::check_resumable;
+pub use resume::computing_differences;
 
 /// burn's CPU random generator is one per process: seeding it and drawing
 /// a run's fresh weights under this lock keeps a seed's network the same

@@ -25,6 +25,25 @@ pub(crate) fn check_resumable(
     checkpoint: &Checkpoint,
     config: &RunConfig,
 ) -> Result<(), TrainError> {
+    // Through the settings type, so a key added since the checkpoint was
+    // written takes its default (the value older runs were trained with).
+    let differing = computing_differences(&checkpoint.config()?, config)?;
+    if !differing.is_empty() {
+        return Err(TrainError::checkpoint(
+            &checkpoint.dir,
+            format!(
+                "was trained with other settings ({}); use a new --out, or --restart to discard it",
+                differing.join(", ")
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The settings that differ between `from` and `to` and change what is
+/// computed (all but the keys in [`OPERATIONAL_KEYS`]), each as `path:
+/// from-value -> to-value`.
+pub fn computing_differences(from: &RunConfig, to: &RunConfig) -> Result<Vec<String>, TrainError> {
     let strip = |mut value: Value| {
         if let Value::Object(map) = &mut value {
             for key in OPERATIONAL_KEYS {
@@ -41,22 +60,14 @@ pub(crate) fn check_resumable(
         }
         value
     };
-    // Through the settings type, so a key added since the checkpoint was
-    // written takes its default (the value older runs were trained with).
-    let saved = strip(checkpoint.config()?.to_json()?);
-    let wanted = strip(config.to_json()?);
-    if saved != wanted {
-        let mut differing = Vec::new();
-        diff(&saved, &wanted, "", &mut differing);
-        return Err(TrainError::checkpoint(
-            &checkpoint.dir,
-            format!(
-                "was trained with other settings ({}); use a new --out, or --restart to discard it",
-                differing.join(", ")
-            ),
-        ));
-    }
-    Ok(())
+    let mut differing = Vec::new();
+    diff(
+        &strip(from.to_json()?),
+        &strip(to.to_json()?),
+        "",
+        &mut differing,
+    );
+    Ok(differing)
 }
 
 /// Dotted paths where `a` and `b` differ.

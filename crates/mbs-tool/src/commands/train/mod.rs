@@ -15,7 +15,7 @@ use mbs_nets::checkpoint::CHECKPOINTS_DIR;
 use mbs_nets::device::device_of_process;
 use mbs_train::checkpoint::Checkpoint;
 use mbs_train::distributed::{Collective, agree, all_succeeded};
-use mbs_train::run::{End, Quiet, Start, TrainingRun, run_identity};
+use mbs_train::run::{End, Quiet, Start, TrainingRun, computing_differences, run_identity};
 use mbs_train::{RunConfig, TrainError};
 
 use crate::cli::processes::ReportedByRankZero;
@@ -181,20 +181,27 @@ impl Args {
     /// The effective configuration: over the defaults, or over the
     /// settings of the checkpoint this run resumes from.
     fn run_config(&self) -> anyhow::Result<RunConfig> {
+        let resumed = match (&self.out, self.restart) {
+            (Some(out), false) => Checkpoint::latest(out)?,
+            _ => None,
+        };
+        match &resumed {
+            Some(checkpoint) => self.settings(Some(&checkpoint.config()?)),
+            None => self.settings(None),
+        }
+    }
+
+    /// The user's file and flags over `base` (a checkpoint's settings), or
+    /// over the defaults.
+    fn settings(&self, base: Option<&RunConfig>) -> anyhow::Result<RunConfig> {
         let file = self
             .config
             .as_deref()
             .map(RunConfig::read_file)
             .transpose()?;
-        let resumed = match (&self.out, self.restart) {
-            (Some(out), false) => Checkpoint::latest(out)?,
-            _ => None,
-        };
         let overrides = self.overrides();
-        let config = match &resumed {
-            Some(checkpoint) => {
-                RunConfig::resumed(&checkpoint.config()?, file.as_ref(), &overrides)
-            }
+        let config = match base {
+            Some(base) => RunConfig::resumed(base, file.as_ref(), &overrides),
             None => RunConfig::layered(file.as_ref(), &overrides),
         };
         config.with_context(|| match &self.config {
@@ -408,15 +415,29 @@ fn announce(
             ),
             None => eprintln!("train: {total} steps into {}{spread}", out.display()),
         },
-        Start::Resumed(steps) => eprintln!(
-            "train: resuming {} at step {steps} of {total}{spread}{}",
-            out.display(),
-            if args.init.is_some() {
-                " (its checkpoint's weights; --init applies to new runs)"
-            } else {
-                ""
+        Start::Resumed(steps) => {
+            eprintln!(
+                "train: resuming {} at step {steps} of {total}{spread}{}",
+                out.display(),
+                if args.init.is_some() {
+                    " (its checkpoint's weights; --init applies to new runs)"
+                } else {
+                    ""
+                }
+            );
+            // Settings whose defaults changed since the run began.
+            let kept = args
+                .settings(None)
+                .ok()
+                .and_then(|today| computing_differences(training.config(), &today).ok())
+                .unwrap_or_default();
+            if !kept.is_empty() {
+                eprintln!(
+                    "train: the run keeps its checkpoint's settings where today's defaults differ (checkpoint -> default): {}",
+                    kept.join(", ")
+                );
             }
-        ),
+        }
     }
     if training.validation().is_empty() {
         eprintln!(
