@@ -16,8 +16,8 @@
 # trainer.loss.out_of_view_invalid=false --set
 # trainer.loss.geometry_scale_match=false --set
 # trainer.loss.outside_mask_weight=0 --set trainer.loss.view_weight=0
-# --set trainer.lr.pct_start=0.01` for
-# the paper's plain loss and schedule).
+# --set trainer.lr.pct_start=0.01` for the paper's plain loss and
+# schedule).
 set -euo pipefail
 tool=${1:-target/release/mbs-tool}
 out=${2:-s3-robustness}

@@ -176,9 +176,7 @@ def out_of_range(disparity: torch.Tensor) -> torch.Tensor:
 def out_of_view(disparity: torch.Tensor, signs: torch.Tensor) -> torch.Tensor:
     """``mean(max(0, -c) + max(0, c - (W - 1)))`` in pixels, ``c`` the
     column each pixel samples in its target."""
-    columns = sample_columns(disparity, signs)
-    width = disparity.shape[3]
-    return ((-columns).clamp(min=0.0) + (columns - (width - 1)).clamp(min=0.0)).mean()
+    return out_of_range(sample_columns(disparity, signs))
 
 
 def edge_aware_smoothness(disparity, image, normalise: bool) -> torch.Tensor:

@@ -34,11 +34,9 @@ pub fn out_of_range(disparity: Tensor<4>) -> Tensor<1> {
 /// where `c` is the column each pixel samples in its target ([`sample_columns`]):
 /// how far (px) the warps land outside the target image.
 pub fn out_of_view(disparity: Tensor<4>, sides: &[Side]) -> Tensor<1> {
-    let width = disparity.dims()[3];
-    let columns = sample_columns(disparity, sides);
-    let before = columns.clone().neg().clamp_min(0.0);
-    let after = (columns - (width - 1) as f64).clamp_min(0.0);
-    (before + after).mean()
+    // The same hinge as the range term, on the columns instead of the
+    // disparities (same width).
+    out_of_range(sample_columns(disparity, sides))
 }
 
 #[cfg(test)]

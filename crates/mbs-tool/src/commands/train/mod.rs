@@ -185,10 +185,8 @@ impl Args {
             (Some(out), false) => Checkpoint::latest(out)?,
             _ => None,
         };
-        match &resumed {
-            Some(checkpoint) => self.settings(Some(&checkpoint.config()?)),
-            None => self.settings(None),
-        }
+        let saved = resumed.map(|checkpoint| checkpoint.config()).transpose()?;
+        self.settings(saved.as_ref())
     }
 
     /// The user's file and flags over `base` (a checkpoint's settings), or
