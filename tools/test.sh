@@ -7,9 +7,11 @@ cd "$(dirname "$0")/.."
 # tests load it and fail, never skip, when it is missing.
 ORT_DYLIB_PATH="$(bash tools/setup-ort.sh | tail -n 1)"
 export ORT_DYLIB_PATH
-# lavapipe (Vulkan on the CPU), Open MPI and libclang from Debian
-# (tools/setup-system.sh); the tests that use them fail, never skip,
-# without them.
+# lavapipe (Vulkan on the CPU), Open MPI, libclang and Python's venv from
+# Debian (tools/setup-system.sh), each when the file the build or a test
+# loads is missing (its own test first); the tests that use them fail,
+# never skip, without them.
+bash tools/tests/setup-system.sh
 bash tools/setup-system.sh
 # With the `mpi` feature, so that the multi-process training tests
 # (crates/mbs-tool/tests/train_mpi.rs) run the binary that `mpirun` launches.
@@ -19,16 +21,7 @@ cargo test --workspace --locked --features mbs-tool/mpi
 # (numpy, pytest, PyTorch for mbs.torch), then its tests against the
 # mbs-tool binary the Rust tests just built. They fail, never skip, when a
 # part is missing.
-if [ ! -x .venv-test/bin/python ]; then
-    python3 -m venv .venv-test || {
-        rm -rf .venv-test
-        sudo=""
-        [ "$(id -u)" -eq 0 ] || sudo="sudo"
-        $sudo apt-get update -qq
-        DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq python3-venv > /dev/null
-        python3 -m venv .venv-test
-    }
-fi
+[ -x .venv-test/bin/python ] || python3 -m venv .venv-test
 # Without pip's cache: PyTorch and its CUDA libraries are about 4 GB of
 # wheels that would otherwise stay on disk twice.
 .venv-test/bin/python -m pip install --quiet --disable-pip-version-check --no-cache-dir \
