@@ -8,8 +8,14 @@
 //! instance norm (IGEV-Stereo's `conv`), many values sit near the kink, and
 //! float rounding that moves a few across it changes the gradient of every
 //! parameter upstream by up to 4e-3 of its size. The CPU does the same when
-//! its input images are scaled by `1 + 1e-6`, so the tolerance of each
-//! parameter includes that sensitivity, measured on the CPU.
+//! its input images are scaled by `1 + 1e-6` or `1 - 1e-6`, so the
+//! tolerance of each parameter includes that sensitivity, measured on the
+//! CPU in both directions: a single ReLU whose input lies within rounding
+//! of zero flips one way only (RAFT-Stereo's second residual layer on
+//! Debian 12's lavapipe: one of its inputs crosses zero, which moves the
+//! gradients of the stem and first block by 0.2-0.4 % of their size; the
+//! CPU moves them by as much, to 1e-4, under `1 - 1e-6` and not at all
+//! under `1 + 1e-6`).
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -28,8 +34,8 @@ use crate::test_util::values;
 /// Largest difference of a prediction between the devices (pixels).
 const PREDICTION_TOLERANCE_PX: f32 = 1e-3;
 /// Largest `|g_vulkan - g_cpu|` of a parameter, relative to `|g_cpu|`,
-/// beyond twice the CPU's own change under a `1 + 1e-6` scaling of the
-/// images (measured: below 4e-6 for RAFT-Stereo, below 2e-5 for IGEV-Stereo
+/// beyond twice the CPU's own change under a `1 ± 1e-6` scaling of the
+/// images (the larger of the two) (measured: below 4e-6 for RAFT-Stereo, below 2e-5 for IGEV-Stereo
 /// apart from the ill-conditioned parameters, whose Vulkan difference, up
 /// to 3.4e-3, matches the CPU's change).
 const GRADIENT_TOLERANCE: f32 = 1e-4;
@@ -109,7 +115,8 @@ fn assert_vulkan_matches_cpu<B: Backbone + OfficialLayout>(net: B) {
         .expect("a Vulkan driver (tools/test.sh installs Mesa's lavapipe)")
         .autodiff();
     let (cpu_predictions, cpu_grads) = run(&net.clone().fork(&cpu), &cpu, 1.0);
-    let (_, nudged_grads) = run(&net.clone().fork(&cpu), &cpu, 1.0 + SENSITIVITY_SCALE);
+    let nudged_grads = [1.0 + SENSITIVITY_SCALE, 1.0 - SENSITIVITY_SCALE]
+        .map(|scale| run(&net.clone().fork(&cpu), &cpu, scale).1);
     let (vulkan_predictions, vulkan_grads) = run(&net.fork(&vulkan), &vulkan, 1.0);
 
     for (k, (want, got)) in cpu_predictions.iter().zip(&vulkan_predictions).enumerate() {
@@ -128,16 +135,14 @@ fn assert_vulkan_matches_cpu<B: Backbone + OfficialLayout>(net: B) {
     // rounding noise on both devices: compare those to the whole gradient.
     let total = l2(cpu_grads.iter().flatten().copied());
     let mut ill_conditioned = 0;
-    for (i, ((want, got), nudged)) in cpu_grads
-        .iter()
-        .zip(&vulkan_grads)
-        .zip(&nudged_grads)
-        .enumerate()
-    {
+    for (i, (want, got)) in cpu_grads.iter().zip(&vulkan_grads).enumerate() {
         assert_eq!(want.len(), got.len(), "parameter {i}: gradient missing");
         let norm = l2(want.iter().copied());
         let difference = l2(want.iter().zip(got).map(|(a, b)| a - b));
-        let sensitivity = l2(want.iter().zip(nudged).map(|(a, b)| a - b));
+        let sensitivity = nudged_grads
+            .iter()
+            .map(|nudged| l2(want.iter().zip(&nudged[i]).map(|(a, b)| a - b)))
+            .fold(0.0, f32::max);
         let allowed = GRADIENT_TOLERANCE * norm.max(1e-3 * total);
         if sensitivity > allowed {
             ill_conditioned += 1;
@@ -145,13 +150,13 @@ fn assert_vulkan_matches_cpu<B: Backbone + OfficialLayout>(net: B) {
         assert!(
             difference <= allowed + 2.0 * sensitivity,
             "parameter {i}: gradient differs by {difference} (norm {norm}, all parameters \
-             {total}; on the CPU, scaling the images by 1 + {SENSITIVITY_SCALE} changes it by \
-             {sensitivity})"
+             {total}; on the CPU, scaling the images by 1 ± {SENSITIVITY_SCALE} changes it by \
+             up to {sensitivity})"
         );
     }
     println!(
         "{ill_conditioned} of {} parameters' gradients change beyond the tolerance when the \
-         images are scaled by 1 + {SENSITIVITY_SCALE} on the CPU",
+         images are scaled by 1 ± {SENSITIVITY_SCALE} on the CPU",
         cpu_grads.len()
     );
 }
