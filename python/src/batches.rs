@@ -14,7 +14,36 @@ use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use crate::integer::Integer;
 use crate::{os_error, value_error};
+
+/// The largest crop side (as the command line's images).
+const MAX_CROP_SIDE: usize = crate::MAX_SIDE;
+
+/// `trainer.augment`-style settings from JSON: unknown keys are refused
+/// as `mbs-tool train --set` refuses them, missing ones take the paper's
+/// values, and the ranges are checked.
+fn augment_settings(json: &str) -> PyResult<AugmentConfig> {
+    let given: serde_json::Map<String, serde_json::Value> = serde_json::from_str(json)
+        .map_err(|e| value_error("augment", format!("not a dict of settings: {e}")))?;
+    let known =
+        serde_json::to_value(AugmentConfig::default()).map_err(|e| value_error("augment", e))?;
+    let known: Vec<&String> = known
+        .as_object()
+        .map(|o| o.keys().collect())
+        .unwrap_or_default();
+    if let Some(unknown) = given.keys().find(|key| !known.contains(key)) {
+        let known: Vec<&str> = known.iter().map(|k| k.as_str()).collect();
+        return Err(value_error(
+            "augment",
+            format!("unknown key {unknown:?}; the keys are {}", known.join(", ")),
+        ));
+    }
+    let augment: AugmentConfig = serde_json::from_value(serde_json::Value::Object(given))
+        .map_err(|e| value_error("augment", format!("not augmentation settings: {e}")))?;
+    augment.validate().map_err(|e| value_error("augment", e))?;
+    Ok(augment)
+}
 
 /// The batches of a run over the `train` samples of a manifest.
 #[pyclass(frozen, module = "mbs._native")]
@@ -37,29 +66,18 @@ impl HostBatches {
     fn new(
         py: Python<'_>,
         manifest: PathBuf,
-        batch_size: usize,
-        crop_height: usize,
-        crop_width: usize,
-        seed: u64,
+        batch_size: Integer,
+        crop_height: Integer,
+        crop_width: Integer,
+        seed: Integer,
         augment_json: &str,
     ) -> PyResult<Self> {
-        if !(1..=MAX_BATCH_SIZE).contains(&batch_size) {
-            return Err(value_error(
-                "batch_size",
-                format!("{batch_size}: expected 1 to {MAX_BATCH_SIZE}"),
-            ));
-        }
-        if crop_height < MIN_CROP_SIDE || crop_width < MIN_CROP_SIDE {
-            return Err(value_error(
-                "crop",
-                format!(
-                    "{crop_height}x{crop_width}: each side must be at least {MIN_CROP_SIDE} pixels"
-                ),
-            ));
-        }
-        let augment: AugmentConfig = serde_json::from_str(augment_json)
-            .map_err(|e| value_error("augment", format!("not augmentation settings: {e}")))?;
-        augment.validate().map_err(|e| value_error("augment", e))?;
+        let batch_size = batch_size.within("batch_size", 1..=MAX_BATCH_SIZE as i128)?;
+        let crop_sides = MIN_CROP_SIDE as i128..=MAX_CROP_SIDE as i128;
+        let crop_height = crop_height.within("crop height", crop_sides.clone())?;
+        let crop_width = crop_width.within("crop width", crop_sides)?;
+        let seed = seed.within("seed", 0..=i128::from(u64::MAX))?;
+        let augment = augment_settings(augment_json)?;
         let crop = (crop_height, crop_width);
         let samples = py
             .detach(|| TrainingSamples::load(&manifest, crop))
@@ -84,7 +102,8 @@ impl HostBatches {
     /// `(path, error)`), and the augmentation's draws: `brightness`,
     /// `contrast`, `saturation` (`float32`, `[B]`) and `occlusion`
     /// (`float32`, `[B, 1, H, W]`, 1 where the target is erased).
-    fn batch<'py>(&self, py: Python<'py>, step: usize) -> PyResult<Bound<'py, PyDict>> {
+    fn batch<'py>(&self, py: Python<'py>, step: Integer) -> PyResult<Bound<'py, PyDict>> {
+        let step: usize = step.within("step", 0..=i128::from(u32::MAX))?;
         let (batch, draws) = py
             .detach(|| {
                 let batch = load_batch(&self.samples, self.batch_size, self.crop, self.seed, step)?;

@@ -7,6 +7,7 @@
 //! read or written is an `OSError` naming it. Heavy calls release the GIL.
 
 mod batches;
+mod integer;
 mod synth;
 
 use std::path::{Path, PathBuf};
@@ -25,7 +26,10 @@ use pyo3::exceptions::{PyOSError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-/// The most pixels a side an array may have (as the command line's images).
+use crate::integer::Integer;
+
+/// The most pixels a side an array may have (as the command line's images),
+/// and the largest dilation radius.
 const MAX_SIDE: usize = 32768;
 
 /// A `ValueError` about argument `name`.
@@ -98,18 +102,12 @@ fn rgb_image(name: &str, value: &Bound<'_, PyAny>) -> PyResult<RgbImage> {
         .ok_or_else(|| value_error(name, "its data does not match its shape"))
 }
 
-/// Checks a matcher's disparity count (0 estimates it from the pair).
-fn check_max_disparity(max_disparity: u32) -> PyResult<()> {
-    if max_disparity > mbs_infer::sgm::MAX_DISPARITY {
-        return Err(value_error(
-            "max_disparity",
-            format!(
-                "{max_disparity} is not from 0 to {}",
-                mbs_infer::sgm::MAX_DISPARITY
-            ),
-        ));
-    }
-    Ok(())
+/// A matcher's disparity count (0 estimates it from the pair).
+fn max_disparity(value: Integer) -> PyResult<u32> {
+    value.within(
+        "max_disparity",
+        0..=i128::from(mbs_infer::sgm::MAX_DISPARITY),
+    )
 }
 
 /// Checks that the two views of a pair have one size.
@@ -290,21 +288,24 @@ fn depth_to_disparity<'py>(
 /// (0 estimates the range from the pair, up to 256), 5 or 8 paths, holes
 /// filled from the background side unless `fill` is false (then `inf`).
 #[pyfunction]
-#[pyo3(signature = (left, right, max_disparity = 128, paths = 5, fill = true))]
+#[pyo3(
+    signature = (left, right, max_disparity = Integer::of(128), paths = Integer::of(5), fill = true),
+    text_signature = "(left, right, max_disparity=128, paths=5, fill=True)"
+)]
 fn match_stereo<'py>(
     py: Python<'py>,
     left: &Bound<'py, PyAny>,
     right: &Bound<'py, PyAny>,
-    max_disparity: u32,
-    paths: u32,
+    max_disparity: Integer,
+    paths: Integer,
     fill: bool,
 ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
-    let paths = match paths {
+    let paths = match paths.within::<u8>("paths", 5..=8)? {
         5 => SgmPaths::Five,
         8 => SgmPaths::Eight,
         other => return Err(value_error("paths", format!("{other} is not 5 or 8"))),
     };
-    check_max_disparity(max_disparity)?;
+    let max_disparity = self::max_disparity(max_disparity)?;
     let (left, right) = (rgb_image("left", left)?, rgb_image("right", right)?);
     check_same_size(&left, &right)?;
     let matcher = Sgm::new(SgmConfig {
@@ -333,19 +334,24 @@ fn match_stereo<'py>(
 /// `disparity_3` (float32 HxW, the disparities used for the left and right
 /// views).
 #[pyfunction]
-#[pyo3(signature = (left, right, max_disparity = 0, dilation = "none", dilate_radius = 2, inpaint = "background", disparity_left = None, disparity_right = None))]
+#[pyo3(
+    signature = (left, right, max_disparity = Integer::of(0), dilation = "none", dilate_radius = Integer::of(2), inpaint = "background", disparity_left = None, disparity_right = None),
+    text_signature = "(left, right, max_disparity=0, dilation='none', dilate_radius=2, inpaint='background', disparity_left=None, disparity_right=None)"
+)]
 #[allow(clippy::too_many_arguments)]
 fn extrapolate<'py>(
     py: Python<'py>,
     left: &Bound<'py, PyAny>,
     right: &Bound<'py, PyAny>,
-    max_disparity: u32,
+    max_disparity: Integer,
     dilation: &str,
-    dilate_radius: u32,
+    dilate_radius: Integer,
     inpaint: &str,
     disparity_left: Option<&Bound<'py, PyAny>>,
     disparity_right: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let max_disparity = self::max_disparity(max_disparity)?;
+    let dilate_radius = dilate_radius.within("dilate_radius", 0..=MAX_SIDE as i128)?;
     let dilation = match dilation {
         "none" => Dilation::None,
         "square" => Dilation::Square(dilate_radius),
@@ -371,7 +377,6 @@ fn extrapolate<'py>(
             ));
         }
     };
-    check_max_disparity(max_disparity)?;
     let (left, right) = (rgb_image("left", left)?, rgb_image("right", right)?);
     check_same_size(&left, &right)?;
     let given = |name: &str, value: Option<&Bound<'py, PyAny>>| {

@@ -7,6 +7,7 @@ use mbs_synth::{RenderOptions, Scene, SceneConfig, one_step_disparity, render};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+use crate::integer::Integer;
 use crate::{to_numpy, value_error};
 
 /// The most cameras a rig may have here.
@@ -30,33 +31,27 @@ const MAX_TOTAL_PIXELS: usize = 1 << 26;
 /// depth`: the exact disparity of a one-baseline pair; `k` times it for
 /// cameras `k` apart).
 #[pyfunction]
-#[pyo3(signature = (seed = 0, views = 5, width = 192, height = 96, focal = 96.0, baseline = 0.5, weather = "ClearNoon", supersample = 2))]
+#[pyo3(
+    signature = (seed = Integer::of(0), views = Integer::of(5), width = Integer::of(192), height = Integer::of(96), focal = 96.0, baseline = 0.5, weather = "ClearNoon", supersample = Integer::of(2)),
+    text_signature = "(seed=0, views=5, width=192, height=96, focal=96.0, baseline=0.5, weather='ClearNoon', supersample=2)"
+)]
 #[allow(clippy::too_many_arguments)]
 pub fn synth_scene<'py>(
     py: Python<'py>,
-    seed: u64,
-    views: usize,
-    width: usize,
-    height: usize,
+    seed: Integer,
+    views: Integer,
+    width: Integer,
+    height: Integer,
     focal: f64,
     baseline: f64,
     weather: &str,
-    supersample: u32,
+    supersample: Integer,
 ) -> PyResult<Bound<'py, PyDict>> {
-    if !(2..=MAX_VIEWS).contains(&views) {
-        return Err(value_error(
-            "views",
-            format!("{views}: expected 2 to {MAX_VIEWS} cameras"),
-        ));
-    }
-    for (name, side) in [("width", width), ("height", height)] {
-        if !(8..=MAX_VIEW_SIDE).contains(&side) {
-            return Err(value_error(
-                name,
-                format!("{side}: expected 8 to {MAX_VIEW_SIDE} pixels"),
-            ));
-        }
-    }
+    let seed: u64 = seed.within("seed", 0..=i128::from(u64::MAX))?;
+    let views: usize = views.within("views", 2..=MAX_VIEWS as i128)?;
+    let width: usize = width.within("width", 8..=MAX_VIEW_SIDE as i128)?;
+    let height: usize = height.within("height", 8..=MAX_VIEW_SIDE as i128)?;
+    let supersample: u32 = supersample.within("supersample", 1..=4)?;
     if views * width * height > MAX_TOTAL_PIXELS {
         return Err(value_error(
             "views",
@@ -74,12 +69,6 @@ pub fn synth_scene<'py>(
                 format!("{value}: expected a positive number"),
             ));
         }
-    }
-    if !(1..=4).contains(&supersample) {
-        return Err(value_error(
-            "supersample",
-            format!("{supersample}: expected 1 to 4"),
-        ));
     }
     let weather = serde_json::from_value(serde_json::Value::from(weather)).map_err(|_| {
         value_error(

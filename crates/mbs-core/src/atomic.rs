@@ -88,9 +88,59 @@ where
     })
 }
 
+/// Refuses a `path` that exists and is not a regular file (a device, FIFO,
+/// socket or folder, also behind a symbolic link), which a rename would
+/// replace: writing a PNG to `/dev/null` must not turn the device into a
+/// file. A missing `path`, or a link to nothing, is fine.
+pub fn refuse_special_target(path: &Path) -> Result<()> {
+    let Ok(metadata) = fs::metadata(path) else {
+        return Ok(());
+    };
+    let kind = metadata.file_type();
+    if kind.is_file() {
+        return Ok(());
+    }
+    let what = if kind.is_dir() {
+        "a folder"
+    } else {
+        special_file_kind(&kind)
+    };
+    Err(FormatError::invalid(
+        path,
+        format!(
+            "exists and is {what}, not a regular file; refusing to replace it (give a file name)"
+        ),
+    ))
+}
+
+/// What a file that is neither a regular file nor a folder is.
+#[cfg(unix)]
+fn special_file_kind(kind: &fs::FileType) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    if kind.is_char_device() {
+        "a character device"
+    } else if kind.is_block_device() {
+        "a block device"
+    } else if kind.is_fifo() {
+        "a FIFO (named pipe)"
+    } else if kind.is_socket() {
+        "a socket"
+    } else {
+        "a special file"
+    }
+}
+
+/// What a file that is neither a regular file nor a folder is.
+#[cfg(not(unix))]
+fn special_file_kind(_: &fs::FileType) -> &'static str {
+    "a special file"
+}
+
 /// Creates `path`'s folders, lets `fill` make the file at a fresh temporary
-/// name and renames it to `path`; on failure the temporary is removed.
+/// name and renames it to `path`; on failure the temporary is removed. A
+/// `path` that is not a regular file is refused before anything is made.
 fn place_atomically(path: &Path, fill: impl FnOnce(&Path) -> std::io::Result<()>) -> Result<()> {
+    refuse_special_target(path)?;
     if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
         fs::create_dir_all(parent).map_err(|e| FormatError::io(parent, e))?;
     }
@@ -152,6 +202,56 @@ mod tests {
         assert!(err.to_string().contains("disk on fire"), "{err}");
         assert_eq!(fs::read(&path).unwrap(), b"old");
         assert!(!partial_path(&path).exists());
+    }
+
+    /// A device, a FIFO, a socket or a folder under the target's name (or
+    /// behind a link of that name) is refused, named, and left as it was;
+    /// nothing is left in its folder.
+    #[cfg(unix)]
+    #[test]
+    fn a_target_that_is_not_a_regular_file_is_refused_and_untouched() {
+        use mbs_test_support::special::{identity, special_files};
+        let dir = tempfile::tempdir().unwrap();
+        let source = dir.path().join("source.bin");
+        fs::write(&source, b"pixels").unwrap();
+        let special = special_files(dir.path(), "png");
+        let link = dir.path().join("link.png");
+        std::os::unix::fs::symlink(&special[0].path, &link).unwrap();
+        let targets = special
+            .iter()
+            .map(|file| (file.path.clone(), file.kind))
+            .chain([(link.clone(), special[0].kind)]);
+        for (target, kind) in targets {
+            let before = (
+                identity(&target),
+                fs::symlink_metadata(&link).unwrap().file_type(),
+            );
+            let err = write_bytes_atomic(&target, b"png").unwrap_err().to_string();
+            assert!(err.contains(&target.display().to_string()), "{err}");
+            assert!(
+                err.contains(kind) && err.contains("not a regular file"),
+                "{err}"
+            );
+            let err = link_or_copy(&source, &target).unwrap_err().to_string();
+            assert!(err.contains("not a regular file"), "{err}");
+            let after = (
+                identity(&target),
+                fs::symlink_metadata(&link).unwrap().file_type(),
+            );
+            assert_eq!(before, after, "{}", target.display());
+        }
+        assert!(fs::read_dir(&special[3].path).unwrap().next().is_none());
+        let names: Vec<String> = fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|name| name.ends_with(PARTIAL_SUFFIX))
+            .collect();
+        assert!(names.is_empty(), "{names:?}");
+        // A link to nothing is replaced as a missing file would be.
+        let dangling = dir.path().join("dangling.png");
+        std::os::unix::fs::symlink(dir.path().join("gone"), &dangling).unwrap();
+        write_bytes_atomic(&dangling, b"png").unwrap();
+        assert_eq!(fs::read(&dangling).unwrap(), b"png");
     }
 
     #[test]

@@ -394,3 +394,92 @@ fn two_runs_into_one_folder_both_succeed_with_the_outputs_of_one() {
     }
     assert_eq!(tree(&shared), tree(&reference));
 }
+
+/// Outputs that are not regular files (issue 43): `scan --out` onto a
+/// character device, a FIFO, a socket or a folder is refused, naming it,
+/// and leaves it as it was; so is `--shard auto` in a SLURM array task
+/// whose id lies outside its array (it would run another task's shard),
+/// before anything is written.
+#[cfg(unix)]
+#[test]
+fn special_files_as_outputs_and_array_tasks_outside_their_array_are_refused() {
+    use mbs_test_support::special::{identity, special_files};
+    let dir = tempfile::tempdir().unwrap();
+    let set = dir.path().join("set");
+    let synth = |out: &Path| {
+        let mut command = mbs_tool();
+        command.args([
+            "synth",
+            "--frames",
+            "2",
+            "--towns",
+            "Town01",
+            "--weathers",
+            "ClearNoon",
+        ]);
+        command.args([
+            "--width",
+            "32",
+            "--height",
+            "16",
+            "--focal",
+            "16",
+            "--no-checksums",
+        ]);
+        command.arg("--out").arg(out);
+        command
+    };
+    let output = synth(&set).output().unwrap();
+    assert!(output.status.success(), "{}", text(&output));
+    let special = special_files(dir.path(), "json");
+    for file in &special {
+        let before = identity(&file.path);
+        let output = mbs_tool()
+            .arg("scan")
+            .arg(&set)
+            .arg("--out")
+            .arg(&file.path)
+            .output()
+            .unwrap();
+        let report = text(&output);
+        assert_eq!(output.status.code(), Some(1), "{report}");
+        assert!(
+            report.contains(&file.path.display().to_string())
+                && report.contains(file.kind)
+                && report.contains("not a regular file"),
+            "{report}"
+        );
+        assert_eq!(identity(&file.path), before, "{report}");
+    }
+    let partials: Vec<PathBuf> = tree(dir.path())
+        .into_iter()
+        .map(|(p, _)| p)
+        .filter(|p| p.to_string_lossy().ends_with(".partial"))
+        .collect();
+    assert!(partials.is_empty(), "{partials:?}");
+
+    for (id, min, step, count, named) in [
+        ("1", "3", "1", "2", "SLURM_ARRAY_TASK_MIN=3"),
+        ("5", "3", "1", "2", "SLURM_ARRAY_TASK_COUNT=2"),
+        ("3", "0", "2", "4", "SLURM_ARRAY_TASK_STEP=2"),
+    ] {
+        let out = dir.path().join(format!("shard-{id}"));
+        let output = synth(&out)
+            .args(["--shard", "auto"])
+            .env("SLURM_ARRAY_TASK_ID", id)
+            .env("SLURM_ARRAY_TASK_MIN", min)
+            .env("SLURM_ARRAY_TASK_STEP", step)
+            .env("SLURM_ARRAY_TASK_COUNT", count)
+            .output()
+            .unwrap();
+        let report = text(&output);
+        assert_eq!(output.status.code(), Some(2), "{report}");
+        assert!(
+            report.contains(&format!(
+                "SLURM_ARRAY_TASK_ID={id} is not a task of the array"
+            )) && report.contains(named),
+            "{report}"
+        );
+        assert!(!out.exists(), "{report}");
+    }
+}

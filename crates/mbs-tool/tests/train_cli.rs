@@ -220,6 +220,48 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
         text(&output)
     );
     assert_eq!(std::fs::read(&teacher_file).unwrap(), teacher_bytes);
+    // Nor over a file that is not a regular file (issue 43): a device, a
+    // FIFO, a socket or a folder, under its own name or as the
+    // .safetensors name export would add, is refused and left as it was,
+    // and no file appears beside it.
+    let specials = dir.path().join("specials");
+    std::fs::create_dir(&specials).unwrap();
+    let listing = || {
+        let mut names: Vec<_> = std::fs::read_dir(&specials)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        names.sort();
+        names
+    };
+    for extension in ["safetensors", "bin"] {
+        let files = mbs_test_support::special::special_files(&specials, extension);
+        let before = listing();
+        for file in &files {
+            let identity = mbs_test_support::special::identity(&file.path);
+            // The name itself, and (for .safetensors) the name without
+            // its extension, which export would complete to it.
+            let bare = file.path.with_extension("");
+            let names = if extension == "safetensors" {
+                vec![&file.path, &bare]
+            } else {
+                vec![&file.path]
+            };
+            for name in names {
+                let output = run(&["export", &out_s, "--out", name.to_str().unwrap()]);
+                let report = text(&output);
+                assert_eq!(output.status.code(), Some(1), "{report}");
+                assert!(
+                    report.contains(&file.path.display().to_string())
+                        && report.contains(file.kind)
+                        && report.contains("not a regular file"),
+                    "{report}"
+                );
+            }
+            assert_eq!(mbs_test_support::special::identity(&file.path), identity);
+        }
+        assert_eq!(listing(), before, "export made a file beside a special one");
+    }
     let pred_weights = dir.path().join("pred-weights");
     let weights_source = [
         "--backbone",

@@ -7,6 +7,11 @@ network runs, as the trainer does: on a GPU it costs next to nothing, in a
 
 import torch
 
+from mbs.torch import _checks
+
+#: The draws of a batch that :func:`augment_batch` applies.
+_DRAWS = ("brightness", "contrast", "saturation", "occlusion")
+
 
 def _grey(images: torch.Tensor) -> torch.Tensor:
     """Luma ``0.299 R + 0.587 G + 0.114 B``, ``[B, 1, H, W]``."""
@@ -18,8 +23,18 @@ def augment_pair(reference, target, brightness, contrast, saturation, occlusion)
     per item, brightness, then contrast around the image's mean grey, then
     saturation around each pixel's grey (clamped to ``[0, 1]``), both
     images alike; then the target is set to its mean colour where
-    ``occlusion`` (``[B, 1, H, W]``) is 1. Factors are ``[B]`` tensors."""
-    factors = [f.to(reference).view(-1, 1, 1, 1) for f in (brightness, contrast, saturation)]
+    ``occlusion`` (``[B, 1, H, W]``) is 1. Factors are ``[B]`` tensors of
+    finite numbers; the draws may be on another device than the images."""
+    _checks.images("reference", reference, channels=3)
+    _checks.shaped("target", target, reference.shape)
+    _checks.on_device("target", target, "reference", reference)
+    batch, _, height, width = reference.shape
+    factors = []
+    for name, factor in [("brightness", brightness), ("contrast", contrast), ("saturation", saturation)]:
+        _checks.shaped(name, factor, (batch,))
+        _checks.require(bool(torch.isfinite(factor).all()), name, factor.tolist(), "finite factors")
+        factors.append(factor.to(reference).view(-1, 1, 1, 1))
+    _checks.shaped("occlusion", occlusion, (batch, 1, height, width))
 
     def jitter(images):
         brightness, contrast, saturation = factors
@@ -38,9 +53,7 @@ def augment_pair(reference, target, brightness, contrast, saturation, occlusion)
 def augment_batch(batch: dict):
     """The student's input ``(augmented reference, augmented target)`` of a
     ``MultiBaselineDataset`` batch, on the device of its images."""
-    device = batch["reference"].device
-    return augment_pair(
-        batch["reference"],
-        batch["student_target"],
-        *(batch[name].to(device) for name in ("brightness", "contrast", "saturation", "occlusion")),
-    )
+    _checks.require(isinstance(batch, dict), "batch", type(batch).__name__, "a MultiBaselineDataset batch (a dict)")
+    missing = [key for key in ("reference", "student_target") + _DRAWS if key not in batch]
+    _checks.require(not missing, "batch", f"no {missing[0]!r}" if missing else "", "a MultiBaselineDataset batch")
+    return augment_pair(batch["reference"], batch["student_target"], *(batch[name] for name in _DRAWS))

@@ -8,6 +8,7 @@ import torch
 from torch.utils.data import Dataset
 
 from mbs import _native
+from mbs.torch import _checks
 
 
 class MultiBaselineDataset(Dataset):
@@ -42,8 +43,11 @@ class MultiBaselineDataset(Dataset):
     ``augment`` takes ``mbs-tool train``'s ``augment.*`` keys
     (``brightness``, ``contrast``, ``saturation``, ``occlusion_probability``,
     ``occlusion_max_rects``, ``occlusion_min_side``, ``occlusion_max_side``);
-    missing ones keep the paper's values. A manifest that cannot be used
-    is an ``OSError`` naming it; a bad setting a ``ValueError`` naming it.
+    missing ones keep the paper's values, unknown ones are refused as
+    ``mbs-tool train --set`` refuses them. A manifest that cannot be used
+    is an ``OSError`` naming it; a bad setting a ``ValueError`` naming it
+    (a ``TypeError`` for a value of the wrong type, such as a float
+    ``batch_size``).
     """
 
     def __init__(
@@ -55,9 +59,11 @@ class MultiBaselineDataset(Dataset):
         seed: int = 0,
         augment: Optional[dict] = None,
     ):
-        if not isinstance(steps, int) or steps < 1:
-            raise ValueError(f"steps: got {steps!r}, expected a positive integer")
+        steps = _checks.integer("steps", steps, minimum=1)
         crop = _crop(crop)
+        _checks.require(
+            augment is None or isinstance(augment, dict), "augment", type(augment).__name__, "a dict of settings"
+        )
         self._arguments = (str(manifest), batch_size, crop[0], crop[1], seed, json.dumps(augment or {}))
         self.steps = steps
         self._batches = _native.HostBatches(*self._arguments)
@@ -66,6 +72,7 @@ class MultiBaselineDataset(Dataset):
         return self.steps
 
     def __getitem__(self, step: int) -> dict:
+        step = _checks.integer("step", step)
         if not 0 <= step < self.steps:
             raise IndexError(f"step {step} of a {self.steps}-step dataset")
         raw = self._batches.batch(step)
@@ -100,8 +107,11 @@ _TENSORS = (
 
 
 def _crop(crop: Sequence[int]) -> Tuple[int, int]:
-    try:
-        height, width = (int(side) for side in crop)
-    except (TypeError, ValueError):
-        raise ValueError(f"crop: got {crop!r}, expected (height, width)") from None
-    return height, width
+    """``(height, width)``, integers; their range is checked in Rust."""
+    _checks.require(
+        isinstance(crop, Sequence) and not isinstance(crop, str) and len(crop) == 2,
+        "crop",
+        repr(crop),
+        "(height, width)",
+    )
+    return _checks.integer("crop height", crop[0]), _checks.integer("crop width", crop[1])

@@ -26,6 +26,14 @@
   ``sum(M_s P_s) / sum(M_s)``, the mean over the student's mask (those
   weights).
 
+Disparities that are not finite (NaN, ``inf``) are invalid pixels, as
+everywhere in mbs, where ``inf`` marks a pixel with no value: a teacher's
+carry no target (they leave ``M_t``), a student's take no part in any term
+and get no gradient, so one overflowed pixel (an f16 network, say) does not
+turn the whole step into NaN; ``S3LossOutput.student_non_finite`` counts
+them, without a device sync, for a loop that stops a diverged run. They
+never reach the warp's index.
+
 ``range_weight=0`` and ``out_of_view_invalid=False`` are the paper's loss
 exactly; the defaults are ``mbs-tool train``'s for its compact network,
 and for RAFT-Stereo and IGEV-Stereo it adds ``geometry_scale_match=True``
@@ -40,6 +48,7 @@ from typing import List, Optional, Sequence, Union
 import torch
 from torch import nn
 
+from mbs.torch import _checks
 from mbs.torch.schedules import sequence_weights
 from mbs.torch.views import side_signs
 
@@ -54,7 +63,9 @@ class S3LossOutput:
 
     ``total`` is differentiable in the student's disparities; the terms are
     the final prediction's, before their weights; the masks are 0/1 maps
-    ``[B, 1, H, W]`` without gradient.
+    ``[B, 1, H, W]`` without gradient; ``student_non_finite`` is the number
+    of the final prediction's pixels that were not finite (a 0-d tensor on
+    its device), left out of every term.
     """
 
     total: torch.Tensor
@@ -66,6 +77,7 @@ class S3LossOutput:
     student_mask: Optional[torch.Tensor] = None
     teacher_mask: Optional[torch.Tensor] = None
     weight_map: Optional[torch.Tensor] = None
+    student_non_finite: Optional[torch.Tensor] = None
 
 
 def _window_sums(tensor: torch.Tensor, dim: int, window: int) -> torch.Tensor:
@@ -82,7 +94,17 @@ def _window_means(tensor: torch.Tensor, window: int) -> torch.Tensor:
 
 def ssim(x: torch.Tensor, y: torch.Tensor, window: int) -> torch.Tensor:
     """Per-pixel, per-channel SSIM of two ``[B, C, H, W]`` images in
-    ``[0, 1]`` on an odd ``window`` box with reflection padding."""
+    ``[0, 1]`` on an odd ``window`` box with reflection padding (half the
+    window less than each side)."""
+    _checks.images("x", x)
+    _checks.shaped("y", y, x.shape)
+    _checks.on_device("y", y, "x", x)
+    window = _checks.integer("window", window, minimum=1)
+    _checks.require(window % 2 == 1, "window", window, "an odd window side such as 3 or 7")
+    height, width = x.shape[2:]
+    _checks.require(
+        window // 2 < min(height, width), "window", window, f"a window that fits {height}x{width} images"
+    )
     pad = window // 2
     x = torch.nn.functional.pad(x - 0.5, (pad, pad, pad, pad), mode="reflect")
     y = torch.nn.functional.pad(y - 0.5, (pad, pad, pad, pad), mode="reflect")
@@ -98,7 +120,8 @@ def ssim(x: torch.Tensor, y: torch.Tensor, window: int) -> torch.Tensor:
 
 def photometric_map(reference, reconstructed, alpha: float, window: int) -> torch.Tensor:
     """``alpha clamp((1 - SSIM) / 2, 0, 1) + (1 - alpha) |I_r - I|``,
-    averaged over channels: ``[B, 1, H, W]``."""
+    averaged over channels: ``[B, 1, H, W]``, with ``alpha`` in ``[0, 1]``."""
+    alpha = _checks.number("alpha", alpha, 0.0, 1.0)
     dissimilarity = ((1.0 - ssim(reference, reconstructed, window)) / 2.0).clamp(0.0, 1.0)
     l1 = (reference - reconstructed).abs()
     return (dissimilarity * alpha + l1 * (1.0 - alpha)).mean(dim=1, keepdim=True)
@@ -113,10 +136,20 @@ def sample_columns(disparity: torch.Tensor, signs: torch.Tensor) -> torch.Tensor
 
 
 def warp_to_reference(target: torch.Tensor, disparity: torch.Tensor, signs: torch.Tensor) -> torch.Tensor:
-    """``target`` sampled at ``x - sign d`` with linear interpolation along
-    x, clamped to the border; differentiable in ``disparity``."""
+    """``target`` ``[B, C, H, W]`` sampled at ``x - sign d`` with linear
+    interpolation along x, clamped to the border; differentiable in
+    ``disparity`` ``[B, 1, H, W]``. ``signs`` ``[B, 1, 1, 1]`` is +1 for a
+    target on the right, -1 on the left. A disparity that is not finite
+    samples column 0 (NaN) or the border (``inf``), without gradient: it
+    never reaches the index."""
+    _checks.images("target", target)
     batch, channels, height, width = target.shape
-    x = sample_columns(disparity, signs).clamp(0.0, width - 1)
+    _checks.require(width >= 2, "target", f"{height}x{width} pixels", "images at least 2 pixels wide")
+    _checks.shaped("disparity", disparity, (batch, 1, height, width))
+    _checks.shaped("signs", signs, (batch, 1, 1, 1))
+    for name, tensor in [("disparity", disparity), ("signs", signs)]:
+        _checks.on_device(name, tensor, "target", target)
+    x = torch.nan_to_num(sample_columns(disparity, signs), nan=0.0).clamp(0.0, width - 1)
     left = x.detach().floor().clamp(max=width - 2)
     weight = x - left
     left = left.long().expand(batch, channels, height, width)
@@ -179,15 +212,19 @@ def out_of_view(disparity: torch.Tensor, signs: torch.Tensor) -> torch.Tensor:
     return out_of_range(sample_columns(disparity, signs))
 
 
-def edge_aware_smoothness(disparity, image, normalise: bool) -> torch.Tensor:
+def edge_aware_smoothness(disparity, image, normalise: bool, valid=None) -> torch.Tensor:
     """Mean of ``|d(x+1) - d(x)| exp(-|I(x+1) - I(x)|)`` over horizontal
     pairs plus the same over vertical pairs (each map divided by its mean
-    first with ``normalise``)."""
+    first with ``normalise``); with ``valid`` (0/1 ``[B, 1, H, W]``), a pair
+    with an invalid pixel weighs 0."""
     if normalise:
         disparity = disparity / (disparity.mean(dim=(2, 3), keepdim=True) + 1e-7)
 
     def term(dim):
         disparity_step = disparity.diff(dim=dim).abs()
+        if valid is not None:
+            length = valid.shape[dim] - 1
+            disparity_step = disparity_step * valid.narrow(dim, 0, length) * valid.narrow(dim, 1, length)
         image_step = image.diff(dim=dim).abs().mean(dim=1, keepdim=True)
         return (disparity_step * torch.exp(-image_step)).mean()
 
@@ -242,28 +279,44 @@ class S3Loss(nn.Module):
         final_prediction_only: bool = False,
     ):
         super().__init__()
-        _require(tau > 0, "tau", tau, "a positive number")
+        tau = _checks.number("tau", tau, minimum=0.0)
+        _checks.require(tau > 0, "tau", tau, "a positive number")
+        omega, lambda_p, lambda_s_ratio, max_target_disparity, range_weight, view_weight = (
+            _checks.number(name, value, minimum=0.0)
+            for name, value in [
+                ("omega", omega),
+                ("lambda_p", lambda_p),
+                ("lambda_s_ratio", lambda_s_ratio),
+                ("max_target_disparity", max_target_disparity),
+                ("range_weight", range_weight),
+                ("view_weight", view_weight),
+            ]
+        )
+        alpha, outside_mask_weight, sequence_gamma = (
+            _checks.number(name, value, 0.0, 1.0)
+            for name, value in [
+                ("alpha", alpha),
+                ("outside_mask_weight", outside_mask_weight),
+                ("sequence_gamma", sequence_gamma),
+            ]
+        )
+        ssim_window = _checks.integer("ssim_window", ssim_window, minimum=1)
+        _checks.require(ssim_window % 2 == 1, "ssim_window", ssim_window, "an odd window side such as 3 or 7")
         for name, value in [
-            ("omega", omega),
-            ("lambda_p", lambda_p),
-            ("lambda_s_ratio", lambda_s_ratio),
-            ("max_target_disparity", max_target_disparity),
-            ("range_weight", range_weight),
-            ("view_weight", view_weight),
+            ("geometry", geometry),
+            ("photometric", photometric),
+            ("smoothness", smoothness),
+            ("threshold_filter", threshold_filter),
+            ("auto_mask", auto_mask),
+            ("occlusion_enhancement", occlusion_enhancement),
+            ("normalise_smoothness", normalise_smoothness),
+            ("geometry_scale_match", geometry_scale_match),
+            ("out_of_view_invalid", out_of_view_invalid),
+            ("photometric_mask_mean", photometric_mask_mean),
+            ("final_prediction_only", final_prediction_only),
         ]:
-            _require(value >= 0, name, value, "a number >= 0")
-        _require(0 <= alpha <= 1, "alpha", alpha, "a number in [0, 1]")
-        _require(
-            0 <= outside_mask_weight <= 1, "outside_mask_weight", outside_mask_weight, "a number in [0, 1]"
-        )
-        _require(0 <= sequence_gamma <= 1, "sequence_gamma", sequence_gamma, "a number in [0, 1]")
-        _require(
-            isinstance(ssim_window, int) and ssim_window > 0 and ssim_window % 2 == 1,
-            "ssim_window",
-            ssim_window,
-            "an odd window side such as 3 or 7",
-        )
-        _require(
+            _checks.flag(name, value)
+        _checks.require(
             geometry or photometric or smoothness,
             "geometry/photometric/smoothness",
             "all False",
@@ -299,13 +352,17 @@ class S3Loss(nn.Module):
         geometry_weight: float = 1.0,
     ) -> S3LossOutput:
         predictions = list(student_disparity) if isinstance(student_disparity, (list, tuple)) else [student_disparity]
-        _require(len(predictions) > 0, "student_disparity", "an empty list", "a tensor or a non-empty list")
+        _checks.require(len(predictions) > 0, "student_disparity", "an empty list", "a tensor or a non-empty list")
         batch = _check_shapes(reference, student_target, teacher_target, predictions, teacher_disparity, self.ssim_window)
         student_signs = side_signs(student_sides, batch, "student_sides", reference)
         teacher_signs = side_signs(teacher_sides, batch, "teacher_sides", reference)
-        ratios = torch.as_tensor(ratios, dtype=reference.dtype, device=reference.device)
-        _require(ratios.shape == (batch,), "ratios", tuple(ratios.shape), f"{batch} baseline ratios")
-        shared = self._shared(reference, student_target, teacher_target, teacher_disparity, teacher_signs)
+        ratios = _baseline_ratios(ratios, batch, reference)
+        geometry_weight = _checks.number("geometry_weight", geometry_weight, minimum=0.0)
+        teacher_valid = torch.isfinite(teacher_disparity)
+        teacher_disparity = torch.where(teacher_valid, teacher_disparity, teacher_disparity.new_zeros(()))
+        shared = self._shared(
+            reference, student_target, teacher_target, teacher_disparity, teacher_valid, teacher_signs
+        )
         weights = sequence_weights(len(predictions), self.sequence_gamma, self.final_prediction_only)
         out = self._terms(reference, student_target, predictions[-1], student_signs, ratios, geometry_weight, shared)
         for prediction, weight in zip(predictions[:-1], weights[:-1]):
@@ -323,7 +380,7 @@ class S3Loss(nn.Module):
     def _in_view(self, mask, disparity, signs):
         return mask * lands_inside(disparity, signs) if self.out_of_view_invalid else mask
 
-    def _shared(self, reference, student_target, teacher_target, teacher_disparity, teacher_signs):
+    def _shared(self, reference, student_target, teacher_target, teacher_disparity, teacher_valid, teacher_signs):
         student_identity = None
         if self.photometric or self.geometry:
             student_identity = self._photometric(reference, student_target)
@@ -332,20 +389,23 @@ class S3Loss(nn.Module):
             disparity = teacher_disparity.detach()
             warped = self._photometric(reference, teacher_target, (disparity, teacher_signs))
             identity = self._photometric(reference, teacher_target)
-            mask = validity_mask(warped, identity, self.threshold, self.auto_mask)
+            mask = validity_mask(warped, identity, self.threshold, self.auto_mask) * teacher_valid.to(warped.dtype)
             teacher = (self._in_view(mask, disparity, teacher_signs), disparity)
         return student_identity, teacher
 
     def _terms(self, reference, student_target, student, signs, ratios, geometry_weight, shared) -> S3LossOutput:
         student_identity, teacher = shared
-        out = S3LossOutput(total=student.new_zeros(()))
+        finite = torch.isfinite(student)
+        student = torch.where(finite, student, student.new_zeros(()))
+        valid = finite.to(student.dtype)
+        out = S3LossOutput(total=student.new_zeros(()), student_non_finite=(~finite).sum())
         total = student.new_zeros(())
         if student_identity is not None:
             p_s = self._photometric(reference, student_target, (student, signs))
-            m_s = validity_mask(p_s, student_identity, self.threshold, self.auto_mask)
+            m_s = validity_mask(p_s, student_identity, self.threshold, self.auto_mask) * valid
             m_s = self._in_view(m_s, student, signs)
             if self.photometric:
-                weights = m_s * (1.0 - self.outside_mask_weight) + self.outside_mask_weight
+                weights = (m_s * (1.0 - self.outside_mask_weight) + self.outside_mask_weight) * valid
                 masked = weights * p_s
                 if self.photometric_mask_mean:
                     out.photometric = masked.sum() / weights.sum().clamp_min(1.0)
@@ -354,7 +414,7 @@ class S3Loss(nn.Module):
                 total = total + out.photometric * self.lambda_p
             if teacher is not None:
                 m_t, teacher_disparity = teacher
-                a = weight_map(m_t, m_s, self.effective_omega)
+                a = weight_map(m_t, m_s, self.effective_omega) * valid
                 out.geometry = geometry_consistency(
                     student, teacher_disparity, ratios, a, self.cap, self.geometry_scale_match
                 )
@@ -368,22 +428,22 @@ class S3Loss(nn.Module):
             out.view = out_of_view(student, signs)
             total = total + out.view * self.view_weight
         if self.smoothness:
-            out.smoothness = edge_aware_smoothness(student, reference, self.normalise_smoothness)
+            out.smoothness = edge_aware_smoothness(student, reference, self.normalise_smoothness, valid)
             total = total + out.smoothness * self.lambda_s
         out.total = total
         return out
 
 
 def _check_shapes(reference, student_target, teacher_target, predictions, teacher_disparity, window) -> int:
+    """The batch size, once every tensor is checked: types, shapes (a
+    non-empty batch) and one device."""
     for name, tensor in [
-        ("reference", reference),
         ("student_target", student_target),
         ("teacher_target", teacher_target),
         ("teacher_disparity", teacher_disparity),
     ] + [("student_disparity", p) for p in predictions]:
-        _require(isinstance(tensor, torch.Tensor), name, type(tensor).__name__, "a torch.Tensor")
-        _require(tensor.is_floating_point(), name, tensor.dtype, "a floating-point tensor")
-    _require(reference.dim() == 4, "reference", tuple(reference.shape), "[B, C, H, W]")
+        _checks.tensor(name, tensor)
+    _checks.images("reference", reference)
     batch, channels, height, width = reference.shape
     image, disparity = (batch, channels, height, width), (batch, 1, height, width)
     for name, tensor, want in [
@@ -391,8 +451,9 @@ def _check_shapes(reference, student_target, teacher_target, predictions, teache
         ("teacher_target", teacher_target, image),
         ("teacher_disparity", teacher_disparity, disparity),
     ] + [("student_disparity", p, disparity) for p in predictions]:
-        _require(tuple(tensor.shape) == want, name, tuple(tensor.shape), f"{list(want)}")
-    _require(
+        _checks.require(tuple(tensor.shape) == want, name, tuple(tensor.shape), f"{list(want)}")
+        _checks.on_device(name, tensor, "reference", reference)
+    _checks.require(
         width >= 2 and window // 2 < min(height, width),
         "reference",
         f"{height}x{width}",
@@ -401,9 +462,20 @@ def _check_shapes(reference, student_target, teacher_target, predictions, teache
     return batch
 
 
-def _require(ok: bool, name: str, value, expected: str) -> None:
-    if not ok:
-        raise ValueError(f"{name}: got {value}, expected {expected}")
+def _baseline_ratios(ratios, batch: int, like: torch.Tensor) -> torch.Tensor:
+    """``ratios`` as a ``[B]`` tensor on ``like``'s device, once checked:
+    one finite positive number per item (a device sync when they are on a
+    GPU already)."""
+    try:
+        values = torch.as_tensor(ratios, dtype=like.dtype)
+    except (TypeError, ValueError, RuntimeError):
+        raise ValueError(f"ratios: got {ratios!r}, expected {batch} baseline ratios") from None
+    _checks.require(values.shape == (batch,), "ratios", tuple(values.shape), f"{batch} baseline ratios")
+    _checks.require(
+        bool((torch.isfinite(values) & (values > 0)).all()), "ratios", values.tolist(), "finite positive ratios"
+    )
+    return values.to(device=like.device)
+
 
 
 __all__: List[str] = ["S3Loss", "S3LossOutput", "photometric_map", "ssim", "warp_to_reference"]

@@ -51,19 +51,7 @@ impl Shard {
         let array = match variable_pair(&var, "SLURM_ARRAY_TASK_ID", "SLURM_ARRAY_TASK_COUNT")
             .map_err(prefixed)?
         {
-            Some(Shard { index, count }) => {
-                let first = number(&var, "SLURM_ARRAY_TASK_MIN")
-                    .map_err(prefixed)?
-                    .unwrap_or(0);
-                let step = number(&var, "SLURM_ARRAY_TASK_STEP")
-                    .map_err(prefixed)?
-                    .unwrap_or(1)
-                    .max(1);
-                Some(Shard {
-                    index: index.saturating_sub(first) / step,
-                    count,
-                })
-            }
+            Some(Shard { index, count }) => Some(array_task(&var, index, count).map_err(prefixed)?),
             None => None,
         };
         let processes = Self::of_launch(&var).map_err(prefixed)?;
@@ -115,6 +103,43 @@ impl Shard {
             .map(|(_, item)| item)
             .collect()
     }
+}
+
+/// A SLURM array task's shard: its `SLURM_ARRAY_TASK_ID` (`id`) counted
+/// from `SLURM_ARRAY_TASK_MIN` in steps of `SLURM_ARRAY_TASK_STEP`, of
+/// `count` tasks. An id below the minimum, past the last task or off the
+/// step is refused: it would run another task's shard (or none).
+fn array_task(
+    var: &impl Fn(&str) -> Option<String>,
+    id: usize,
+    count: usize,
+) -> Result<Shard, String> {
+    let first = number(var, "SLURM_ARRAY_TASK_MIN")?.unwrap_or(0);
+    let step = number(var, "SLURM_ARRAY_TASK_STEP")?.unwrap_or(1);
+    if step == 0 {
+        return Err("SLURM_ARRAY_TASK_STEP=0 is not a step; expected 1 or more".into());
+    }
+    let last = count
+        .checked_sub(1)
+        .and_then(|tasks| tasks.checked_mul(step))
+        .and_then(|span| span.checked_add(first));
+    let on_the_array =
+        id >= first && last.is_some_and(|last| id <= last) && (id - first) % step == 0;
+    if !on_the_array {
+        let ids = match last {
+            Some(last) => format!("ids {first} to {last} in steps of {step}"),
+            None => "no ids".into(),
+        };
+        return Err(format!(
+            "SLURM_ARRAY_TASK_ID={id} is not a task of the array that SLURM_ARRAY_TASK_MIN={first}, \
+             SLURM_ARRAY_TASK_STEP={step} and SLURM_ARRAY_TASK_COUNT={count} describe ({ids}); \
+             it would run another task's shard"
+        ));
+    }
+    Ok(Shard {
+        index: (id - first) / step,
+        count,
+    })
 }
 
 /// The number in the variable `name` (`None` when unset).
@@ -186,6 +211,20 @@ mod tests {
             ("SLURM_ARRAY_TASK_STEP", "2"),
         ];
         assert_eq!(resolve(&stepped), shard(3, 8));
+        // Its last task, 14, and the first of an array 3-4 (the case that
+        // ran shard 0 for task 1 before).
+        let last = [
+            ("SLURM_ARRAY_TASK_ID", "14"),
+            ("SLURM_ARRAY_TASK_COUNT", "8"),
+            ("SLURM_ARRAY_TASK_STEP", "2"),
+        ];
+        assert_eq!(resolve(&last), shard(7, 8));
+        let from_three = [
+            ("SLURM_ARRAY_TASK_ID", "3"),
+            ("SLURM_ARRAY_TASK_MIN", "3"),
+            ("SLURM_ARRAY_TASK_COUNT", "2"),
+        ];
+        assert_eq!(resolve(&from_three), shard(0, 2));
         let ompi = [("OMPI_COMM_WORLD_RANK", "2"), ("OMPI_COMM_WORLD_SIZE", "3")];
         assert_eq!(resolve(&ompi), shard(2, 3));
         assert_eq!(
@@ -216,6 +255,56 @@ mod tests {
             (
                 &[("PMI_RANK", "2"), ("PMI_SIZE", "2")][..],
                 "give shard 2/2",
+            ),
+            // Array tasks outside [MIN, MIN + COUNT * STEP) or off the step.
+            (
+                &[
+                    ("SLURM_ARRAY_TASK_ID", "1"),
+                    ("SLURM_ARRAY_TASK_MIN", "3"),
+                    ("SLURM_ARRAY_TASK_COUNT", "2"),
+                ][..],
+                "SLURM_ARRAY_TASK_ID=1 is not a task of the array",
+            ),
+            (
+                &[
+                    ("SLURM_ARRAY_TASK_ID", "5"),
+                    ("SLURM_ARRAY_TASK_MIN", "3"),
+                    ("SLURM_ARRAY_TASK_COUNT", "2"),
+                ][..],
+                "SLURM_ARRAY_TASK_MIN=3",
+            ),
+            (
+                &[
+                    ("SLURM_ARRAY_TASK_ID", "7"),
+                    ("SLURM_ARRAY_TASK_MIN", "0"),
+                    ("SLURM_ARRAY_TASK_STEP", "2"),
+                    ("SLURM_ARRAY_TASK_COUNT", "8"),
+                ][..],
+                "SLURM_ARRAY_TASK_STEP=2",
+            ),
+            (
+                &[
+                    ("SLURM_ARRAY_TASK_ID", "16"),
+                    ("SLURM_ARRAY_TASK_MIN", "0"),
+                    ("SLURM_ARRAY_TASK_STEP", "2"),
+                    ("SLURM_ARRAY_TASK_COUNT", "8"),
+                ][..],
+                "SLURM_ARRAY_TASK_COUNT=8",
+            ),
+            (
+                &[
+                    ("SLURM_ARRAY_TASK_ID", "0"),
+                    ("SLURM_ARRAY_TASK_STEP", "0"),
+                    ("SLURM_ARRAY_TASK_COUNT", "2"),
+                ][..],
+                "SLURM_ARRAY_TASK_STEP=0 is not a step",
+            ),
+            (
+                &[
+                    ("SLURM_ARRAY_TASK_ID", "0"),
+                    ("SLURM_ARRAY_TASK_COUNT", "0"),
+                ][..],
+                "SLURM_ARRAY_TASK_COUNT=0",
             ),
         ] {
             let error = resolve(vars).unwrap_err();

@@ -4,9 +4,10 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
+use anyhow::Context;
 use burn::tensor::Device;
 use clap::Parser;
+use mbs_core::atomic::refuse_special_target;
 use mbs_core::confine::refuse_overwriting_inputs;
 use mbs_nets::checkpoint::TrainedNetworks;
 
@@ -38,13 +39,11 @@ pub struct Args {
 
 /// Runs `export`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if args.out.is_dir() {
-        bail!("--out {} is a folder; give a file name", args.out.display());
-    }
+    // The name as given first: a device such as /dev/null is refused as
+    // itself, never written beside as /dev/null.safetensors.
+    refuse_special_target(&args.out).context("--out")?;
     let out = safetensors_name(&args.out);
-    if out.is_dir() {
-        bail!("--out {} is a folder; give a file name", out.display());
-    }
+    refuse_special_target(&out).context("--out")?;
     let checkpoint = TrainedNetworks::open(&args.run)?;
     refuse_overwriting_inputs(&out, checkpoint.files().iter().map(PathBuf::as_path))
         .context("--out would overwrite the checkpoint it exports")?;
