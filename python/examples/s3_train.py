@@ -15,6 +15,11 @@ default is a small cost-volume network defined below.
     python3 python/examples/s3_train.py synth/manifest.json --steps 500 \\
         --batch-size 4 --crop 96x192 --log train.jsonl
 
+It runs on the GPU when PyTorch sees one (``--device cuda:1`` picks
+another, ``--device cpu`` the CPU); ``--precision bf16|f16`` runs the
+networks under autocast on that device (f16 with a grad scaler), the loss
+in f32, and a GPU run ends with its peak GPU memory.
+
 Each step prints (and ``--log`` writes as a JSON line) the loss, its
 terms, the student's and teacher's mask shares and the learning rate.
 Before the first step and after the last, the teacher is scored on the
@@ -157,12 +162,24 @@ def main(argv=None):
     parser.add_argument("--geometry-warmup", type=float, default=0.0, help="share over which it then rises")
     parser.add_argument("--log", help="write each step's losses here as JSON lines")
     parser.add_argument("--save", help="write the teacher's state_dict here at the end")
+    parser.add_argument("--device", help="torch device, e.g. cuda:1 (default: cuda when PyTorch sees a GPU, else cpu)")
+    parser.add_argument("--precision", choices=["f32", "bf16", "f16"], default="f32",
+                        help="the networks under autocast in this format on the device (f16 with a grad scaler); "
+                             "the loss stays f32")
     args = parser.parse_args(argv)
 
     torch.manual_seed(args.seed)
     # Denormal floats make CPU arithmetic up to 100x slower; they carry nothing here.
     torch.set_flush_denormal(True)
-    device = torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    device = torch.device(args.device or ("cuda" if torch.cuda.is_available() else "cpu"))
+    if device.type == "cuda" and not torch.cuda.is_available():
+        parser.error(f"--device {device}: PyTorch sees no CUDA device")
+    autocast_dtype = {"f32": None, "bf16": torch.bfloat16, "f16": torch.float16}[args.precision]
+
+    def autocast():
+        return torch.autocast(device.type, dtype=autocast_dtype, enabled=autocast_dtype is not None)
+
+    scaler = torch.amp.GradScaler(device.type, enabled=args.precision == "f16")
     student = load_network(args.network).to(device)
     teacher = copy.deepcopy(student).requires_grad_(False)
     loss_fn = S3Loss()
@@ -188,19 +205,23 @@ def main(argv=None):
                   ["reference", "student_target", "teacher_target", "brightness", "contrast", "saturation",
                    "occlusion"]}
         images["augmented_reference"], images["augmented_target"] = augment_batch(images)
-        with torch.no_grad():
+        with torch.no_grad(), autocast():
             teacher_disparity = predict(teacher, images["reference"], images["teacher_target"],
-                                        batch["teacher_sides"])[-1]
-        student_disparities = predict(student, images["augmented_reference"], images["augmented_target"],
-                                      batch["student_sides"])
+                                        batch["teacher_sides"])[-1].float()
+        with autocast():
+            student_disparities = predict(student, images["augmented_reference"], images["augmented_target"],
+                                          batch["student_sides"])
+        student_disparities = [d.float() for d in student_disparities]
         out = loss_fn(images["reference"], images["student_target"], images["teacher_target"],
                       student_disparities, teacher_disparity, batch["student_sides"], batch["teacher_sides"],
                       batch["ratios"].to(device),
                       geometry_weight=geometry_weight(step, args.steps, args.geometry_start, args.geometry_warmup))
         optimiser.zero_grad()
-        out.total.backward()
+        scaler.scale(out.total).backward()
+        scaler.unscale_(optimiser)
         torch.nn.utils.clip_grad_norm_(student.parameters(), 1.0)
-        optimiser.step()
+        scaler.step(optimiser)
+        scaler.update()
         schedule.step()
         ema_update_(teacher, student, cosine_momentum(step, args.steps, args.ema_base))
         record = {
@@ -217,6 +238,9 @@ def main(argv=None):
         if log:
             log.write(json.dumps(record) + "\n")
     score(args.steps)
+    if device.type == "cuda":
+        print(f"peak GPU memory {torch.cuda.max_memory_allocated(device) / 2**20:.0f} MiB "
+              f"({torch.cuda.get_device_name(device)})", flush=True)
     if log:
         log.close()
     if args.save:

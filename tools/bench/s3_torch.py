@@ -28,6 +28,11 @@ be bit-identical):
 Run alone it prints one JSON line like the Rust example `step_time`:
     python3 tools/bench/s3_torch.py --batch 2 --height 256 --width 512 \\
         --max-disparity 128 --steps 5 --warmup 2 --threads 2
+
+`--device cuda` runs it on a GPU: the network, batch and loss on the
+device, autocast and the grad scaler on its type, timers synchronised with
+the device, and the peak GPU memory (`torch.cuda.max_memory_allocated`)
+beside the process's peak RSS.
 """
 
 import argparse
@@ -69,12 +74,20 @@ def interpolation_matrix(n_out, n_in):
 _MATRICES = {}
 
 
+def synchronize(device):
+    """Waits for the device's queued work (a no-op on the CPU), so that a
+    timer read after it measures the work itself."""
+    if device.type == "cuda":
+        torch.cuda.synchronize(device)
+
+
 def upsample_bilinear(maps, height, width):
-    """U_h maps U_w^T, as upsample.rs (matrices cached per size)."""
+    """U_h maps U_w^T, as upsample.rs (matrices cached per size and device)."""
     _, _, h, w = maps.shape
-    key = (height, h, width, w)
+    key = (height, h, width, w, maps.device, maps.dtype)
     if key not in _MATRICES:
-        _MATRICES[key] = (interpolation_matrix(height, h), interpolation_matrix(width, w).t().contiguous())
+        rows = interpolation_matrix(height, h).to(maps)
+        _MATRICES[key] = (rows, interpolation_matrix(width, w).t().contiguous().to(maps))
     rows, cols_t = _MATRICES[key]
     return rows @ maps @ cols_t
 
@@ -191,8 +204,8 @@ def photometric_map(reference, reconstructed, alpha, window, pool):
 def warp_to_reference(target, disparity, sides):
     """Samples target at x - d (right) / x + d (left), linear along x (warp.rs)."""
     batch, channels, height, width = target.shape
-    columns = torch.arange(width, dtype=torch.float32).view(1, 1, 1, width)
-    signs = torch.tensor([1.0 if side == RIGHT else -1.0 for side in sides]).view(batch, 1, 1, 1)
+    columns = torch.arange(width, dtype=torch.float32, device=target.device).view(1, 1, 1, width)
+    signs = torch.tensor([1.0 if side == RIGHT else -1.0 for side in sides], device=target.device).view(batch, 1, 1, 1)
     x = (columns - disparity * signs).clamp(0.0, width - 1)
     left = x.detach().floor().clamp(max=width - 2)
     weight = x - left
@@ -235,7 +248,7 @@ class S3Loss:
         p_t, id_t = self.photometric_pair(reference, teacher_target, d_t, teacher_sides)
         m_t = validity_mask(p_t, id_t, self.tau)
         a = m_t * (m_s * (1.0 - self.omega) + self.omega)
-        r = torch.tensor(ratios, dtype=torch.float32).view(-1, 1, 1, 1)
+        r = torch.tensor(ratios, dtype=torch.float32, device=reference.device).view(-1, 1, 1, 1)
         total = total + (a * (d_s - d_t * r).abs()).mean()
         return total + edge_aware_smoothness(d_s, reference) * self.lambda_s
 
@@ -266,10 +279,12 @@ class S3Trainer:
     def __init__(self, student, max_lr=2e-4, total_steps=100, ema_base=0.996, grad_clip_norm=1.0, loss=None,
                  precision="f32"):
         self.student = student
+        self.device = next(student.parameters()).device
         # Mixed precision as mbs's trainer.precision: the networks under
-        # autocast, the loss in f32, f16 with a GradScaler.
+        # autocast, the loss in f32, f16 with a GradScaler, both on the
+        # student's device type.
         self.autocast_dtype = {"f32": None, "bf16": torch.bfloat16, "f16": torch.float16}[precision]
-        self.scaler = torch.amp.GradScaler("cpu") if precision == "f16" else None
+        self.scaler = torch.amp.GradScaler(self.device.type) if precision == "f16" else None
         self.teacher = copy.deepcopy(student).requires_grad_(False)
         self.loss = loss or S3Loss()
         self.optimizer = torch.optim.Adam(student.parameters(), lr=max_lr, betas=(0.9, 0.999), eps=1e-5)
@@ -280,6 +295,7 @@ class S3Trainer:
 
     def _mark(self, phase, start):
         if self.times is not None:
+            synchronize(self.device)
             now = time.perf_counter()
             self.times[phase] = self.times.get(phase, 0.0) + (now - start) * 1e3
             return now
@@ -287,7 +303,7 @@ class S3Trainer:
 
     def step(self, batch):
         t = time.perf_counter()
-        autocast = torch.autocast("cpu", dtype=self.autocast_dtype, enabled=self.autocast_dtype is not None)
+        autocast = torch.autocast(self.device.type, dtype=self.autocast_dtype, enabled=self.autocast_dtype is not None)
         with torch.no_grad(), autocast:
             d_t = predict(self.teacher, batch["reference"], batch["teacher_target"], batch["teacher_sides"])
         d_t = d_t.float()
@@ -324,8 +340,8 @@ class S3Trainer:
         return loss, grad_norm
 
 
-def make_batch(batch, height, width):
-    image = lambda: torch.rand(batch, 3, height, width)
+def make_batch(batch, height, width, device="cpu"):
+    image = lambda: torch.rand(batch, 3, height, width).to(device)
     reference, student_target, teacher_target = image(), image(), image()
     return {
         "reference": reference,
@@ -367,26 +383,35 @@ def main():
     parser.add_argument("--breakdown", action="store_true", help="also time each phase over --steps more steps")
     parser.add_argument("--precision", choices=["f32", "bf16", "f16"], default="f32",
                         help="the networks under torch.autocast in this format (f16 with a GradScaler)")
+    parser.add_argument("--device", default="cpu", help="torch device: cpu, cuda, cuda:1, ...")
     args = parser.parse_args()
     if min(args.batch, args.height, args.width, args.steps) < 1 or args.warmup < 0:
         parser.error("batch, height, width and steps must be at least 1, warmup at least 0")
 
+    device = torch.device(args.device)
+    if device.type == "cuda" and not torch.cuda.is_available():
+        parser.error(f"--device {args.device}: PyTorch sees no CUDA device")
     torch.set_num_threads(args.threads)
     torch.manual_seed(args.seed)
-    net = CostVolumeNet(args.max_disparity, args.features, args.hidden)
+    net = CostVolumeNet(args.max_disparity, args.features, args.hidden).to(device)
     total_steps = args.warmup + 2 * args.steps
     trainer = S3Trainer(net, total_steps=total_steps, loss=S3Loss(pool=args.ssim_pool), precision=args.precision)
-    batch = make_batch(args.batch, args.height, args.width)
+    batch = make_batch(args.batch, args.height, args.width, device)
     rss_setup = rss_mib("VmRSS")
     for _ in range(args.warmup):
         trainer.step(batch)
+    if device.type == "cuda":
+        torch.cuda.reset_peak_memory_stats(device)
+    synchronize(device)
     start = time.perf_counter()
     loss = float("nan")
     for _ in range(args.steps):
         loss, _ = trainer.step(batch)
+    synchronize(device)
     ms_per_step = (time.perf_counter() - start) * 1e3 / args.steps
     out = {
         "framework": "torch",
+        "device": str(device),
         "batch": args.batch,
         "height": args.height,
         "width": args.width,
@@ -411,6 +436,9 @@ def main():
     if peak is None:  # ru_maxrss is in KiB on Linux
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     out["peak_rss_mib"] = round(peak, 1)
+    if device.type == "cuda":
+        out["peak_gpu_mib"] = round(torch.cuda.max_memory_allocated(device) / 2**20, 1)
+        out["gpu"] = torch.cuda.get_device_name(device)
     print(json.dumps(out))
 
 

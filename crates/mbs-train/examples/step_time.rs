@@ -1,6 +1,8 @@
 //! Times the S3 training step ([`S3Trainer::step`]) of the compact network,
 //! RAFT-Stereo or IGEV-Stereo (`--backbone raft-stereo|igev`) on the CPU
-//! (`flex` backend); called by `tools/bench/train_step_vs_torch.py` and
+//! (`flex` backend), or on `--device cuda|vulkan[:N]` in a build with that
+//! feature (`--features cuda`: each step reads its loss back, so its time
+//! includes the device's work); called by `tools/bench/train_step_vs_torch.py` and
 //! `tools/bench/official_step_vs_torch.py`. Run in release:
 //!
 //! ```text
@@ -23,7 +25,7 @@
 //! `--steps` steps and prints one JSON line:
 //!
 //! ```text
-//! {"framework":"burn-flex","batch":2,"height":256,"width":512,"max_disparity":128,"ms_per_step":...,"peak_rss_mib":...}
+//! {"framework":"burn","device":"cpu","backbone":"compact","batch":2,"height":256,"width":512,"max_disparity":128,"ms_per_step":...,"peak_rss_mib":...}
 //! ```
 //!
 //! (plus the step counts, the thread count and the last loss). `peak_rss_mib`
@@ -60,9 +62,9 @@ type BoxError = Box<dyn std::error::Error>;
 
 const USAGE: &str = "usage: step_time [--backbone compact|raft-stereo|igev] [--batch B] [--height H] \
 [--width W] [--max-disparity D] [--steps N] [--warmup K] [--features F] [--hidden C] [--seed S] \
-[--breakdown] [--precision f32|bf16|f16] [--hidden-dim C] [--gru-levels L] [--n-downsample N] [--train-iters I] [--test-iters I]
+[--breakdown] [--precision f32|bf16|f16] [--device cpu|cuda[:N]|vulkan[:N]] [--hidden-dim C] [--gru-levels L] [--n-downsample N] [--train-iters I] [--test-iters I]
 defaults: --backbone compact --batch 2 --height 256 --width 512 --max-disparity 128 --steps 5 \
---warmup 2 --features 16 --hidden 32 --seed 42 --precision f32; the official networks' defaults";
+--warmup 2 --features 16 --hidden 32 --seed 42 --precision f32 --device cpu; the official networks' defaults";
 
 /// What the command line sets.
 #[derive(Debug)]
@@ -81,6 +83,7 @@ struct Args {
     seed: u64,
     breakdown: bool,
     precision: Precision,
+    device: String,
 }
 
 impl Args {
@@ -101,6 +104,7 @@ impl Args {
             seed: 42,
             breakdown: false,
             precision: Precision::F32,
+            device: "cpu".into(),
         };
         while let Some(flag) = args.next() {
             if flag == "--help" || flag == "-h" {
@@ -114,6 +118,10 @@ impl Args {
                 let value = args.next().ok_or("--precision needs a value")?;
                 out.precision = serde_json::from_value(serde_json::Value::String(value.clone()))
                     .map_err(|_| format!("--precision expects f32, bf16 or f16, got '{value}'"))?;
+                continue;
+            }
+            if flag == "--device" {
+                out.device = args.next().ok_or("--device needs a value")?;
                 continue;
             }
             if flag == "--backbone" {
@@ -287,13 +295,16 @@ fn breakdown(
 }
 
 fn run(args: &Args) -> Result<String, BoxError> {
-    let device = Device::flex();
+    let device = mbs_nets::device::open_device(&args.device)?;
     let train_device = device.clone().autodiff();
     // Seeds the weights and the random images.
     train_device.seed(args.seed);
     device.seed(args.seed);
     if args.breakdown && args.backbone != BackboneKind::Compact {
         return Err("--breakdown times the compact network only".into());
+    }
+    if args.breakdown && args.device != "cpu" {
+        return Err("--breakdown times CPU steps only".into());
     }
     if args.breakdown && args.precision != Precision::F32 {
         return Err("--breakdown times f32 steps only".into());
@@ -336,9 +347,10 @@ fn run(args: &Args) -> Result<String, BoxError> {
         "null".to_string()
     };
     let mut line = format!(
-        "{{\"framework\":\"burn-flex\",\"backbone\":\"{}\",\"batch\":{},\"height\":{},\"width\":{},\"max_disparity\":{},\
+        "{{\"framework\":\"burn\",\"device\":\"{}\",\"backbone\":\"{}\",\"batch\":{},\"height\":{},\"width\":{},\"max_disparity\":{},\
          \"precision\":\"{}\",\"ms_per_step\":{ms_per_step:.2},\"peak_rss_mib\":{rss},\"steps\":{},\"warmup\":{},\
          \"rayon_threads\":\"{threads}\",\"loss\":{loss}",
+        args.device,
         args.backbone,
         args.batch,
         args.height,

@@ -1,0 +1,464 @@
+#!/usr/bin/env python3
+"""The GPU check: one command that answers whether mbs trains and predicts
+on CUDA, correctly, and how fast against the official PyTorch code on the
+same GPU. Run it from the folder `tools/gpu/prepare.sh` made, on the GPU
+machine (no network, no Rust):
+
+    python3 run.py --out results            # --device cuda by default
+
+Phases, in order of value, each under its own timeout; a phase that fails
+is recorded and the next one runs, except the probe, whose failure ends
+the run with a diagnosis:
+
+1. environment: nvidia-smi, where libcuda, NVRTC and the CUDA headers are,
+   and the environment set for the rest (LD_LIBRARY_PATH, CUDA_PATH);
+2. probe: one training step of the compact network on the device;
+3. compact: 4 S3 steps on the device against the same steps on the CPU
+   (loss and gradient norm within a tolerance that allows for TF32);
+4. raft-stereo, igev: the S3 step at the paper's size (384x512, official
+   iteration counts) with its time and peak GPU memory, next to the
+   official PyTorch code's same step on the same device;
+5. precision: the RAFT-Stereo step in bf16 and f16, mbs and PyTorch;
+6. predict: RAFT-Stereo weights in the official layout (`mbs-tool export`
+   of phase 4's run) predicted by mbs on the device, by mbs on the CPU and
+   by the official model on the device.
+
+Everything goes to --out as it happens: results.json (rewritten after each
+phase), logs/ (each command's output), gpu_samples.csv (nvidia-smi every
+half second); a short table is printed last. `--device cpu --small` runs
+every phase on the CPU at small sizes (CI runs it so that it cannot rot);
+the official code's parts need `official/RAFT-Stereo` and
+`official/IGEV-Stereo` beside this script (prepare.sh puts them there) and
+PyTorch, and are recorded as not run without them.
+"""
+
+import argparse
+import glob
+import json
+import os
+import shutil
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+# In the prepared folder the benchmarks and the test pair lie beside this
+# script; in the repository, in tools/bench and testdata.
+BENCH = HERE / "bench" if (HERE / "bench").is_dir() else HERE.parent / "bench"
+PAIR = HERE / "data" / "pair" if (HERE / "data" / "pair").is_dir() else HERE.parent.parent / "testdata" / "middlebury-baby2"
+
+
+class PhaseError(Exception):
+    """A phase's failure, with what it found."""
+
+
+class Check:
+    """The run: its settings, environment, output folder and results."""
+
+    def __init__(self, args):
+        self.args = args
+        self.out = args.out.resolve()
+        self.logs = self.out / "logs"
+        self.logs.mkdir(parents=True, exist_ok=True)
+        self.env = dict(os.environ)
+        self.results = {"device": args.device, "small": args.small, "binary": str(args.binary), "phases": {}}
+        self.sampler = None
+
+    def save(self):
+        partial = self.out / "results.json.partial"
+        partial.write_text(json.dumps(self.results, indent=2) + "\n")
+        partial.replace(self.out / "results.json")
+
+    def command(self, name, argv, timeout, env=None):
+        """Runs argv with its output in logs/NAME.log; its stdout, or a
+        PhaseError with the log's tail."""
+        log = self.logs / f"{name}.log"
+        start = time.time()
+        try:
+            done = subprocess.run([str(a) for a in argv], capture_output=True, text=True, timeout=timeout,
+                                  env=env or self.env)
+        except subprocess.TimeoutExpired as error:
+            log.write_text(f"$ {' '.join(map(str, argv))}\n(timed out after {timeout} s)\n{error.stdout or ''}"
+                           f"{error.stderr or ''}")
+            raise PhaseError(f"{name}: timed out after {timeout} s (logs/{name}.log)") from None
+        log.write_text(f"$ {' '.join(map(str, argv))}\n({time.time() - start:.1f} s, exit {done.returncode})\n"
+                       f"--- stdout\n{done.stdout}\n--- stderr\n{done.stderr}")
+        if done.returncode != 0:
+            tail = "\n".join((done.stdout + done.stderr).strip().splitlines()[-6:])
+            raise PhaseError(f"{name}: exit {done.returncode} (logs/{name}.log):\n{tail}")
+        return done.stdout
+
+    def mbs(self, name, *argv, timeout):
+        return self.command(name, [self.args.binary, *argv], timeout)
+
+    def peak_gpu_mib(self, since):
+        """The most GPU memory nvidia-smi saw in use since `since` (MiB)."""
+        return self.sampler.peak_since(since) if self.sampler else None
+
+
+class GpuSampler(threading.Thread):
+    """nvidia-smi's memory and utilisation every half second, into
+    gpu_samples.csv and memory for the phases' peaks."""
+
+    def __init__(self, path):
+        super().__init__(daemon=True)
+        self.path, self.samples, self.stop = path, [], threading.Event()
+
+    def run(self):
+        query = ["nvidia-smi", "--query-gpu=memory.used,utilization.gpu", "--format=csv,noheader,nounits"]
+        with open(self.path, "w") as csv:
+            csv.write("time_s,memory_used_mib,utilization_percent\n")
+            while not self.stop.is_set():
+                try:
+                    line = subprocess.run(query, capture_output=True, text=True, timeout=5).stdout.splitlines()[0]
+                    memory, utilisation = (float(v) for v in line.split(","))
+                except (OSError, IndexError, ValueError, subprocess.TimeoutExpired):
+                    return
+                now = time.time()
+                self.samples.append((now, memory))
+                csv.write(f"{now:.2f},{memory:.0f},{utilisation:.0f}\n")
+                csv.flush()
+                self.stop.wait(0.5)
+
+    def peak_since(self, since):
+        used = [memory for when, memory in self.samples if when >= since]
+        return max(used) if used else None
+
+
+def read_pfm(path):
+    """A single-channel PFM as a list of rows (no NumPy needed)."""
+    import struct
+
+    with open(path, "rb") as f:
+        kind = f.readline().strip()
+        width, height = (int(v) for v in f.readline().split())
+        scale = float(f.readline())
+        if kind != b"Pf":
+            raise PhaseError(f"{path}: not a single-channel PFM")
+        data = f.read()
+    endian = "<" if scale < 0 else ">"
+    values = struct.unpack(f"{endian}{width * height}f", data[: 4 * width * height])
+    rows = [list(values[r * width : (r + 1) * width]) for r in range(height)]
+    return rows[::-1]  # PFM stores the bottom row first
+
+
+def mean_abs_difference(a, b):
+    pairs = [(x, y) for ra, rb in zip(a, b) for x, y in zip(ra, rb) if x == x and y == y and abs(x) < 1e30
+             and abs(y) < 1e30]
+    return sum(abs(x - y) for x, y in pairs) / max(len(pairs), 1)
+
+
+def train_log(run):
+    return [json.loads(line) for line in (run / "train.jsonl").read_text().splitlines() if line.strip()]
+
+
+# --------------------------------------------------------------------------
+# Phases
+
+
+def environment(check):
+    """What the machine has, and the environment the rest runs in."""
+    found = {"nvidia_smi": shutil.which("nvidia-smi")}
+    if found["nvidia_smi"]:
+        found["gpus"] = subprocess.run(["nvidia-smi", "-L"], capture_output=True, text=True).stdout.strip()
+        found["driver"] = subprocess.run(["nvidia-smi", "--query-gpu=driver_version", "--format=csv,noheader"],
+                                         capture_output=True, text=True).stdout.strip()
+    ldconfig = subprocess.run(["ldconfig", "-p"], capture_output=True, text=True).stdout if shutil.which(
+        "ldconfig") else ""
+    found["libcuda"] = [line.split("=>")[-1].strip() for line in ldconfig.splitlines() if "libcuda.so.1" in line]
+    # pip's CUDA wheels (nvidia-cuda-nvrtc, nvidia-cuda-runtime, nvidia-nccl)
+    # lay out site-packages/nvidia/<part or cu13>/{lib,include}.
+    roots = sorted({p for p in sys.path if p and Path(p, "nvidia").is_dir()})
+    libs = sorted({str(Path(p).parent) for root in roots for p in glob.glob(f"{root}/nvidia/*/lib/libnvrtc.so*")})
+    includes = sorted({str(Path(p).parent) for root in roots
+                       for p in glob.glob(f"{root}/nvidia/*/include/cuda_runtime.h")})
+    found["nvrtc_folders"] = libs
+    found["header_folders"] = includes
+    # cubecl opens NCCL only as libnccl.so, which pip's nvidia-nccl wheel
+    # does not have (libnccl.so.2): a link makes it visible. mbs itself sums
+    # gradients through the host, so this matters only to cubecl.
+    nccl = sorted(glob.glob(f"{roots[0]}/nvidia/nccl/lib/libnccl.so.2")) if roots else []
+    if nccl:
+        links = check.out / "lib"
+        links.mkdir(exist_ok=True)
+        link = links / "libnccl.so"
+        if not link.exists():
+            link.symlink_to(nccl[0])
+        libs.append(str(links))
+        found["nccl_link"] = f"{link} -> {nccl[0]}"
+    if libs:
+        check.env["LD_LIBRARY_PATH"] = ":".join(libs + [check.env.get("LD_LIBRARY_PATH", "")]).rstrip(":")
+    if "CUDA_PATH" not in check.env:
+        for candidate in ["/usr/local/cuda"] + [str(Path(i).parent) for i in includes]:
+            if Path(candidate, "include", "cuda_runtime.h").is_file():
+                check.env["CUDA_PATH"] = candidate
+                break
+    found["set"] = {k: check.env[k] for k in ("LD_LIBRARY_PATH", "CUDA_PATH") if k in check.env}
+    try:
+        import torch
+
+        found["torch"] = torch.__version__
+        found["torch_cuda"] = torch.cuda.is_available()
+    except ImportError:
+        found["torch"] = None
+    found["official_code"] = {name: (HERE / "official" / name).is_dir() for name in ("RAFT-Stereo", "IGEV-Stereo")}
+    return found
+
+
+def synth(check, name, width, height, frames):
+    folder = check.out / "data" / name
+    if not (folder / "manifest.json").is_file():
+        check.mbs(f"synth-{name}", "synth", "--out", folder, "--frames", frames, "--towns", "Town01,Town10",
+                  "--weathers", "ClearNoon", "--width", width, "--height", height, "--focal", width // 2,
+                  "--no-checksums", timeout=300)
+    return folder / "manifest.json"
+
+
+def train(check, name, device, backbone, steps, crop, extra=(), timeout=300):
+    """`mbs-tool train` for `steps` steps with a log line per step; its
+    folder and log."""
+    run = check.out / "runs" / name
+    small = check.args.small
+    manifest = synth(check, "small" if small else "paper", 160 if small else 512, 96 if small else 384, 4)
+    argv = ["train", manifest, "--out", run, "--device", device, "--backbone", backbone, "--steps", steps,
+            "--batch-size", 2, "--crop", crop, "--seed", 5, "--val-every", 100000, "--restart",
+            "--set", "log_every=1", "--set", "visual_samples=0", "--set", "checkpoint_every=100000"]
+    if small and backbone != "compact":
+        key = "raft_stereo" if backbone == "raft-stereo" else "igev"
+        argv += ["--set", f"network.{key}.hidden_dim=32", "--set", f"network.{key}.gru_levels=2",
+                 "--set", f"network.{key}.train_iters=2", "--set", f"network.{key}.test_iters=2",
+                 "--max-disparity", 32]
+    if small and backbone == "compact":
+        argv += ["--max-disparity", 32]
+    start = time.time()
+    check.mbs(name, *argv, *extra, timeout=timeout)
+    return run, train_log(run), start
+
+
+def steps(check):
+    """Steps of a timed run: the first compiles the device's kernels, the
+    rest are timed (two in all at the small sizes)."""
+    return 2 if check.args.small else 4
+
+
+def step_figures(log, batch):
+    """Milliseconds per step over the steps after the first (which compiles
+    the kernels), from train.jsonl's samples per second."""
+    later = [line["samples_per_s"] for line in log[1:] if line.get("samples_per_s")]
+    first = log[0].get("samples_per_s") if log else None
+    return {
+        "first_step_ms": round(1e3 * batch / first, 1) if first else None,
+        "ms_per_step": round(1e3 * batch / (sum(later) / len(later)), 1) if later else None,
+        "loss": log[-1]["loss"] if log else None,
+    }
+
+
+def probe(check):
+    """Two steps on the device (a run has at least two): can it compile and
+    launch kernels?"""
+    try:
+        _, log, _ = train(check, "probe", check.args.device, "compact", 2, "48x96", timeout=180)
+    except PhaseError as error:
+        text = str(error)
+        hints = [(needle, hint) for needle, hint in [
+            ("libcuda", "the driver library libcuda.so.1 is not on the loader path"),
+            ("nvrtc", "NVRTC (libnvrtc.so or libnvrtc.so.13) is not on LD_LIBRARY_PATH"),
+            ("cuda_runtime.h", "the CUDA headers are missing: set CUDA_PATH to a folder with include/"),
+            ("feature", "the binary was built without --features cuda"),
+        ] if needle in text.lower()]
+        raise PhaseError(text + ("\ndiagnosis: " + "; ".join(h for _, h in hints) if hints else "")) from None
+    return {"loss": log[-1]["loss"]}
+
+
+def compact(check):
+    """4 steps on the device against the same 4 on the CPU."""
+    _, device_log, _ = train(check, "compact-device", check.args.device, "compact", 4, "48x96")
+    _, cpu_log, _ = train(check, "compact-cpu", "cpu", "compact", 4, "48x96")
+    rows = []
+    for d, c in zip(device_log, cpu_log):
+        rows.append({"step": d["step"], "loss": [d["loss"], c["loss"]], "grad_norm": [d["grad_norm"], c["grad_norm"]]})
+    loss_error = max(abs(r["loss"][0] - r["loss"][1]) / max(abs(r["loss"][1]), 1e-12) for r in rows)
+    grad_error = max(abs(r["grad_norm"][0] - r["grad_norm"][1]) / max(abs(r["grad_norm"][1]), 1e-12) for r in rows)
+    # TF32 matmuls carry 10 mantissa bits (about 1e-3 relative a product).
+    tolerance = {"loss": 1e-2, "grad_norm": 5e-2}
+    result = {"steps": rows, "loss_relative_error": loss_error, "grad_norm_relative_error": grad_error,
+              "tolerance": tolerance}
+    if loss_error > tolerance["loss"] or grad_error > tolerance["grad_norm"]:
+        raise PhaseError(f"the device departs from the CPU: {json.dumps(result)}")
+    return result
+
+
+def official_torch(check, network, precision="f32"):
+    """The official PyTorch step (tools/bench/official_step_vs_torch.py) on
+    the device, or why it did not run."""
+    if precision == "f16" and check.args.device == "cpu":
+        return {"not_run": "f16 on the CPU is emulated, far too slow to time"}
+    folder = HERE / "official" / ("RAFT-Stereo" if network == "raft-stereo" else "IGEV-Stereo")
+    if not folder.is_dir():
+        return {"not_run": f"no official code at {folder}"}
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        return {"not_run": "PyTorch is not installed"}
+    small = check.args.small
+    argv = [sys.executable, BENCH / "official_step_vs_torch.py", "--torch-only", "--network", network,
+            "--official", folder, "--device", check.args.device, "--precision", precision,
+            "--steps", 1 if small else 3, "--warmup", 1, "--batch", 2, "--threads", os.cpu_count() or 1]
+    if small:
+        argv += ["--height", 48, "--width", 96, "--hidden-dim", 32, "--gru-levels", 2,
+                 "--train-iters", 2, "--test-iters", 2]
+    env = dict(check.env, PYTHONPATH=os.pathsep.join([str(HERE / "vendor"), check.env.get("PYTHONPATH", "")]))
+    out = check.command(f"official-{network}-{precision}", argv, timeout=300, env=env)
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def network_step(network):
+    def phase(check):
+        crop = "48x96" if check.args.small else "384x512"
+        run, log, start = train(check, network, check.args.device, network, steps(check), crop, timeout=420)
+        figures = {"mbs": {**step_figures(log, 2), "peak_gpu_mib": check.peak_gpu_mib(start), "crop": crop},
+                   "official": official_torch(check, network)}
+        ours, theirs = figures["mbs"].get("ms_per_step"), figures["official"].get("ms_per_step")
+        if ours and theirs:
+            figures["mbs_over_official"] = round(ours / theirs, 2)
+        return figures
+
+    return phase
+
+
+def precision(check):
+    crop = "48x96" if check.args.small else "384x512"
+    figures = {}
+    for fmt in ("bf16", "f16"):
+        _, log, start = train(check, f"raft-stereo-{fmt}", check.args.device, "raft-stereo", steps(check), crop,
+                              extra=("--precision", fmt), timeout=420)
+        figures[fmt] = {"mbs": {**step_figures(log, 2), "peak_gpu_mib": check.peak_gpu_mib(start)},
+                        "official": official_torch(check, "raft-stereo", fmt)}
+    return figures
+
+
+def predict(check):
+    """RAFT-Stereo in the official layout, predicted three ways."""
+    run = check.out / "runs" / "raft-stereo"
+    if not (run / "train.jsonl").is_file():
+        raise PhaseError("no raft-stereo run to export (its phase failed)")
+    weights = check.out / "raft-stereo.safetensors"
+    check.mbs("export", "export", run, "--out", weights, timeout=120)
+    pair = [PAIR / "view1.png", PAIR / "view2.png"]
+    settings = json.loads((run / "config.json").read_text())["network"]["raft_stereo"]
+    sets = [a for key, value in settings.items()
+            for a in ("--set", f"network.raft_stereo.{key}={json.dumps(value).strip(chr(34))}")]
+    maps = {}
+    for device in dict.fromkeys([check.args.device, "cpu"]):
+        folder = check.out / "predict" / device.replace(":", "-")
+        check.mbs(f"predict-{device}", "predict", "--left", pair[0], "--right", pair[1], "--out", folder,
+                  "--backbone", "raft-stereo", "--weights", weights, *sets, "--device", device, "--overwrite",
+                  timeout=300)
+        maps[device] = read_pfm(next(folder.glob("*.pfm")))
+    figures = {"pair": [str(p) for p in pair],
+               "mbs_device_vs_cpu_mean_px": mean_abs_difference(maps[check.args.device], maps["cpu"])}
+    official = HERE / "official" / "RAFT-Stereo"
+    if official.is_dir():
+        script = HERE / "official_predict.py"
+        out = check.command("predict-official", [sys.executable, script, "--official", official, "--weights",
+                                                 weights, "--config", run / "config.json", "--left", pair[0],
+                                                 "--right", pair[1], "--device", check.args.device,
+                                                 "--out", check.out / "predict" / "official.pfm"], timeout=300)
+        figures["official"] = json.loads(out.strip().splitlines()[-1])
+        theirs = read_pfm(check.out / "predict" / "official.pfm")
+        figures["mbs_device_vs_official_mean_px"] = mean_abs_difference(maps[check.args.device], theirs)
+    else:
+        figures["official"] = {"not_run": f"no official code at {official}"}
+    return figures
+
+
+PHASES = [
+    ("environment", environment, True),
+    ("probe", probe, False),
+    ("compact", compact, True),
+    ("raft-stereo", network_step("raft-stereo"), True),
+    ("igev", network_step("igev"), True),
+    ("precision", precision, True),
+    ("predict", predict, True),
+]
+
+
+def table(results):
+    lines = [f"GPU check on {results['device']}{' (small)' if results['small'] else ''}"]
+    for name, phase in results["phases"].items():
+        status = phase["status"]
+        detail = ""
+        figures = phase.get("figures", {})
+        if name in ("raft-stereo", "igev") and status == "ok":
+            ours, theirs = figures["mbs"], figures["official"]
+            detail = (f"mbs {ours.get('ms_per_step')} ms/step, peak {ours.get('peak_gpu_mib')} MiB; official "
+                      f"{theirs.get('ms_per_step', theirs.get('not_run'))}")
+        elif name == "compact" and status == "ok":
+            detail = (f"loss within {figures['loss_relative_error']:.1e}, gradient norm within "
+                      f"{figures['grad_norm_relative_error']:.1e} of the CPU")
+        elif name == "predict" and status == "ok":
+            detail = f"device vs CPU {figures['mbs_device_vs_cpu_mean_px']:.2e} px"
+        elif status != "ok":
+            detail = phase.get("error", "").splitlines()[0]
+        lines.append(f"  {name:12} {status:8} {phase.get('seconds', 0):6.1f} s  {detail}")
+    return "\n".join(lines)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--out", type=Path, required=True, help="folder for results.json, logs/ and samples")
+    parser.add_argument("--device", default="cuda", help="cuda, cuda:N, vulkan or cpu (default cuda)")
+    parser.add_argument("--binary", type=Path, help="mbs-tool to run (default: ./mbs-tool, unpacked from "
+                        "mbs-tool.xz beside this script when needed)")
+    parser.add_argument("--small", action="store_true", help="small sizes (CI on the CPU)")
+    parser.add_argument("--phases", help="comma-separated subset of: " + ", ".join(n for n, _, _ in PHASES))
+    args = parser.parse_args()
+    if args.binary is None:
+        args.binary = HERE / "mbs-tool"
+        packed = HERE / "mbs-tool.xz"
+        if not args.binary.is_file() and packed.is_file():
+            import lzma
+
+            with lzma.open(packed) as source, open(args.binary, "wb") as target:
+                shutil.copyfileobj(source, target)
+            args.binary.chmod(0o755)
+    if not args.binary.is_file():
+        parser.error(f"--binary {args.binary}: no such file")
+    args.binary = args.binary.resolve()
+    wanted = set(args.phases.split(",")) if args.phases else None
+    check = Check(args)
+    if shutil.which("nvidia-smi"):
+        check.sampler = GpuSampler(check.out / "gpu_samples.csv")
+        check.sampler.start()
+    failed = False
+    for name, phase, keep_going in PHASES:
+        if wanted is not None and name not in wanted and name not in ("environment", "probe"):
+            continue
+        start = time.time()
+        print(f"[{time.strftime('%H:%M:%S')}] {name} ...", flush=True)
+        record = {}
+        try:
+            record = {"status": "ok", "figures": phase(check)}
+        except PhaseError as error:
+            record = {"status": "failed", "error": str(error)}
+            failed = True
+        except Exception as error:  # a bug of this script: recorded, the run goes on
+            record = {"status": "failed", "error": f"{type(error).__name__}: {error}"}
+            failed = True
+        record["seconds"] = round(time.time() - start, 1)
+        check.results["phases"][name] = record
+        check.save()
+        if record["status"] != "ok":
+            print(record["error"], flush=True)
+            if not keep_going:
+                break
+    if check.sampler:
+        check.sampler.stop.set()
+    print(table(check.results))
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
