@@ -19,6 +19,16 @@ pub struct SpecialFile {
     _listener: Option<UnixListener>,
 }
 
+impl SpecialFile {
+    /// Whether `message` refuses this file as the writers do: its path,
+    /// its kind and "not a regular file".
+    pub fn is_refused_in(&self, message: &str) -> bool {
+        message.contains(&self.path.display().to_string())
+            && message.contains(self.kind)
+            && message.contains("not a regular file")
+    }
+}
+
 /// A character device, a FIFO, a socket and a folder in `dir`, each named
 /// `NAME.EXTENSION` (e.g. `fifo.png`) so that writers that add or check an
 /// extension see their own. The device is a copy of `/dev/null` made with

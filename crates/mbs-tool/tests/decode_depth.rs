@@ -240,12 +240,7 @@ fn shard_auto_under_mpirun_and_srun_equals_the_unsharded_run() {
     let whole = tree(&dir.path().join("whole"));
     assert!(whole.len() >= 6 * 5, "{} files", whole.len());
 
-    let mut mpirun = std::process::Command::new("mpirun");
-    mpirun.args(["-np", "3", "--oversubscribe"]);
-    if is_root() {
-        mpirun.arg("--allow-run-as-root");
-    }
-    let output = mpirun
+    let output = common::mpirun(3, &dir.path().join("ompi"))
         .arg(env!("CARGO_BIN_EXE_mbs-tool"))
         .args(decode(&out("mpirun")))
         .args(["--shard", "auto"])
@@ -300,12 +295,4 @@ fn shard_auto_under_mpirun_and_srun_equals_the_unsharded_run() {
         text(&output)
     );
     assert!(!dir.path().join("alone").exists());
-}
-
-/// Whether the tests run as root (mpirun then needs `--allow-run-as-root`).
-fn is_root() -> bool {
-    std::process::Command::new("id")
-        .arg("-u")
-        .output()
-        .is_ok_and(|output| String::from_utf8_lossy(&output.stdout).trim() == "0")
 }

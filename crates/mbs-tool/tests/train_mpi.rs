@@ -46,24 +46,6 @@ fn settings(steps: usize) -> Vec<String> {
     args
 }
 
-fn is_root() -> bool {
-    Command::new("id")
-        .arg("-u")
-        .output()
-        .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).trim() == "0")
-}
-
-/// `mpirun -np N` (oversubscribed: this machine may have fewer cores) for
-/// the test binary.
-fn mpirun(ranks: usize) -> Command {
-    let mut command = Command::new("mpirun");
-    command.args(["-np", &ranks.to_string(), "--oversubscribe"]);
-    if is_root() {
-        command.arg("--allow-run-as-root");
-    }
-    command
-}
-
 fn train_args(manifest: &str, out: &Path, steps: usize) -> Vec<String> {
     let mut args = vec![
         "train".to_string(),
@@ -81,7 +63,7 @@ fn train(ranks: usize, manifest: &str, out: &Path, steps: usize) -> Output {
         1 => common::mbs_tool()
             .args(train_args(manifest, out, steps))
             .output(),
-        _ => mpirun(ranks)
+        _ => common::mpirun(ranks, &out.with_extension("ompi"))
             .arg(env!("CARGO_BIN_EXE_mbs-tool"))
             .args(train_args(manifest, out, steps))
             .output(),
@@ -290,7 +272,7 @@ fn a_killed_rank_ends_every_rank_sigusr1_stops_them_and_the_same_command_resumes
     let out = dir.path().join("killed");
     // Long enough that SIGUSR1 (below) lands before the end.
     let steps = 150;
-    let mut job = mpirun(2)
+    let mut job = common::mpirun(2, &out.with_extension("ompi"))
         .arg(env!("CARGO_BIN_EXE_mbs-tool"))
         .args(train_args(&manifest, &out, steps))
         .stdout(Stdio::piped())
@@ -345,7 +327,7 @@ fn a_killed_rank_ends_every_rank_sigusr1_stops_them_and_the_same_command_resumes
     // handlers are then installed (SIGUSR1 before that ends a process).
     let logged_before = losses(&out).last().map_or(0, |(step, _)| *step);
     let resumed_from = logged_before.max(newest as u64 + 1);
-    let mut job = mpirun(2)
+    let mut job = common::mpirun(2, &out.with_extension("ompi"))
         .arg(env!("CARGO_BIN_EXE_mbs-tool"))
         .args(train_args(&manifest, &out, steps))
         .stdout(Stdio::null())
@@ -397,7 +379,7 @@ fn a_killed_rank_ends_every_rank_sigusr1_stops_them_and_the_same_command_resumes
 /// command lines.
 fn mismatched(manifest: &str, out: &Path, rank_one_extra: &[&str]) -> Output {
     let binary = env!("CARGO_BIN_EXE_mbs-tool");
-    let mut command = mpirun(1);
+    let mut command = common::mpirun(1, &out.with_extension("ompi"));
     command
         .arg(binary)
         .args(train_args(manifest, out, 4))

@@ -13,6 +13,27 @@ pub fn mbs_tool() -> Command {
     Command::new(env!("CARGO_BIN_EXE_mbs-tool"))
 }
 
+/// `mpirun -np RANKS --oversubscribe` (this machine may have fewer cores;
+/// `--allow-run-as-root` as root) with a session folder of its own under
+/// `session`: Open MPI makes `$TMPDIR/ompi.HOST.UID` as it starts, and two
+/// `mpirun`s starting at once in one folder (the tests run in parallel)
+/// can race on it ("mkdir ... File exists", seen in CI). Keep `session`
+/// short: Open MPI's sockets live below it.
+pub fn mpirun(ranks: usize, session: &Path) -> Command {
+    std::fs::create_dir_all(session).expect("the MPI session folder is created");
+    let mut command = Command::new("mpirun");
+    command.env("TMPDIR", session);
+    command.args(["-np", &ranks.to_string(), "--oversubscribe"]);
+    let root = Command::new("id")
+        .arg("-u")
+        .output()
+        .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).trim() == "0");
+    if root {
+        command.arg("--allow-run-as-root");
+    }
+    command
+}
+
 /// Runs `mbs-tool` with `args` and returns its output.
 pub fn run(args: &[&str]) -> Output {
     mbs_tool().args(args).output().expect("mbs-tool starts")
