@@ -30,6 +30,9 @@ pub enum NocSource {
     Mask(PathBuf),
     /// A mask, non-zero = occluded (manifests' `occlusion`).
     Occlusion(PathBuf),
+    /// A mask of levels: 255 = non-occluded, 128 = occluded, 0 = no ground
+    /// truth (Middlebury 2014's and ETH3D's `mask0nocc.png`).
+    Levels(PathBuf),
 }
 
 /// A ground-truth disparity file with what it takes to read it.
@@ -65,6 +68,12 @@ impl GroundTruthFile {
             None => None,
             Some(NocSource::Map(p)) => Some(valid_mask(&read_disparity(p, png_scale)?)),
             Some(NocSource::Mask(p)) => Some(read_mask(p)?),
+            Some(NocSource::Levels(p)) => {
+                let mut mask = read_mask(p)?;
+                mask.iter_mut()
+                    .for_each(|v| *v = if *v == 255 { 255 } else { 0 });
+                Some(mask)
+            }
             Some(NocSource::Occlusion(p)) => {
                 let mut mask = read_mask(p)?;
                 mask.iter_mut()

@@ -10,6 +10,7 @@ pub mod mbs20k;
 pub mod pairs;
 pub mod probe;
 pub mod schema;
+pub mod two_view;
 pub mod validate;
 
 pub use error::DatasetError;

@@ -1,5 +1,5 @@
-//! Stereo pairs wherever they come from: one pair of files, a KITTI folder
-//! or one camera pair of a manifest's samples, each with its ground truth
+//! Stereo pairs wherever they come from: one pair of files, a KITTI folder,
+//! a Middlebury or ETH3D folder or one camera pair of a manifest's samples, each with its ground truth
 //! when the dataset has it. `predict`, `eval`, `extrapolate` and the
 //! trainer's validation all list their pairs here.
 
@@ -11,6 +11,7 @@ use crate::DatasetError;
 use crate::ground_truth::{GroundTruthFile, NocSource};
 use crate::kitti::{KittiFolder, KittiVersion, png_stems};
 use crate::manifest::{Manifest, Sample, Split, resolve};
+use crate::two_view::{TwoViewBenchmark, two_view_pairs};
 
 /// One rectified pair: the views, the side of the target and the
 /// reference view's ground truth, if any.
@@ -57,6 +58,15 @@ pub enum PairSource {
         /// Which of its frames are pairs.
         frames: KittiFrames,
     },
+    /// A folder of scenes in Middlebury's two-view layout: Middlebury
+    /// 2014 / MiddEval3 or ETH3D ([`crate::two_view`]).
+    TwoView {
+        /// The folder of scenes, e.g. `MiddEval3/trainingQ` or
+        /// `two_view_training`.
+        dir: PathBuf,
+        /// Which benchmark's layout.
+        benchmark: TwoViewBenchmark,
+    },
     /// One camera pair of every sample of a manifest.
     Manifest {
         /// The manifest file, which relative paths are resolved against.
@@ -87,6 +97,7 @@ impl PairSource {
             PairSource::Kitti { dir, frames } => {
                 kitti_view_pairs(&KittiFolder::open(dir)?, *frames)
             }
+            PairSource::TwoView { dir, benchmark } => two_view_pairs(dir, *benchmark),
             PairSource::Manifest {
                 path,
                 cameras,
@@ -108,6 +119,14 @@ impl PairSource {
             PairSource::Kitti { dir, .. } => {
                 (kitti_truth_pairs(dir)?, dir, "no ground truth".to_string())
             }
+            PairSource::TwoView { dir, benchmark } => (
+                two_view_pairs(dir, *benchmark)?,
+                dir,
+                format!(
+                    "no scene has {}'s ground truth (disp0GT.pfm)",
+                    benchmark.name()
+                ),
+            ),
             PairSource::Manifest {
                 path,
                 cameras: (r, t),

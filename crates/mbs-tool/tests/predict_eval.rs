@@ -278,3 +278,93 @@ fn manifest_right_view_through_mirroring() {
         "{wrong:#}"
     );
 }
+
+/// Teddy as a Middlebury 2014 scene (`root/Teddy/`) or an ETH3D one (the
+/// views in `root/teddy/`, the ground truth in `<root>_gt/teddy/`): im0/im1,
+/// disp0GT.pfm with `inf` where there is no ground truth, and a
+/// mask0nocc.png that says 128 (occluded) in the first 100 columns, 0 where
+/// there is no ground truth and 255 elsewhere.
+fn two_view_folder(root: &Path, scene: &str, truth: &Path) {
+    std::fs::create_dir_all(root.join(scene)).expect("temporary folder is writable");
+    std::fs::create_dir_all(truth).expect("temporary folder is writable");
+    std::fs::copy(teddy("im2.png"), root.join(scene).join("im0.png"))
+        .expect("test data is readable");
+    std::fs::copy(teddy("im6.png"), root.join(scene).join("im1.png"))
+        .expect("test data is readable");
+    let gt = read_disparity(&teddy("disp2.png"), Some(4.0)).expect("test data is readable");
+    pfm::write_pfm_grey(&truth.join("disp0GT.pfm"), &gt, pfm::Endian::Little)
+        .expect("temporary folder is writable");
+    let mask = mbs_core::MaskImage::from_fn(gt.width(), gt.height(), |x, y| {
+        let level = match (gt.get_pixel(x, y).0[0].is_finite(), x < 100) {
+            (false, _) => 0,
+            (true, true) => 128,
+            (true, false) => 255,
+        };
+        image::Luma([level])
+    });
+    mbs_core::formats::rgb::write_mask_png(&truth.join("mask0nocc.png"), &mask)
+        .expect("temporary folder is writable");
+}
+
+/// `predict` and `eval` on Middlebury's and ETH3D's own layouts: the scenes
+/// are the pairs, named after their folders, and scored by region with
+/// the masks' 255 as non-occluded, as the same pair in a KITTI folder is
+/// (there to 1/256 px).
+#[test]
+fn middlebury_and_eth3d_folders_predict_and_eval_by_region() {
+    let dir = tempfile::tempdir().unwrap();
+    let middlebury = dir.path().join("MiddEval3/trainingQ");
+    two_view_folder(&middlebury, "Teddy", &middlebury.join("Teddy"));
+    let eth3d = dir.path().join("two_view_training");
+    two_view_folder(
+        &eth3d,
+        "teddy",
+        &dir.path().join("two_view_training_gt/teddy"),
+    );
+    for (flag, root, scene) in [
+        ("--middlebury", &middlebury, "Teddy"),
+        ("--eth3d", &eth3d, "teddy"),
+    ] {
+        let out = dir.path().join(format!("pred{flag}"));
+        let output = run(&[
+            "predict",
+            flag,
+            root.to_str().unwrap(),
+            "--max-disparity",
+            "64",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(output.status.success(), "{}", text(&output));
+        assert!(
+            out.join(format!("{scene}.pfm")).is_file(),
+            "{}",
+            text(&output)
+        );
+        let report = json_of(&run(&[
+            "eval",
+            out.to_str().unwrap(),
+            flag,
+            root.to_str().unwrap(),
+            "--json",
+        ]));
+        let pooled = &report["pooled"];
+        assert!(
+            close(&pooled["ALL"]["epe"], 0.897, 0.004),
+            "{flag}: {report:#}"
+        );
+        let pixels = |r: &str| pooled[r]["pixels"].as_u64().unwrap_or(0);
+        assert!(pixels("NOC") > 0 && pixels("OCC") > 0, "{flag}: {report:#}");
+        assert_eq!(pixels("NOC") + pixels("OCC"), pixels("ALL"));
+        assert!(pooled["OCC"]["out2"].as_f64() > pooled["NOC"]["out2"].as_f64());
+    }
+    let empty = dir.path().join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let output = run(&["eval", "--middlebury", empty.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(1), "{}", text(&output));
+    assert!(
+        text(&output).contains("no Middlebury scene"),
+        "{}",
+        text(&output)
+    );
+}

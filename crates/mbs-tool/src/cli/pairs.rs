@@ -1,5 +1,5 @@
-//! Which stereo pairs a command works on: one pair of files, a KITTI
-//! folder or one camera pair of a manifest (`REFERENCE:TARGET`, e.g. `0:4`),
+//! Which stereo pairs a command works on: one pair of files, a KITTI,
+//! Middlebury or ETH3D folder or one camera pair of a manifest (`REFERENCE:TARGET`, e.g. `0:4`),
 //! as flags shared by `predict` and `eval` and turned into a
 //! [`PairSource`].
 
@@ -7,13 +7,14 @@ use std::path::PathBuf;
 
 use mbs_dataset::Split;
 use mbs_dataset::pairs::{KittiFrames, PairSource};
+use mbs_dataset::two_view::TwoViewBenchmark;
 use serde_json::Value;
 
 /// The flags that choose the pairs.
 #[derive(clap::Args)]
 pub struct PairArgs {
     /// Left (reference) view of a single pair.
-    #[arg(long, requires = "right", conflicts_with_all = ["kitti", "manifest"])]
+    #[arg(long, requires = "right", conflicts_with_all = ["kitti", "middlebury", "eth3d", "manifest"])]
     pub left: Option<PathBuf>,
     /// Right (target) view of a single pair.
     #[arg(long, requires = "left")]
@@ -21,8 +22,17 @@ pub struct PairArgs {
     /// A KITTI 2015 (image_2, image_3, disp_occ_0, disp_noc_0) or 2012
     /// (colored_0, colored_1, disp_occ, disp_noc) training or testing
     /// folder; its *_10.png frames are the pairs.
-    #[arg(long, conflicts_with = "manifest")]
+    #[arg(long, conflicts_with_all = ["middlebury", "eth3d", "manifest"])]
     pub kitti: Option<PathBuf>,
+    /// A Middlebury 2014 / MiddEval3 folder of scenes (e.g.
+    /// MiddEval3/trainingQ: <Scene>/im0.png, im1.png, disp0GT.pfm,
+    /// mask0nocc.png); each scene is a pair.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["eth3d", "manifest"])]
+    pub middlebury: Option<PathBuf>,
+    /// An ETH3D two-view folder of scenes (two_view_training, its ground
+    /// truth read from the sibling two_view_training_gt); each scene is a pair.
+    #[arg(long, value_name = "DIR", conflicts_with = "manifest")]
+    pub eth3d: Option<PathBuf>,
     /// A dataset manifest: every sample's --pair.
     #[arg(long)]
     pub manifest: Option<PathBuf>,
@@ -52,6 +62,11 @@ impl PairArgs {
                     dir: dir.clone(),
                     frames: KittiFrames::Benchmark,
                 })
+            } else if let Some((dir, benchmark)) = self.two_view() {
+                Some(PairSource::TwoView {
+                    dir: dir.clone(),
+                    benchmark,
+                })
             } else {
                 self.manifest.as_ref().map(|path| PairSource::Manifest {
                     path: path.clone(),
@@ -60,6 +75,17 @@ impl PairArgs {
                 })
             },
         )
+    }
+}
+
+impl PairArgs {
+    /// The Middlebury or ETH3D folder the flags name, with its benchmark.
+    fn two_view(&self) -> Option<(&PathBuf, TwoViewBenchmark)> {
+        let middlebury = self
+            .middlebury
+            .as_ref()
+            .map(|d| (d, TwoViewBenchmark::Middlebury));
+        middlebury.or_else(|| self.eth3d.as_ref().map(|d| (d, TwoViewBenchmark::Eth3d)))
     }
 }
 

@@ -1,0 +1,200 @@
+//! The two-view benchmarks that share Middlebury's file layout, read from
+//! their folders exactly as the downloads unpack:
+//!
+//! - Middlebury 2014 / MiddEval3: `trainingF|H|Q/<Scene>/im0.png, im1.png`
+//!   with `disp0GT.pfm` and `mask0nocc.png` beside them (the test folders
+//!   have no ground truth);
+//! - ETH3D two-view: `two_view_training/<scene>/im0.png, im1.png`, the
+//!   ground truth in the sibling `two_view_training_gt/<scene>/` (same two
+//!   files).
+//!
+//! Both encode ground truth alike: `inf` in the PFM is an invalid pixel,
+//! and in `mask0nocc.png` 255 is a non-occluded pixel, 128 an occluded one
+//! and 0 one without ground truth.
+
+use std::path::{Path, PathBuf};
+
+use mbs_core::Side;
+
+use crate::DatasetError;
+use crate::ground_truth::{GroundTruthFile, NocSource};
+use crate::pairs::StereoPair;
+
+/// The views of a scene.
+const VIEWS: [&str; 2] = ["im0.png", "im1.png"];
+/// The ground-truth disparity of the left view.
+const DISPARITY: &str = "disp0GT.pfm";
+/// The left view's occlusion mask.
+const MASK: &str = "mask0nocc.png";
+
+/// A benchmark with Middlebury's two-view layout.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TwoViewBenchmark {
+    /// Middlebury 2014 / MiddEval3 (`trainingQ`, `trainingH`, `trainingF`
+    /// or a test folder).
+    Middlebury,
+    /// ETH3D two-view (`two_view_training` or `two_view_test`).
+    Eth3d,
+}
+
+impl TwoViewBenchmark {
+    /// The benchmark's name, as flags and messages spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            TwoViewBenchmark::Middlebury => "Middlebury",
+            TwoViewBenchmark::Eth3d => "ETH3D",
+        }
+    }
+
+    /// Where the ground truth of `scene` under `root` lies: the scene's own
+    /// folder (Middlebury) or the sibling `<root>_gt` folder (ETH3D).
+    fn truth_dir(self, root: &Path, scene: &str) -> PathBuf {
+        match self {
+            TwoViewBenchmark::Middlebury => root.join(scene),
+            TwoViewBenchmark::Eth3d => {
+                let mut name = root.file_name().unwrap_or_default().to_os_string();
+                name.push("_gt");
+                root.with_file_name(name).join(scene)
+            }
+        }
+    }
+}
+
+/// Every scene of `root` (a folder of scene folders, each with `im0.png`
+/// and `im1.png`) as a right-side pair named after its folder, in name
+/// order, with its ground truth where the benchmark has it. A folder with
+/// no scene is a layout error naming what was expected.
+pub fn two_view_pairs(
+    root: &Path,
+    benchmark: TwoViewBenchmark,
+) -> Result<Vec<StereoPair>, DatasetError> {
+    let entries = std::fs::read_dir(root).map_err(|e| DatasetError::Layout {
+        path: root.to_path_buf(),
+        message: format!(
+            "cannot be read ({e}); expected a {} folder of scenes",
+            benchmark.name()
+        ),
+    })?;
+    let mut scenes: Vec<String> = entries
+        .filter_map(Result::ok)
+        .filter(|entry| VIEWS.iter().all(|view| entry.path().join(view).is_file()))
+        .filter_map(|entry| entry.file_name().to_str().map(str::to_string))
+        .collect();
+    scenes.sort();
+    if scenes.is_empty() {
+        return Err(DatasetError::Layout {
+            path: root.to_path_buf(),
+            message: format!(
+                "no {} scene: expected folders holding {} and {}",
+                benchmark.name(),
+                VIEWS[0],
+                VIEWS[1]
+            ),
+        });
+    }
+    Ok(scenes
+        .into_iter()
+        .map(|scene| {
+            let truth = benchmark.truth_dir(root, &scene);
+            let disparity = truth.join(DISPARITY);
+            let mask = truth.join(MASK);
+            StereoPair {
+                cameras: (0, 1),
+                reference: root.join(&scene).join(VIEWS[0]),
+                target: root.join(&scene).join(VIEWS[1]),
+                side: Side::Right,
+                truth: disparity.is_file().then(|| GroundTruthFile {
+                    disparity,
+                    scale: 1.0,
+                    noc: mask.is_file().then_some(NocSource::Levels(mask)),
+                }),
+                id: scene,
+            }
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mbs_core::formats::pfm::{Endian, write_pfm_grey};
+    use mbs_core::formats::rgb::write_mask_png;
+    use mbs_core::{FloatImage, MaskImage};
+    use mbs_test_support::files::touch;
+
+    /// A scene folder with its views, and ground truth in `truth` when given.
+    fn scene(dir: &Path, truth: Option<&Path>) {
+        for view in VIEWS {
+            touch(&dir.join(view));
+        }
+        if let Some(truth) = truth {
+            std::fs::create_dir_all(truth).unwrap();
+            let map = FloatImage::from_raw(3, 1, vec![2.5, f32::INFINITY, 4.0]).unwrap();
+            write_pfm_grey(&truth.join(DISPARITY), &map, Endian::Little).unwrap();
+            let mask = MaskImage::from_raw(3, 1, vec![255, 0, 128]).unwrap();
+            write_mask_png(&truth.join(MASK), &mask).unwrap();
+        }
+    }
+
+    #[test]
+    fn middlebury_scenes_are_pairs_with_their_ground_truth_beside_them() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path().join("MiddEval3/trainingQ");
+        scene(&root.join("Motorcycle"), Some(&root.join("Motorcycle")));
+        scene(&root.join("Adirondack"), Some(&root.join("Adirondack")));
+        std::fs::create_dir_all(root.join("not-a-scene")).unwrap();
+        let pairs = two_view_pairs(&root, TwoViewBenchmark::Middlebury).unwrap();
+        let ids: Vec<&str> = pairs.iter().map(|p| p.id.as_str()).collect();
+        assert_eq!(ids, ["Adirondack", "Motorcycle"]);
+        let pair = &pairs[0];
+        assert_eq!(pair.reference, root.join("Adirondack/im0.png"));
+        assert_eq!(pair.target, root.join("Adirondack/im1.png"));
+        assert_eq!(pair.side, Side::Right);
+        let truth = pair.truth.as_ref().unwrap().load(None).unwrap();
+        assert_eq!(truth.disparity.as_raw(), &[2.5, f32::INFINITY, 4.0]);
+        // 255 is visible, 128 occluded: only the first pixel is non-occluded.
+        assert_eq!(truth.noc.unwrap().as_raw(), &[255, 0, 0]);
+    }
+
+    #[test]
+    fn eth3d_ground_truth_comes_from_the_sibling_gt_folder() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path().join("two_view_training");
+        let gt = dir.path().join("two_view_training_gt");
+        scene(
+            &root.join("delivery_area_1l"),
+            Some(&gt.join("delivery_area_1l")),
+        );
+        scene(&root.join("forest_1s"), None);
+        let pairs = two_view_pairs(&root, TwoViewBenchmark::Eth3d).unwrap();
+        assert_eq!(pairs.len(), 2);
+        let truth = pairs[0].truth.as_ref().unwrap();
+        assert_eq!(truth.disparity, gt.join("delivery_area_1l").join(DISPARITY));
+        assert_eq!(
+            truth.noc,
+            Some(NocSource::Levels(gt.join("delivery_area_1l").join(MASK)))
+        );
+        assert_eq!(pairs[1].id, "forest_1s");
+        assert!(pairs[1].truth.is_none());
+    }
+
+    #[test]
+    fn a_folder_without_scenes_names_what_was_expected() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = two_view_pairs(dir.path(), TwoViewBenchmark::Middlebury)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("no Middlebury scene") && err.contains("im0.png"),
+            "{err}"
+        );
+        let missing = dir.path().join("nowhere");
+        let err = two_view_pairs(&missing, TwoViewBenchmark::Eth3d)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("nowhere") && err.contains("expected a ETH3D folder"),
+            "{err}"
+        );
+    }
+}
