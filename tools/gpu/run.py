@@ -225,13 +225,12 @@ def train(check, name, device, backbone, steps, crop, extra=(), timeout=300):
     argv = ["train", manifest, "--out", run, "--device", device, "--backbone", backbone, "--steps", steps,
             "--batch-size", 2, "--crop", crop, "--seed", 5, "--val-every", 100000, "--restart",
             "--set", "log_every=1", "--set", "visual_samples=0", "--set", "checkpoint_every=100000"]
+    if small:
+        argv += ["--max-disparity", 32]
     if small and backbone != "compact":
         key = "raft_stereo" if backbone == "raft-stereo" else "igev"
         argv += ["--set", f"network.{key}.hidden_dim=32", "--set", f"network.{key}.gru_levels=2",
-                 "--set", f"network.{key}.train_iters=2", "--set", f"network.{key}.test_iters=2",
-                 "--max-disparity", 32]
-    if small and backbone == "compact":
-        argv += ["--max-disparity", 32]
+                 "--set", f"network.{key}.train_iters=2", "--set", f"network.{key}.test_iters=2"]
     start = time.time()
     check.mbs(name, *argv, *extra, timeout=timeout)
     return run, train_log(run), start
