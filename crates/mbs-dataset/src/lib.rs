@@ -1,7 +1,10 @@
-//! Dataset layouts (MBS20K, KITTI), the manifest model with its JSON Schema,
+//! Dataset layouts (MBS20K, and the benchmarks: KITTI, Middlebury, ETH3D,
+//! DrivingStereo, SceneFlow), the manifest model with its JSON Schema,
 //! stereo pairs from any of them with their ground truth, and the on-disk checks behind `mbs-tool validate`.
 
+pub mod benchmark;
 pub mod checksum;
+pub mod driving_stereo;
 pub mod error;
 pub mod ground_truth;
 pub mod kitti;
@@ -9,7 +12,9 @@ pub mod manifest;
 pub mod mbs20k;
 pub mod pairs;
 pub mod probe;
+pub mod scene_flow;
 pub mod schema;
+pub mod submission;
 pub mod two_view;
 pub mod validate;
 

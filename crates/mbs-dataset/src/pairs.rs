@@ -1,6 +1,7 @@
-//! Stereo pairs wherever they come from: one pair of files, a KITTI folder,
-//! a Middlebury or ETH3D folder or one camera pair of a manifest's samples, each with its ground truth
-//! when the dataset has it. `predict`, `eval`, `extrapolate` and the
+//! Stereo pairs wherever they come from: one pair of files, a benchmark's
+//! folder (KITTI, Middlebury, ETH3D, DrivingStereo, SceneFlow) or one
+//! camera pair of a manifest's samples, each with its ground truth when
+//! the dataset has it. `predict`, `eval`, `extrapolate` and the
 //! trainer's validation all list their pairs here.
 
 use std::path::{Path, PathBuf};
@@ -8,10 +9,13 @@ use std::path::{Path, PathBuf};
 use mbs_core::Side;
 
 use crate::DatasetError;
+use crate::benchmark::Benchmark;
+use crate::driving_stereo::driving_stereo_pairs;
 use crate::ground_truth::{GroundTruthFile, NocSource};
 use crate::kitti::{KittiFolder, KittiVersion, png_stems};
 use crate::manifest::{Manifest, Sample, Split, resolve};
-use crate::two_view::{TwoViewBenchmark, two_view_pairs};
+use crate::scene_flow::scene_flow_pairs;
+use crate::two_view::two_view_pairs;
 
 /// One rectified pair: the views, the side of the target and the
 /// reference view's ground truth, if any.
@@ -58,14 +62,15 @@ pub enum PairSource {
         /// Which of its frames are pairs.
         frames: KittiFrames,
     },
-    /// A folder of scenes in Middlebury's two-view layout: Middlebury
-    /// 2014 / MiddEval3 or ETH3D ([`crate::two_view`]).
-    TwoView {
-        /// The folder of scenes, e.g. `MiddEval3/trainingQ` or
-        /// `two_view_training`.
-        dir: PathBuf,
+    /// A benchmark's folder in its own layout, its frames with ground
+    /// truth those the benchmark scores (KITTI: the `*_10` frames).
+    Benchmark {
         /// Which benchmark's layout.
-        benchmark: TwoViewBenchmark,
+        benchmark: Benchmark,
+        /// The folder, e.g. `kitti2015/training`, `MiddEval3/trainingH`,
+        /// `two_view_training`, a DrivingStereo weather folder or a
+        /// SceneFlow folder.
+        dir: PathBuf,
     },
     /// One camera pair of every sample of a manifest.
     Manifest {
@@ -97,7 +102,14 @@ impl PairSource {
             PairSource::Kitti { dir, frames } => {
                 kitti_view_pairs(&KittiFolder::open(dir)?, *frames)
             }
-            PairSource::TwoView { dir, benchmark } => two_view_pairs(dir, *benchmark),
+            PairSource::Benchmark { benchmark, dir } => match benchmark {
+                Benchmark::Kitti => {
+                    kitti_view_pairs(&KittiFolder::open(dir)?, KittiFrames::Benchmark)
+                }
+                Benchmark::Middlebury | Benchmark::Eth3d => two_view_pairs(dir, *benchmark),
+                Benchmark::DrivingStereo => driving_stereo_pairs(dir),
+                Benchmark::SceneFlow => scene_flow_pairs(dir),
+            },
             PairSource::Manifest {
                 path,
                 cameras,
@@ -116,16 +128,15 @@ impl PairSource {
     pub fn scored_pairs(&self) -> Result<Vec<StereoPair>, DatasetError> {
         let (pairs, path, none) = match self {
             PairSource::Single { left, .. } => (Vec::new(), left, "no ground truth".to_string()),
-            PairSource::Kitti { dir, .. } => {
-                (kitti_truth_pairs(dir)?, dir, "no ground truth".to_string())
-            }
-            PairSource::TwoView { dir, benchmark } => (
-                two_view_pairs(dir, *benchmark)?,
+            PairSource::Kitti { dir, .. }
+            | PairSource::Benchmark {
+                benchmark: Benchmark::Kitti,
                 dir,
-                format!(
-                    "no scene has {}'s ground truth (disp0GT.pfm)",
-                    benchmark.name()
-                ),
+            } => (kitti_truth_pairs(dir)?, dir, "no ground truth".to_string()),
+            PairSource::Benchmark { benchmark, dir } => (
+                self.pairs()?,
+                dir,
+                format!("no frame has {benchmark}'s ground truth"),
             ),
             PairSource::Manifest {
                 path,

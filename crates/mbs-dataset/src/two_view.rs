@@ -17,6 +17,7 @@ use std::path::{Path, PathBuf};
 use mbs_core::Side;
 
 use crate::DatasetError;
+use crate::benchmark::Benchmark;
 use crate::ground_truth::{GroundTruthFile, NocSource};
 use crate::pairs::StereoPair;
 
@@ -27,47 +28,25 @@ const DISPARITY: &str = "disp0GT.pfm";
 /// The left view's occlusion mask.
 const MASK: &str = "mask0nocc.png";
 
-/// A benchmark with Middlebury's two-view layout.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum TwoViewBenchmark {
-    /// Middlebury 2014 / MiddEval3 (`trainingQ`, `trainingH`, `trainingF`
-    /// or a test folder).
-    Middlebury,
-    /// ETH3D two-view (`two_view_training` or `two_view_test`).
-    Eth3d,
-}
-
-impl TwoViewBenchmark {
-    /// The benchmark's name, as flags and messages spell it.
-    pub fn name(self) -> &'static str {
-        match self {
-            TwoViewBenchmark::Middlebury => "Middlebury",
-            TwoViewBenchmark::Eth3d => "ETH3D",
+/// Where the ground truth of `scene` under `root` lies: the scene's own
+/// folder (Middlebury) or the sibling `<root>_gt` folder (ETH3D).
+fn truth_dir(benchmark: Benchmark, root: &Path, scene: &str) -> PathBuf {
+    match benchmark {
+        Benchmark::Eth3d => {
+            let mut name = root.file_name().unwrap_or_default().to_os_string();
+            name.push("_gt");
+            root.with_file_name(name).join(scene)
         }
-    }
-
-    /// Where the ground truth of `scene` under `root` lies: the scene's own
-    /// folder (Middlebury) or the sibling `<root>_gt` folder (ETH3D).
-    fn truth_dir(self, root: &Path, scene: &str) -> PathBuf {
-        match self {
-            TwoViewBenchmark::Middlebury => root.join(scene),
-            TwoViewBenchmark::Eth3d => {
-                let mut name = root.file_name().unwrap_or_default().to_os_string();
-                name.push("_gt");
-                root.with_file_name(name).join(scene)
-            }
-        }
+        _ => root.join(scene),
     }
 }
 
 /// Every scene of `root` (a folder of scene folders, each with `im0.png`
 /// and `im1.png`) as a right-side pair named after its folder, in name
-/// order, with its ground truth where the benchmark has it. A folder with
+/// order, with its ground truth where the benchmark has it (`benchmark`:
+/// Middlebury or ETH3D). A folder with
 /// no scene is a layout error naming what was expected.
-pub fn two_view_pairs(
-    root: &Path,
-    benchmark: TwoViewBenchmark,
-) -> Result<Vec<StereoPair>, DatasetError> {
+pub fn two_view_pairs(root: &Path, benchmark: Benchmark) -> Result<Vec<StereoPair>, DatasetError> {
     let entries = std::fs::read_dir(root).map_err(|e| DatasetError::Layout {
         path: root.to_path_buf(),
         message: format!(
@@ -95,7 +74,7 @@ pub fn two_view_pairs(
     Ok(scenes
         .into_iter()
         .map(|scene| {
-            let truth = benchmark.truth_dir(root, &scene);
+            let truth = truth_dir(benchmark, root, &scene);
             let disparity = truth.join(DISPARITY);
             let mask = truth.join(MASK);
             StereoPair {
@@ -143,7 +122,7 @@ mod tests {
         scene(&root.join("Motorcycle"), Some(&root.join("Motorcycle")));
         scene(&root.join("Adirondack"), Some(&root.join("Adirondack")));
         std::fs::create_dir_all(root.join("not-a-scene")).unwrap();
-        let pairs = two_view_pairs(&root, TwoViewBenchmark::Middlebury).unwrap();
+        let pairs = two_view_pairs(&root, Benchmark::Middlebury).unwrap();
         let ids: Vec<&str> = pairs.iter().map(|p| p.id.as_str()).collect();
         assert_eq!(ids, ["Adirondack", "Motorcycle"]);
         let pair = &pairs[0];
@@ -166,7 +145,7 @@ mod tests {
             Some(&gt.join("delivery_area_1l")),
         );
         scene(&root.join("forest_1s"), None);
-        let pairs = two_view_pairs(&root, TwoViewBenchmark::Eth3d).unwrap();
+        let pairs = two_view_pairs(&root, Benchmark::Eth3d).unwrap();
         assert_eq!(pairs.len(), 2);
         let truth = pairs[0].truth.as_ref().unwrap();
         assert_eq!(truth.disparity, gt.join("delivery_area_1l").join(DISPARITY));
@@ -181,7 +160,7 @@ mod tests {
     #[test]
     fn a_folder_without_scenes_names_what_was_expected() {
         let dir = tempfile::tempdir().unwrap();
-        let err = two_view_pairs(dir.path(), TwoViewBenchmark::Middlebury)
+        let err = two_view_pairs(dir.path(), Benchmark::Middlebury)
             .unwrap_err()
             .to_string();
         assert!(
@@ -189,7 +168,7 @@ mod tests {
             "{err}"
         );
         let missing = dir.path().join("nowhere");
-        let err = two_view_pairs(&missing, TwoViewBenchmark::Eth3d)
+        let err = two_view_pairs(&missing, Benchmark::Eth3d)
             .unwrap_err()
             .to_string();
         assert!(

@@ -33,6 +33,10 @@ enum Command {
     DecodeDepth(commands::decode_depth::Args),
     /// Score predicted disparities against ground truth (EPE, Out-x, D1).
     Eval(commands::eval::Args),
+    /// Score one disparity source on several benchmarks at once (the paper's zero-shot table).
+    Benchmark(commands::benchmark::Args),
+    /// Predict a benchmark's test folder into the files its server accepts (KITTI, Middlebury, ETH3D).
+    Submit(commands::submit::Args),
     /// Compute disparity for rectified pairs (built-in matcher or an ONNX network).
     Predict(commands::predict::Args),
     /// Synthesise two extra views of stereo pairs (one baseline further left and right).
@@ -73,6 +77,8 @@ fn main() -> std::process::ExitCode {
         Command::Synth(args) => commands::synth::run(args),
         Command::DecodeDepth(args) => commands::decode_depth::run(args),
         Command::Eval(args) => commands::eval::run(args),
+        Command::Benchmark(args) => commands::benchmark::run(args),
+        Command::Submit(args) => commands::submit::run(args),
         Command::Predict(args) => commands::predict::run(args),
         Command::Extrapolate(args) => commands::extrapolate::run(args),
         Command::Scan(args) => commands::scan::run(args),

@@ -1,6 +1,7 @@
-//! End-to-end tests of `mbs-tool predict` and `mbs-tool eval` on the real
-//! Middlebury Teddy pair (`testdata/`), as a single pair and laid out
-//! as a KITTI 2015 training folder.
+//! End-to-end tests of `mbs-tool predict`, `eval` and `benchmark` on the
+//! real Middlebury Teddy pair (`testdata/`), as a single pair and laid out
+//! as each benchmark's folder (KITTI 2015, Middlebury 2014, ETH3D,
+//! DrivingStereo, SceneFlow).
 
 mod common;
 
@@ -367,4 +368,337 @@ fn middlebury_and_eth3d_folders_predict_and_eval_by_region() {
         "{}",
         text(&output)
     );
+}
+
+/// The frame name of Teddy laid out as a DrivingStereo frame.
+const DRIVING_STEREO_FRAME: &str = "2018-08-17-09-45-58_2018-08-17-10-23-24-800";
+
+/// Teddy as a DrivingStereo weather folder at half size (16-bit disparity
+/// PNG, value / 256, 0 where there is no ground truth), with a second
+/// frame whose right view is missing.
+fn driving_stereo_folder(root: &Path) {
+    for folder in ["left-image-half-size", "right-image-half-size"] {
+        std::fs::create_dir_all(root.join(folder)).expect("temporary folder is writable");
+    }
+    let frame = format!("{DRIVING_STEREO_FRAME}.png");
+    std::fs::copy(
+        teddy("im2.png"),
+        root.join("left-image-half-size").join(&frame),
+    )
+    .expect("test data is readable");
+    std::fs::copy(
+        teddy("im6.png"),
+        root.join("right-image-half-size").join(&frame),
+    )
+    .expect("test data is readable");
+    std::fs::copy(
+        teddy("im2.png"),
+        root.join("left-image-half-size/broken.png"),
+    )
+    .expect("test data is readable");
+    let gt = read_disparity(&teddy("disp2.png"), Some(4.0)).expect("test data is readable");
+    for name in [frame.as_str(), "broken.png"] {
+        png16::write_kitti_disparity(&root.join("disparity-map-half-size").join(name), &gt)
+            .expect("temporary folder is writable");
+    }
+}
+
+/// Teddy as SceneFlow's FlyingThings3D test frame `TEST/A/0000/0006`
+/// (cleanpass views, PFM disparity).
+fn scene_flow_folder(root: &Path) {
+    let frame = root.join("frames_cleanpass/TEST/A/0000");
+    for (side, file) in [("left", "im2.png"), ("right", "im6.png")] {
+        std::fs::create_dir_all(frame.join(side)).expect("temporary folder is writable");
+        std::fs::copy(teddy(file), frame.join(side).join("0006.png"))
+            .expect("test data is readable");
+    }
+    let truth = root.join("disparity/TEST/A/0000/left");
+    std::fs::create_dir_all(&truth).expect("temporary folder is writable");
+    let gt = read_disparity(&teddy("disp2.png"), Some(4.0)).expect("test data is readable");
+    pfm::write_pfm_grey(&truth.join("0006.pfm"), &gt, pfm::Endian::Little)
+        .expect("temporary folder is writable");
+}
+
+/// Teddy's pooled (pixels, EPE, Out-`threshold` in percent) for the
+/// prediction `file`, computed here from the ground truth's own encoding
+/// (disp2.png: value / 4, 0 unknown): every pixel with ground truth
+/// counts, a missing prediction is an outlier left out of the EPE.
+fn teddy_scores(file: &Path, threshold: f32) -> (u64, f64, f64) {
+    let gt = image::open(teddy("disp2.png"))
+        .expect("test data is readable")
+        .into_luma8();
+    let prediction = read_disparity(file, None).expect("the prediction is readable");
+    let (mut pixels, mut predicted, mut outliers, mut error_sum) = (0u64, 0u64, 0u64, 0f64);
+    for (x, y, value) in gt.enumerate_pixels() {
+        if value.0[0] == 0 {
+            continue;
+        }
+        pixels += 1;
+        let d = prediction.get_pixel(x, y).0[0];
+        if !d.is_finite() {
+            outliers += 1;
+            continue;
+        }
+        let error = (d - f32::from(value.0[0]) / 4.0).abs();
+        predicted += 1;
+        error_sum += f64::from(error);
+        outliers += u64::from(error > threshold);
+    }
+    (
+        pixels,
+        error_sum / predicted as f64,
+        100.0 * outliers as f64 / pixels as f64,
+    )
+}
+
+/// DrivingStereo's and SceneFlow's layouts in `predict` and `eval`, and
+/// `benchmark` scoring Middlebury, DrivingStereo and SceneFlow folders at
+/// once with each one's metric: the numbers equal a computation made here
+/// from Teddy's ground truth to 1e-6 and the pixel counts exactly; OCC only
+/// where the benchmark has occlusion masks; a frame that fails is counted
+/// and the rest scored; a folder off its layout stops the command.
+#[test]
+fn benchmark_layouts_score_as_computed_independently() {
+    let dir = tempfile::tempdir().unwrap();
+    let driving = dir.path().join("DrivingStereo/rainy");
+    driving_stereo_folder(&driving);
+    let scene_flow = dir.path().join("flyingthings3d");
+    scene_flow_folder(&scene_flow);
+    let middlebury = dir.path().join("MiddEval3/trainingQ");
+    two_view_folder(&middlebury, "Teddy", &middlebury.join("Teddy"));
+
+    let pred = dir.path().join("pred");
+    let output = run(&[
+        "predict",
+        "--sceneflow",
+        scene_flow.to_str().unwrap(),
+        "--max-disparity",
+        "64",
+        "--out",
+        pred.to_str().unwrap(),
+    ]);
+    assert!(output.status.success(), "{}", text(&output));
+    let predicted = pred.join("TEST_A_0000_0006.pfm");
+    let (pixels, epe, out3) = teddy_scores(&predicted, 3.0);
+    // The same prediction as a DrivingStereo frame's, scored there.
+    std::fs::copy(&predicted, pred.join(format!("{DRIVING_STEREO_FRAME}.pfm"))).unwrap();
+    std::fs::remove_file(driving.join("disparity-map-half-size/broken.png")).unwrap();
+    for flag in ["--sceneflow", "--drivingstereo"] {
+        let root = if flag == "--sceneflow" {
+            &scene_flow
+        } else {
+            &driving
+        };
+        let report = json_of(&run(&[
+            "eval",
+            pred.to_str().unwrap(),
+            flag,
+            root.to_str().unwrap(),
+            "--thresholds",
+            "3",
+            "--json",
+        ]));
+        let all = &report["pooled"]["ALL"];
+        assert_eq!(all["pixels"].as_u64(), Some(pixels), "{flag}: {report:#}");
+        assert!(close(&all["epe"], epe, 1e-6), "{flag}: {report:#}");
+        assert!(close(&all["out3"], out3, 1e-6), "{flag}: {report:#}");
+        assert!(report["pooled"].get("NOC").is_none(), "{flag}: {report:#}");
+    }
+
+    let driving_gt = read_disparity(&teddy("disp2.png"), Some(4.0)).unwrap();
+    png16::write_kitti_disparity(
+        &driving.join("disparity-map-half-size/broken.png"),
+        &driving_gt,
+    )
+    .unwrap();
+    let per_image = dir.path().join("scores.json");
+    let output = run(&[
+        "benchmark",
+        "--middlebury",
+        middlebury.to_str().unwrap(),
+        "--drivingstereo",
+        driving.to_str().unwrap(),
+        "--sceneflow",
+        scene_flow.to_str().unwrap(),
+        "--max-disparity",
+        "64",
+        "--per-image",
+        per_image.to_str().unwrap(),
+        "--json",
+    ]);
+    // The DrivingStereo frame without a right view fails; the rest is scored.
+    assert_eq!(output.status.code(), Some(1), "{}", text(&output));
+    assert!(
+        text(&output).contains("1 images failed") && text(&output).contains("broken"),
+        "{}",
+        text(&output)
+    );
+    let table: Value =
+        serde_json::from_slice(&output.stdout).expect("benchmark --json prints JSON");
+    let columns = table["benchmarks"]
+        .as_array()
+        .expect("a list of benchmarks");
+    let column = |label: &str| {
+        columns
+            .iter()
+            .find(|c| c["benchmark"] == label)
+            .unwrap_or_else(|| panic!("no column {label}: {table:#}"))
+    };
+    let (_, _, out1) = teddy_scores(&predicted, 1.0);
+    let scores = column("Middlebury trainingQ");
+    assert_eq!(scores["metric"], "out2", "{table:#}");
+    assert!(scores["occ"].as_f64() > scores["noc"].as_f64(), "{table:#}");
+    let scores = column("DrivingStereo rainy");
+    assert_eq!(
+        (scores["images"].as_u64(), scores["failed"].as_u64()),
+        (Some(1), Some(1))
+    );
+    assert!(close(&scores["all"], out3, 1e-6), "{table:#}");
+    assert!(scores["occ"].is_null(), "{table:#}");
+    let scores = column("SceneFlow flyingthings3d");
+    assert_eq!(scores["metric"], "out1", "{table:#}");
+    assert!(close(&scores["all"], out1, 1e-6), "{table:#}");
+    assert!(close(&scores["epe"], epe, 1e-6), "{table:#}");
+    let scores: Value =
+        serde_json::from_str(&std::fs::read_to_string(&per_image).expect("--per-image is written"))
+            .expect("--per-image is JSON");
+    assert_eq!(
+        scores["SceneFlow flyingthings3d"]["images"][0]["name"],
+        "TEST_A_0000_0006"
+    );
+
+    // The text table and the paper's row.
+    let output = run(&[
+        "benchmark",
+        "--sceneflow",
+        scene_flow.to_str().unwrap(),
+        "--max-disparity",
+        "64",
+    ]);
+    assert!(output.status.success(), "{}", text(&output));
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        stdout.contains("SceneFlow flyingthings3d")
+            && stdout.contains(&format!("| - | {out1:.2} |")),
+        "{stdout}"
+    );
+
+    // A folder off its layout stops the command before anything is scored.
+    let output = run(&[
+        "benchmark",
+        "--sceneflow",
+        middlebury.to_str().unwrap(),
+        "--drivingstereo",
+        dir.path().join("DrivingStereo/rainy").to_str().unwrap(),
+    ]);
+    assert_eq!(output.status.code(), Some(1), "{}", text(&output));
+    assert!(
+        text(&output).contains("not a SceneFlow folder") && text(&output).contains("trainingQ"),
+        "{}",
+        text(&output)
+    );
+    assert!(output.stdout.is_empty(), "{}", text(&output));
+}
+
+/// `submit` writes each server's layout with the prediction `predict`
+/// makes of the same pair and a positive time, zips it for upload, resumes
+/// without redoing a pair, and refuses a Middlebury name the server's
+/// scripts could not read back.
+#[test]
+fn submission_folders_hold_each_servers_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let middlebury = dir.path().join("MiddEval3/testH");
+    two_view_folder(&middlebury, "Teddy", &middlebury.join("Teddy"));
+    let eth3d = dir.path().join("two_view_test");
+    two_view_folder(&eth3d, "teddy", &dir.path().join("two_view_test_gt/teddy"));
+    let kitti = dir.path().join("testing");
+    kitti_folder(&kitti);
+    let pred = dir.path().join("pred");
+    let output = run(&[
+        "predict",
+        "--middlebury",
+        middlebury.to_str().unwrap(),
+        "--max-disparity",
+        "64",
+        "--out",
+        pred.to_str().unwrap(),
+    ]);
+    assert!(output.status.success(), "{}", text(&output));
+    let predicted = read_disparity(&pred.join("Teddy.pfm"), None).unwrap();
+
+    let submit = |flag: &str, root: &Path, out: &Path, extra: &[&str]| {
+        let mut argv = vec![
+            "submit",
+            flag,
+            root.to_str().unwrap(),
+            "--max-disparity",
+            "64",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        argv.extend_from_slice(extra);
+        run(&argv)
+    };
+    let out = dir.path().join("sub-mb");
+    let output = submit("--middlebury", &middlebury, &out, &["--name", "MBS"]);
+    assert!(output.status.success(), "{}", text(&output));
+    let scene = out.join("testH/Teddy");
+    let written = pfm::read_pfm_grey(&scene.join("disp0MBS.pfm")).unwrap();
+    assert_eq!(written.as_raw(), predicted.as_raw());
+    let seconds: f64 = std::fs::read_to_string(scene.join("timeMBS.txt"))
+        .unwrap()
+        .trim()
+        .parse()
+        .expect("the time file holds seconds");
+    assert!(seconds > 0.0, "{seconds}");
+    assert!(
+        String::from_utf8_lossy(&output.stdout).contains("middlebury_submission.zip"),
+        "{}",
+        text(&output)
+    );
+    let archive = std::fs::read(out.join("middlebury_submission.zip")).unwrap();
+    assert!(
+        archive
+            .windows(24)
+            .any(|w| w == b"testH/Teddy/disp0MBS.pfm"),
+        "the archive names the scene's files"
+    );
+    // A second run finds the pair done.
+    let again = submit("--middlebury", &middlebury, &out, &["--name", "MBS"]);
+    assert!(
+        again.status.success() && text(&again).contains("0 done, 1 skipped"),
+        "{}",
+        text(&again)
+    );
+
+    let out = dir.path().join("sub-eth3d");
+    let output = submit("--eth3d", &eth3d, &out, &[]);
+    assert!(output.status.success(), "{}", text(&output));
+    let runtime = std::fs::read_to_string(out.join("low_res_two_view/teddy.txt")).unwrap();
+    assert!(runtime.starts_with("runtime "), "{runtime}");
+    let written = pfm::read_pfm_grey(&out.join("low_res_two_view/teddy.pfm")).unwrap();
+    assert_eq!(written.as_raw(), predicted.as_raw());
+    assert!(out.join("eth3d_submission.zip").is_file());
+
+    let out = dir.path().join("sub-kitti");
+    let output = submit("--kitti", &kitti, &out, &[]);
+    assert!(output.status.success(), "{}", text(&output));
+    let codes = png16::read_gray16(&out.join("disp_0/000000_10.png")).unwrap();
+    let expected = png16::encode_scaled(&predicted, 256.0);
+    assert_eq!(codes.as_raw(), expected.as_raw());
+    assert!(out.join("kitti_submission.zip").is_file());
+
+    let output = submit(
+        "--middlebury",
+        &middlebury,
+        &dir.path().join("sub-bad"),
+        &["--name", "my method"],
+    );
+    assert_eq!(output.status.code(), Some(1), "{}", text(&output));
+    assert!(
+        text(&output).contains("letters and digits"),
+        "{}",
+        text(&output)
+    );
+    assert!(!dir.path().join("sub-bad").exists());
 }

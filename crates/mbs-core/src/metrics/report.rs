@@ -22,6 +22,11 @@ impl MetricsReport {
         Self { pooled, images }
     }
 
+    /// The number of images.
+    pub fn images(&self) -> usize {
+        self.images.len()
+    }
+
     /// Per-image mean of `region` (images without the region are left out).
     pub fn mean(&self, region: Region) -> Option<Metrics> {
         let mut mean = MeanMetrics::new();
@@ -155,6 +160,7 @@ mod tests {
         )
         .unwrap();
         let report = MetricsReport::new(vec![("a".into(), a), ("b".into(), b)]);
+        assert_eq!(report.images(), 2);
         let mean = report.mean(Region::All).unwrap();
         assert_eq!(mean.epe, Some(2.0));
         assert_eq!(mean.out(3.0), Some(50.0));

@@ -85,20 +85,52 @@ where
     R: Send,
     W: Fn(&T) -> anyhow::Result<R> + Sync,
 {
+    map_items(items, label, name, work, true)
+}
+
+/// Runs `work` on every item as [`map`] does, one item at a time, so that
+/// each has the machine to itself (work that is timed), counting the items
+/// whose outputs were already there as skipped.
+pub fn run_in_order<T, W>(
+    items: &[T],
+    label: &str,
+    name: impl Fn(&T) -> String + Sync,
+    work: W,
+) -> Summary
+where
+    T: Sync,
+    W: Fn(&T) -> anyhow::Result<Outcome> + Sync,
+{
+    count_skipped(map_items(items, label, name, work, false))
+}
+
+fn map_items<T, R, W>(
+    items: &[T],
+    label: &str,
+    name: impl Fn(&T) -> String + Sync,
+    work: W,
+    parallel: bool,
+) -> (Vec<Option<R>>, Summary)
+where
+    T: Sync,
+    R: Send,
+    W: Fn(&T) -> anyhow::Result<R> + Sync,
+{
     let start = Instant::now();
     let bar = progress_bar(items.len(), label);
-    let results: Vec<Option<R>> = items
-        .par_iter()
-        .map(|item| {
-            let result = work(item);
-            bar.inc(1);
-            result
-                .map_err(|e| {
-                    bar.suspend(|| eprintln!("error: {}", describe_item(&name(item), &e)));
-                })
-                .ok()
-        })
-        .collect();
+    let one = |item: &T| {
+        let result = work(item);
+        bar.inc(1);
+        result
+            .map_err(|e| {
+                bar.suspend(|| eprintln!("error: {}", describe_item(&name(item), &e)));
+            })
+            .ok()
+    };
+    let results: Vec<Option<R>> = match parallel {
+        true => items.par_iter().map(one).collect(),
+        false => items.iter().map(one).collect(),
+    };
     bar.finish_and_clear();
     let failed = results.iter().filter(|r| r.is_none()).count();
     let summary = Summary {
@@ -110,6 +142,17 @@ where
     (results, summary)
 }
 
+/// The summary of a batch with the items whose outcome was
+/// [`Outcome::Skipped`] moved from done to skipped.
+fn count_skipped((outcomes, mut summary): (Vec<Option<Outcome>>, Summary)) -> Summary {
+    summary.skipped = outcomes
+        .iter()
+        .filter(|o| **o == Some(Outcome::Skipped))
+        .count();
+    summary.done -= summary.skipped;
+    summary
+}
+
 /// Runs `work` on every item in parallel, as [`map`] does, counting the
 /// items whose outputs were already there as skipped.
 pub fn run<T, W>(items: &[T], label: &str, name: impl Fn(&T) -> String + Sync, work: W) -> Summary
@@ -117,13 +160,7 @@ where
     T: Sync,
     W: Fn(&T) -> anyhow::Result<Outcome> + Sync,
 {
-    let (outcomes, mut summary) = map(items, label, name, work);
-    summary.skipped = outcomes
-        .iter()
-        .filter(|o| **o == Some(Outcome::Skipped))
-        .count();
-    summary.done -= summary.skipped;
-    summary
+    count_skipped(map(items, label, name, work))
 }
 
 #[cfg(test)]

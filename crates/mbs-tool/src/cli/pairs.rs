@@ -1,20 +1,20 @@
-//! Which stereo pairs a command works on: one pair of files, a KITTI,
-//! Middlebury or ETH3D folder or one camera pair of a manifest (`REFERENCE:TARGET`, e.g. `0:4`),
-//! as flags shared by `predict` and `eval` and turned into a
-//! [`PairSource`].
+//! Which stereo pairs a command works on: one pair of files, a benchmark's
+//! folder (KITTI, Middlebury, ETH3D, DrivingStereo, SceneFlow) or one
+//! camera pair of a manifest (`REFERENCE:TARGET`, e.g. `0:4`), as flags
+//! shared by `predict` and `eval` and turned into a [`PairSource`].
 
 use std::path::PathBuf;
 
 use mbs_dataset::Split;
+use mbs_dataset::benchmark::Benchmark;
 use mbs_dataset::pairs::{KittiFrames, PairSource};
-use mbs_dataset::two_view::TwoViewBenchmark;
 use serde_json::Value;
 
 /// The flags that choose the pairs.
 #[derive(clap::Args)]
 pub struct PairArgs {
     /// Left (reference) view of a single pair.
-    #[arg(long, requires = "right", conflicts_with_all = ["kitti", "middlebury", "eth3d", "manifest"])]
+    #[arg(long, requires = "right", conflicts_with_all = ["kitti", "middlebury", "eth3d", "drivingstereo", "sceneflow", "manifest"])]
     pub left: Option<PathBuf>,
     /// Right (target) view of a single pair.
     #[arg(long, requires = "left")]
@@ -22,17 +22,28 @@ pub struct PairArgs {
     /// A KITTI 2015 (image_2, image_3, disp_occ_0, disp_noc_0) or 2012
     /// (colored_0, colored_1, disp_occ, disp_noc) training or testing
     /// folder; its *_10.png frames are the pairs.
-    #[arg(long, conflicts_with_all = ["middlebury", "eth3d", "manifest"])]
+    #[arg(long, conflicts_with_all = ["middlebury", "eth3d", "drivingstereo", "sceneflow", "manifest"])]
     pub kitti: Option<PathBuf>,
     /// A Middlebury 2014 / MiddEval3 folder of scenes (e.g.
     /// MiddEval3/trainingQ: <Scene>/im0.png, im1.png, disp0GT.pfm,
     /// mask0nocc.png); each scene is a pair.
-    #[arg(long, value_name = "DIR", conflicts_with_all = ["eth3d", "manifest"])]
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["eth3d", "drivingstereo", "sceneflow", "manifest"])]
     pub middlebury: Option<PathBuf>,
     /// An ETH3D two-view folder of scenes (two_view_training, its ground
     /// truth read from the sibling two_view_training_gt); each scene is a pair.
-    #[arg(long, value_name = "DIR", conflicts_with = "manifest")]
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["drivingstereo", "sceneflow", "manifest"])]
     pub eth3d: Option<PathBuf>,
+    /// A DrivingStereo weather folder (e.g. sunny: left-image-full-size,
+    /// right-image-full-size, disparity-map-full-size, or the -half-size
+    /// ones); each frame is a pair. No occlusion mask: only ALL is scored.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["sceneflow", "manifest"])]
+    pub drivingstereo: Option<PathBuf>,
+    /// A SceneFlow folder (FlyingThings3D, Driving or Monkaa) holding
+    /// frames_finalpass or frames_cleanpass with disparity/ beside it, or a
+    /// folder inside a pass (e.g. frames_finalpass/TEST); each left/right
+    /// frame is a pair.
+    #[arg(long, value_name = "DIR", conflicts_with = "manifest")]
+    pub sceneflow: Option<PathBuf>,
     /// A dataset manifest: every sample's --pair.
     #[arg(long)]
     pub manifest: Option<PathBuf>,
@@ -62,10 +73,10 @@ impl PairArgs {
                     dir: dir.clone(),
                     frames: KittiFrames::Benchmark,
                 })
-            } else if let Some((dir, benchmark)) = self.two_view() {
-                Some(PairSource::TwoView {
-                    dir: dir.clone(),
+            } else if let Some((benchmark, dir)) = self.benchmark_folder() {
+                Some(PairSource::Benchmark {
                     benchmark,
+                    dir: dir.clone(),
                 })
             } else {
                 self.manifest.as_ref().map(|path| PairSource::Manifest {
@@ -79,13 +90,17 @@ impl PairArgs {
 }
 
 impl PairArgs {
-    /// The Middlebury or ETH3D folder the flags name, with its benchmark.
-    fn two_view(&self) -> Option<(&PathBuf, TwoViewBenchmark)> {
-        let middlebury = self
-            .middlebury
-            .as_ref()
-            .map(|d| (d, TwoViewBenchmark::Middlebury));
-        middlebury.or_else(|| self.eth3d.as_ref().map(|d| (d, TwoViewBenchmark::Eth3d)))
+    /// The benchmark folder other than KITTI's the flags name, with its
+    /// benchmark.
+    fn benchmark_folder(&self) -> Option<(Benchmark, &PathBuf)> {
+        [
+            (Benchmark::Middlebury, &self.middlebury),
+            (Benchmark::Eth3d, &self.eth3d),
+            (Benchmark::DrivingStereo, &self.drivingstereo),
+            (Benchmark::SceneFlow, &self.sceneflow),
+        ]
+        .into_iter()
+        .find_map(|(benchmark, dir)| Some((benchmark, dir.as_ref()?)))
     }
 }
 

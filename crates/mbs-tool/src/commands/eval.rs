@@ -26,6 +26,8 @@ use crate::cli::source::StereoSourceArgs;
   mbs-tool eval --checkpoint mbs-demo/run --manifest mbs-demo/train-data/manifest.json --split test
   mbs-tool eval --backbone raft-stereo --weights raftstereo-eth3d.pth --kitti /data/kitti2015/training
   mbs-tool eval --kitti /data/kitti2015/training --max-disparity 192   # the built-in matcher
+  mbs-tool eval pred --middlebury /data/MiddEval3/trainingH
+  mbs-tool eval pred --drivingstereo /data/DrivingStereo/rainy
   mbs-tool eval --left im2.png --right im6.png --gt disp2.png --gt-scale 4 --max-disparity 64
 
 Predictions are looked up as <PREDICTIONS>/<name>.pfm, .png (KITTI 16-bit)
@@ -37,7 +39,10 @@ weights), or an ONNX model with --model and --card.
 A missing prediction value (+inf/NaN, 0 in PNGs) counts as an outlier for
 Out-x and D1 and is left out of EPE; the density column says how many
 pixels had one. ALL = valid GT; NOC = valid non-occluded GT (KITTI
-disp_noc, a --noc mask, or the manifest's occlusion mask); OCC = ALL - NOC.")]
+disp_noc, Middlebury's and ETH3D's mask0nocc.png, a --noc mask, or the
+manifest's occlusion mask); OCC = ALL - NOC. DrivingStereo and SceneFlow
+have no occlusion masks: only ALL. `mbs-tool benchmark` scores several
+benchmarks at once with each one's customary metric.")]
 pub struct Args {
     /// A folder of predicted disparities, or one file with --gt [default:
     /// predict every pair with the disparity source].
@@ -112,7 +117,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         (None, Some(source)) => items(source.scored_pairs()?, predictions),
         (None, None) => {
-            bail!("no ground truth: give --kitti DIR, --manifest FILE or --gt FILE")
+            bail!(
+                "no ground truth: give a benchmark folder (--kitti, --middlebury, --eth3d, \
+                 --drivingstereo, --sceneflow DIR), --manifest FILE or --gt FILE"
+            )
         }
     };
     let matcher = match items
@@ -125,20 +133,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         false => None,
     };
-    let (results, summary) = batch::map(
-        &items,
-        "images",
-        |item| item.name.clone(),
-        |item| {
-            let prediction = predict(item, matcher.as_deref())?;
-            score(item, &prediction, args.gt_scale, &args.thresholds)
-        },
-    );
-    let scored: Vec<(String, RegionSums)> = items
-        .iter()
-        .zip(results)
-        .filter_map(|(item, sums)| Some((item.name.clone(), sums?)))
-        .collect();
+    let (scored, summary) = score_all(&items, matcher.as_deref(), args.gt_scale, &args.thresholds);
     if scored.is_empty() {
         bail!("no image could be scored (see above)");
     }
@@ -149,6 +144,33 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         print!("{}", report.table(&args.thresholds));
     }
     summary.finish("eval", "images")
+}
+
+/// Scores every item with a progress bar: its prediction (read, or
+/// computed by `matcher`) against its ground truth at `thresholds`. An
+/// item that fails is reported on stderr and counted in the summary; the
+/// others are scored.
+pub fn score_all(
+    items: &[Item],
+    matcher: Option<&dyn StereoMatcher>,
+    gt_scale: Option<f32>,
+    thresholds: &[f32],
+) -> (Vec<(String, RegionSums)>, batch::Summary) {
+    let (results, summary) = batch::map(
+        items,
+        "images",
+        |item| item.name.clone(),
+        |item| {
+            let prediction = predict(item, matcher)?;
+            score(item, &prediction, gt_scale, thresholds)
+        },
+    );
+    let scored = items
+        .iter()
+        .zip(results)
+        .filter_map(|(item, sums)| Some((item.name.clone(), sums?)))
+        .collect();
+    (scored, summary)
 }
 
 /// The one item `--gt` scores: the prediction file, or else the one pair
@@ -184,7 +206,7 @@ fn single_item(
 
 /// The pairs with ground truth, with their prediction files in the
 /// `predictions` folder (none: predicted by the disparity source).
-fn items(pairs: Vec<StereoPair>, predictions: Option<&Path>) -> Vec<Item> {
+pub fn items(pairs: Vec<StereoPair>, predictions: Option<&Path>) -> Vec<Item> {
     pairs
         .into_iter()
         .filter_map(|mut pair| {
