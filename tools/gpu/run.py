@@ -21,7 +21,11 @@ the run with a diagnosis:
 5. precision: the RAFT-Stereo step in bf16 and f16, mbs and PyTorch;
 6. predict: RAFT-Stereo weights in the official layout (`mbs-tool export`
    of phase 4's run) predicted by mbs on the device, by mbs on the CPU and
-   by the official model on the device.
+   by the official model on the device;
+7. autotune: phase 4's steps again with the binary built with burn's
+   autotune (`mbs-tool-autotune.xz`, or --autotune-binary), its time over
+   the default build's: the figure that decides whether mbs's CUDA build
+   turns autotune on (README, "Kernels").
 
 Everything goes to --out as it happens: results.json (rewritten after each
 phase), logs/ (each command's output), gpu_samples.csv (nvidia-smi every
@@ -63,7 +67,8 @@ class Check:
         self.logs = self.out / "logs"
         self.logs.mkdir(parents=True, exist_ok=True)
         self.env = dict(os.environ)
-        self.results = {"device": args.device, "small": args.small, "binary": str(args.binary), "phases": {}}
+        self.results = {"device": args.device, "small": args.small, "binary": str(args.binary),
+                        "autotune_binary": args.autotune_binary and str(args.autotune_binary), "phases": {}}
         self.sampler = None
 
     def save(self):
@@ -90,8 +95,8 @@ class Check:
             raise PhaseError(f"{name}: exit {done.returncode} (logs/{name}.log):\n{tail}")
         return done.stdout
 
-    def mbs(self, name, *argv, timeout):
-        return self.command(name, [self.args.binary, *argv], timeout)
+    def mbs(self, name, *argv, timeout, binary=None):
+        return self.command(name, [binary or self.args.binary, *argv], timeout)
 
     def peak_gpu_mib(self, since):
         """The most GPU memory nvidia-smi saw in use since `since` (MiB)."""
@@ -216,9 +221,9 @@ def synth(check, name, width, height, frames):
     return folder / "manifest.json"
 
 
-def train(check, name, device, backbone, steps, crop, extra=(), timeout=300):
-    """`mbs-tool train` for `steps` steps with a log line per step; its
-    folder and log."""
+def train(check, name, device, backbone, steps, crop, extra=(), timeout=300, binary=None):
+    """`mbs-tool train` (the default binary unless `binary`) for `steps`
+    steps with a log line per step; its folder and log."""
     run = check.out / "runs" / name
     small = check.args.small
     manifest = synth(check, "small" if small else "paper", 160 if small else 512, 96 if small else 384, 4)
@@ -232,7 +237,7 @@ def train(check, name, device, backbone, steps, crop, extra=(), timeout=300):
         argv += ["--set", f"network.{key}.hidden_dim=32", "--set", f"network.{key}.gru_levels=2",
                  "--set", f"network.{key}.train_iters=2", "--set", f"network.{key}.test_iters=2"]
     start = time.time()
-    check.mbs(name, *argv, *extra, timeout=timeout)
+    check.mbs(name, *argv, *extra, timeout=timeout, binary=binary)
     return run, train_log(run), start
 
 
@@ -373,6 +378,25 @@ def predict(check):
     return figures
 
 
+def autotune(check):
+    """RAFT-Stereo's and IGEV-Stereo's steps with the autotune build, over
+    the default build's from their phases."""
+    binary = check.args.autotune_binary
+    if binary is None:
+        return {"not_run": "no autotune binary (prepare.sh --no-autotune, or no --autotune-binary)"}
+    crop = "48x96" if check.args.small else "384x512"
+    figures = {}
+    for network in ("raft-stereo", "igev"):
+        _, log, start = train(check, f"{network}-autotune", check.args.device, network, steps(check), crop,
+                              timeout=420, binary=binary)
+        tuned = {**step_figures(log, 2), "peak_gpu_mib": check.peak_gpu_mib(start)}
+        default = check.results["phases"].get(network, {}).get("figures", {}).get("mbs", {})
+        figures[network] = {"autotune": tuned, "default": default}
+        if tuned.get("ms_per_step") and default.get("ms_per_step"):
+            figures[network]["autotune_over_default"] = round(tuned["ms_per_step"] / default["ms_per_step"], 2)
+    return figures
+
+
 PHASES = [
     ("environment", environment, True),
     ("probe", probe, False),
@@ -381,6 +405,7 @@ PHASES = [
     ("igev", network_step("igev"), True),
     ("precision", precision, True),
     ("predict", predict, True),
+    ("autotune", autotune, True),
 ]
 
 
@@ -397,6 +422,11 @@ def table(results):
         elif name == "compact" and status == "ok":
             detail = (f"loss within {figures['loss_relative_error']:.1e}, gradient norm within "
                       f"{figures['grad_norm_relative_error']:.1e} of the CPU")
+        elif name == "autotune" and status == "ok":
+            detail = figures.get("not_run") or ", ".join(
+                f"{n} {f['autotune'].get('ms_per_step')} ms/step"
+                + (f" ({f['autotune_over_default']}x default)" if "autotune_over_default" in f else "")
+                for n, f in figures.items())
         elif name == "predict" and status == "ok":
             detail = f"device vs CPU {figures['mbs_device_vs_cpu_mean_px']:.2e} px"
         elif status != "ok":
@@ -405,27 +435,39 @@ def table(results):
     return "\n".join(lines)
 
 
+def unpacked(name):
+    """The binary `name` beside this script, unpacked from `name.xz` when
+    only that is there; None when neither is."""
+    binary, packed = HERE / name, HERE / f"{name}.xz"
+    if not binary.is_file() and packed.is_file():
+        import lzma
+
+        with lzma.open(packed) as source, open(binary, "wb") as target:
+            shutil.copyfileobj(source, target)
+        binary.chmod(0o755)
+    return binary if binary.is_file() else None
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, required=True, help="folder for results.json, logs/ and samples")
     parser.add_argument("--device", default="cuda", help="cuda, cuda:N, vulkan or cpu (default cuda)")
     parser.add_argument("--binary", type=Path, help="mbs-tool to run (default: ./mbs-tool, unpacked from "
                         "mbs-tool.xz beside this script when needed)")
+    parser.add_argument("--autotune-binary", type=Path, help="mbs-tool built with burn's autotune (default: "
+                        "./mbs-tool-autotune, unpacked from mbs-tool-autotune.xz when there; none: the phase is "
+                        "not run)")
     parser.add_argument("--small", action="store_true", help="small sizes (CI on the CPU)")
     parser.add_argument("--phases", help="comma-separated subset of: " + ", ".join(n for n, _, _ in PHASES))
     args = parser.parse_args()
-    if args.binary is None:
-        args.binary = HERE / "mbs-tool"
-        packed = HERE / "mbs-tool.xz"
-        if not args.binary.is_file() and packed.is_file():
-            import lzma
-
-            with lzma.open(packed) as source, open(args.binary, "wb") as target:
-                shutil.copyfileobj(source, target)
-            args.binary.chmod(0o755)
-    if not args.binary.is_file():
-        parser.error(f"--binary {args.binary}: no such file")
+    args.binary = args.binary or unpacked("mbs-tool")
+    if args.binary is None or not args.binary.is_file():
+        parser.error(f"--binary {args.binary or HERE / 'mbs-tool'}: no such file")
+    args.autotune_binary = args.autotune_binary or unpacked("mbs-tool-autotune")
+    if args.autotune_binary is not None and not args.autotune_binary.is_file():
+        parser.error(f"--autotune-binary {args.autotune_binary}: no such file")
     args.binary = args.binary.resolve()
+    args.autotune_binary = args.autotune_binary and args.autotune_binary.resolve()
     wanted = set(args.phases.split(",")) if args.phases else None
     check = Check(args)
     if shutil.which("nvidia-smi"):
