@@ -307,6 +307,21 @@ fn two_view_folder(root: &Path, scene: &str, truth: &Path) {
         .expect("temporary folder is writable");
 }
 
+/// `predict` of a benchmark folder (`flag`: `--middlebury`, `--sceneflow`,
+/// ...) with the built-in matcher over 64 disparities into `out`.
+fn predict_folder(flag: &str, root: &Path, out: &Path) {
+    let output = run(&[
+        "predict",
+        flag,
+        root.to_str().expect("temporary paths are UTF-8"),
+        "--max-disparity",
+        "64",
+        "--out",
+        out.to_str().expect("temporary paths are UTF-8"),
+    ]);
+    assert!(output.status.success(), "{}", text(&output));
+}
+
 /// `predict` and `eval` on Middlebury's and ETH3D's own layouts: the scenes
 /// are the pairs, named after their folders, and scored by region with
 /// the masks' 255 as non-occluded, as the same pair in a KITTI folder is
@@ -327,21 +342,8 @@ fn middlebury_and_eth3d_folders_predict_and_eval_by_region() {
         ("--eth3d", &eth3d, "teddy"),
     ] {
         let out = dir.path().join(format!("pred{flag}"));
-        let output = run(&[
-            "predict",
-            flag,
-            root.to_str().unwrap(),
-            "--max-disparity",
-            "64",
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        assert!(output.status.success(), "{}", text(&output));
-        assert!(
-            out.join(format!("{scene}.pfm")).is_file(),
-            "{}",
-            text(&output)
-        );
+        predict_folder(flag, root, &out);
+        assert!(out.join(format!("{scene}.pfm")).is_file());
         let report = json_of(&run(&[
             "eval",
             out.to_str().unwrap(),
@@ -468,16 +470,7 @@ fn benchmark_layouts_score_as_computed_independently() {
     two_view_folder(&middlebury, "Teddy", &middlebury.join("Teddy"));
 
     let pred = dir.path().join("pred");
-    let output = run(&[
-        "predict",
-        "--sceneflow",
-        scene_flow.to_str().unwrap(),
-        "--max-disparity",
-        "64",
-        "--out",
-        pred.to_str().unwrap(),
-    ]);
-    assert!(output.status.success(), "{}", text(&output));
+    predict_folder("--sceneflow", &scene_flow, &pred);
     let predicted = pred.join("TEST_A_0000_0006.pfm");
     let (pixels, epe, out3) = teddy_scores(&predicted, 3.0);
     // The same prediction as a DrivingStereo frame's, scored there.
@@ -614,16 +607,7 @@ fn submission_folders_hold_each_servers_files() {
     let kitti = dir.path().join("testing");
     kitti_folder(&kitti);
     let pred = dir.path().join("pred");
-    let output = run(&[
-        "predict",
-        "--middlebury",
-        middlebury.to_str().unwrap(),
-        "--max-disparity",
-        "64",
-        "--out",
-        pred.to_str().unwrap(),
-    ]);
-    assert!(output.status.success(), "{}", text(&output));
+    predict_folder("--middlebury", &middlebury, &pred);
     let predicted = read_disparity(&pred.join("Teddy.pfm"), None).unwrap();
 
     let submit = |flag: &str, root: &Path, out: &Path, extra: &[&str]| {
