@@ -591,6 +591,14 @@ fn benchmark_layouts_score_as_computed_independently() {
         text(&output)
     );
     assert!(output.stdout.is_empty(), "{}", text(&output));
+    // predict without pairs names every way to give them.
+    let output = run(&["predict", "--out", pred.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(1), "{}", text(&output));
+    assert!(
+        text(&output).contains("--drivingstereo, --sceneflow DIR"),
+        "{}",
+        text(&output)
+    );
 }
 
 /// `submit` writes each server's layout with the prediction `predict`

@@ -26,6 +26,7 @@ use crate::cli::source::StereoSourceArgs;
   mbs-tool predict --kitti DIR --model igev.onnx --card igev --device cuda --out pred
   mbs-tool predict --manifest data/manifest.json --pair 0:1 --checkpoint runs/demo --out pred
   mbs-tool predict --kitti DIR --backbone raft-stereo --weights raftstereo-sceneflow.pth --out pred
+  mbs-tool predict --sceneflow /data/flyingthings3d/frames_finalpass/TEST --out pred
 
 Outputs: <out>/<name>.pfm (+inf = invalid) or <out>/<name>.png (KITTI 16-bit,
 value/256, 0 = invalid), where <name> is the left view's file stem (pairs and
@@ -67,7 +68,10 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
     let Some(source) = args.pairs.source()? else {
-        bail!("nothing to match: give --left and --right, --kitti DIR or --manifest FILE");
+        bail!(
+            "nothing to match: give --left and --right, a benchmark folder (--kitti, \
+             --middlebury, --eth3d, --drivingstereo, --sceneflow DIR) or --manifest FILE"
+        );
     };
     let pairs = source.pairs()?;
     let pairs = match args.shard {
