@@ -50,16 +50,6 @@ impl Benchmark {
             Benchmark::Eth3d | Benchmark::SceneFlow => 1.0,
         }
     }
-
-    /// Whether the benchmark's ground truth tells occluded pixels apart
-    /// (KITTI's `disp_noc`, the `mask0nocc.png` of Middlebury and ETH3D):
-    /// OCC and NOC are scored only there.
-    pub fn has_occlusion(self) -> bool {
-        matches!(
-            self,
-            Benchmark::Kitti | Benchmark::Middlebury | Benchmark::Eth3d
-        )
-    }
 }
 
 impl fmt::Display for Benchmark {
@@ -88,7 +78,5 @@ mod tests {
                 ("SceneFlow", 1.0)
             ]
         );
-        assert!(!Benchmark::DrivingStereo.has_occlusion());
-        assert!(Benchmark::Eth3d.has_occlusion());
     }
 }

@@ -129,6 +129,22 @@ impl KittiVersion {
             .any(|v| name == v.gt_dirs().0 || name == v.gt_dirs().1)
     }
 
+    /// The version whose all-pixels ground-truth folder (`disp_occ_0` or
+    /// `disp_occ`) is in `dir`, if either is.
+    pub fn of_ground_truth(dir: &Path) -> Option<KittiVersion> {
+        [KittiVersion::Kitti2015, KittiVersion::Kitti2012]
+            .into_iter()
+            .find(|v| dir.join(v.gt_dirs().0).is_dir())
+    }
+
+    /// The benchmark's name with its year (`KITTI 2015`).
+    pub fn name(self) -> &'static str {
+        match self {
+            KittiVersion::Kitti2015 => "KITTI 2015",
+            KittiVersion::Kitti2012 => "KITTI 2012",
+        }
+    }
+
     /// The all-pixels and non-occluded ground-truth folder names.
     pub fn gt_dirs(self) -> (&'static str, &'static str) {
         match self {

@@ -292,13 +292,10 @@ fn kitti_view_pairs(
 /// by name. The views' paths are where KITTI keeps them; they are not
 /// checked.
 fn kitti_truth_pairs(dir: &Path) -> Result<Vec<StereoPair>, DatasetError> {
-    let version = [KittiVersion::Kitti2015, KittiVersion::Kitti2012]
-        .into_iter()
-        .find(|v| dir.join(v.gt_dirs().0).is_dir())
-        .ok_or_else(|| DatasetError::Layout {
-            path: dir.to_path_buf(),
-            message: "no KITTI ground truth (expected disp_occ_0 or disp_occ)".into(),
-        })?;
+    let version = KittiVersion::of_ground_truth(dir).ok_or_else(|| DatasetError::Layout {
+        path: dir.to_path_buf(),
+        message: "no KITTI ground truth (expected disp_occ_0 or disp_occ)".into(),
+    })?;
     let occ = dir.join(version.gt_dirs().0);
     let names = png_stems(&occ)?;
     if names.is_empty() {

@@ -11,6 +11,7 @@ use clap::Parser;
 use mbs_core::atomic::write_bytes_atomic;
 use mbs_core::metrics::{MetricsReport, Region};
 use mbs_dataset::benchmark::Benchmark;
+use mbs_dataset::kitti::KittiVersion;
 use mbs_dataset::pairs::PairSource;
 use mbs_infer::SgmConfig;
 use serde_json::{Value, json};
@@ -79,8 +80,6 @@ struct Column {
     label: String,
     /// The metric's threshold.
     threshold: f32,
-    /// Whether OCC is defined there.
-    occlusion: bool,
     /// The images scored, pooled.
     report: Option<MetricsReport>,
     /// Images that failed.
@@ -132,7 +131,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         columns.push(Column {
             label,
             threshold,
-            occlusion: benchmark.has_occlusion(),
             report: (!scored.is_empty()).then(|| MetricsReport::new(scored)),
             failed: summary.failed,
         });
@@ -169,18 +167,15 @@ fn label(benchmark: Benchmark, dir: &Path) -> String {
         || dir.display().to_string(),
         |n| n.to_string_lossy().into_owned(),
     );
-    match benchmark {
-        Benchmark::Kitti if dir.join("disp_occ_0").is_dir() => format!("KITTI 2015 {name}"),
-        Benchmark::Kitti => format!("KITTI 2012 {name}"),
-        _ => format!("{benchmark} {name}"),
+    match KittiVersion::of_ground_truth(dir).filter(|_| benchmark == Benchmark::Kitti) {
+        Some(version) => format!("{} {name}", version.name()),
+        None => format!("{benchmark} {name}"),
     }
 }
 
-/// The pooled Out-x (percent) of `region` in a column, if scored.
+/// The pooled Out-x (percent) of `region` in a column, if scored (NOC and
+/// OCC exist only where the ground truth has an occlusion mask).
 fn out_x(column: &Column, region: Region) -> Option<f64> {
-    if region != Region::All && !column.occlusion {
-        return None;
-    }
     let sums = column.report.as_ref()?.pooled().get(region)?;
     sums.metrics().out(column.threshold)
 }
