@@ -63,6 +63,7 @@ pub fn driving_stereo_pairs(dir: &Path) -> Result<Vec<StereoPair>, DatasetError>
                     scale: 1.0,
                     noc: None,
                 }),
+                disparity_bound: None,
                 id: frame,
             }
         })

@@ -34,6 +34,9 @@ pub struct StereoPair {
     pub side: Side,
     /// The reference view's ground truth, when the dataset has it.
     pub truth: Option<GroundTruthFile>,
+    /// The dataset's bound on the pair's disparities, when it states one:
+    /// they lie in `0..n` (Middlebury's and ETH3D's `calib.txt` `ndisp`).
+    pub disparity_bound: Option<u32>,
 }
 
 /// Which frames of a KITTI folder are pairs.
@@ -98,6 +101,7 @@ impl PairSource {
                 target: right.clone(),
                 side: Side::Right,
                 truth: None,
+                disparity_bound: None,
             }]),
             PairSource::Kitti { dir, frames } => {
                 kitti_view_pairs(&KittiFolder::open(dir)?, *frames)
@@ -201,6 +205,7 @@ pub fn sample_pair(
             Side::Left
         },
         truth,
+        disparity_bound: None,
     })
 }
 
@@ -276,6 +281,7 @@ fn kitti_view_pairs(
             target: folder.right(f),
             side: Side::Right,
             truth: kitti_truth(&folder.root, folder.version, f),
+            disparity_bound: None,
         })
         .collect();
     if pairs.is_empty() {
@@ -315,6 +321,7 @@ fn kitti_truth_pairs(dir: &Path) -> Result<Vec<StereoPair>, DatasetError> {
                 target: dir.join(right).join(&file),
                 side: Side::Right,
                 truth: kitti_truth(dir, version, &stem),
+                disparity_bound: None,
                 id: stem,
             }
         })

@@ -60,6 +60,7 @@ pub fn scene_flow_pairs(dir: &Path) -> Result<Vec<StereoPair>, DatasetError> {
                     scale: 1.0,
                     noc: None,
                 }),
+                disparity_bound: None,
             });
         }
     }

@@ -10,7 +10,9 @@
 //!
 //! Both encode ground truth alike: `inf` in the PFM is an invalid pixel,
 //! and in `mask0nocc.png` 255 is a non-occluded pixel, 128 an occluded one
-//! and 0 one without ground truth.
+//! and 0 one without ground truth. Both put a `calib.txt` in each scene
+//! folder whose `ndisp` bounds the scene's disparities (at that folder's
+//! resolution); it becomes the pair's [`StereoPair::disparity_bound`].
 
 use std::path::{Path, PathBuf};
 
@@ -27,6 +29,35 @@ const VIEWS: [&str; 2] = ["im0.png", "im1.png"];
 const DISPARITY: &str = "disp0GT.pfm";
 /// The left view's occlusion mask.
 const MASK: &str = "mask0nocc.png";
+/// The scene's calibration, with its disparity bound.
+const CALIBRATION: &str = "calib.txt";
+
+/// The `ndisp` of the scene folder `scene`'s `calib.txt` (lines of
+/// `key=value`): `None` without the file or the key; a value that is not
+/// a positive whole number is an error naming the file.
+fn disparity_bound(scene: &Path) -> Result<Option<u32>, DatasetError> {
+    let path = scene.join(CALIBRATION);
+    let text = match std::fs::read_to_string(&path) {
+        Ok(text) => text,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(DatasetError::Io { path, source: e }),
+    };
+    let Some(value) = text
+        .lines()
+        .filter_map(|line| line.split_once('='))
+        .find(|(key, _)| key.trim() == "ndisp")
+        .map(|(_, value)| value.trim())
+    else {
+        return Ok(None);
+    };
+    match value.parse::<u32>() {
+        Ok(n) if n > 0 => Ok(Some(n)),
+        _ => Err(DatasetError::Layout {
+            path,
+            message: format!("ndisp={value} is not a positive whole number of disparities"),
+        }),
+    }
+}
 
 /// Where the ground truth of `scene` under `root` lies: the scene's own
 /// folder (Middlebury) or the sibling `<root>_gt` folder (ETH3D).
@@ -43,9 +74,9 @@ fn truth_dir(benchmark: Benchmark, root: &Path, scene: &str) -> PathBuf {
 
 /// Every scene of `root` (a folder of scene folders, each with `im0.png`
 /// and `im1.png`) as a right-side pair named after its folder, in name
-/// order, with its ground truth where the benchmark has it (`benchmark`:
-/// Middlebury or ETH3D). A folder with
-/// no scene is a layout error naming what was expected.
+/// order, with its ground truth where the benchmark has it and its
+/// `calib.txt`'s disparity bound (`benchmark`: Middlebury or ETH3D). A
+/// folder with no scene is a layout error naming what was expected.
 pub fn two_view_pairs(root: &Path, benchmark: Benchmark) -> Result<Vec<StereoPair>, DatasetError> {
     let entries = std::fs::read_dir(root).map_err(|e| DatasetError::Layout {
         path: root.to_path_buf(),
@@ -71,13 +102,14 @@ pub fn two_view_pairs(root: &Path, benchmark: Benchmark) -> Result<Vec<StereoPai
             ),
         });
     }
-    Ok(scenes
+    scenes
         .into_iter()
         .map(|scene| {
             let truth = truth_dir(benchmark, root, &scene);
             let disparity = truth.join(DISPARITY);
             let mask = truth.join(MASK);
-            StereoPair {
+            Ok(StereoPair {
+                disparity_bound: disparity_bound(&root.join(&scene))?,
                 cameras: (0, 1),
                 reference: root.join(&scene).join(VIEWS[0]),
                 target: root.join(&scene).join(VIEWS[1]),
@@ -88,9 +120,9 @@ pub fn two_view_pairs(root: &Path, benchmark: Benchmark) -> Result<Vec<StereoPai
                     noc: mask.is_file().then_some(NocSource::Levels(mask)),
                 }),
                 id: scene,
-            }
+            })
         })
-        .collect())
+        .collect()
 }
 
 #[cfg(test)]
@@ -155,6 +187,36 @@ mod tests {
         );
         assert_eq!(pairs[1].id, "forest_1s");
         assert!(pairs[1].truth.is_none());
+    }
+
+    #[test]
+    fn calib_ndisp_bounds_the_scene_and_a_bad_one_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path().join("trainingH");
+        for name in ["Adirondack", "Jadeplant", "Piano"] {
+            scene(&root.join(name), None);
+        }
+        let calib = "cam0=[1 0 0; 0 1 0; 0 0 1]\ndoffs=0\nwidth=1436\nheight=992\n";
+        std::fs::write(
+            root.join("Adirondack").join(CALIBRATION),
+            format!("{calib}ndisp=145\nvmin=12\n"),
+        )
+        .unwrap();
+        std::fs::write(root.join("Jadeplant").join(CALIBRATION), calib).unwrap();
+        let pairs = two_view_pairs(&root, Benchmark::Middlebury).unwrap();
+        let bounds: Vec<Option<u32>> = pairs.iter().map(|p| p.disparity_bound).collect();
+        // Piano has no calib.txt, Jadeplant's has no ndisp.
+        assert_eq!(bounds, [Some(145), None, None]);
+
+        let bad = root.join("Piano").join(CALIBRATION);
+        std::fs::write(&bad, "ndisp=-3\n").unwrap();
+        let err = two_view_pairs(&root, Benchmark::Middlebury)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains(&bad.display().to_string()) && err.contains("ndisp=-3"),
+            "{err}"
+        );
     }
 
     #[test]

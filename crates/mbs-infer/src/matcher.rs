@@ -58,6 +58,21 @@ pub trait StereoMatcher: Send + Sync {
             Side::Left => self.predict_right(target, reference),
         }
     }
+
+    /// [`StereoMatcher::predict_toward`] for a pair whose disparities are
+    /// known to lie in `0..bound` (a benchmark's `ndisp`): a matcher that
+    /// searches a fixed range of disparities searches this one instead;
+    /// networks, which have no such range, ignore it.
+    fn predict_toward_within(
+        &self,
+        reference: &RgbImage,
+        target: &RgbImage,
+        side: Side,
+        bound: u32,
+    ) -> Result<Disparity> {
+        let _ = bound;
+        self.predict_toward(reference, target, side)
+    }
 }
 
 /// An [`InferError::NoPrediction`] when a network's map `disparity` holds

@@ -1,7 +1,8 @@
 //! The right-view disparity through mirroring (conventions §2) on a constructed
-//! pair: the right view is the left one shifted by a known disparity.
+//! pair: the right view is the left one shifted by a known disparity; and
+//! the built-in matcher's search within a pair's own disparity bound.
 
-use mbs_core::RgbImage;
+use mbs_core::{RgbImage, Side};
 use mbs_infer::{BlockMatcher, Disparity, Sgm, SgmConfig, StereoMatcher};
 
 const SHIFT: u32 = 5;
@@ -69,4 +70,30 @@ fn mismatched_sizes_are_refused() {
         "the left view is (96, 48) (width, height) but the right view is (10, 10)"
     );
     assert!(Sgm::default().predict_right(&left, &small).is_err());
+}
+
+#[test]
+fn a_pair_bound_replaces_the_search_range_of_the_built_in_matcher() {
+    let (left, right) = shifted_pair();
+    let sgm = Sgm::new(SgmConfig::with_max_disparity(64));
+    for side in [Side::Right, Side::Left] {
+        let (reference, target) = match side {
+            Side::Right => (&left, &right),
+            Side::Left => (&right, &left),
+        };
+        let within = sgm
+            .predict_toward_within(reference, target, side, 16)
+            .expect("same size");
+        let sixteen = Sgm::new(SgmConfig::with_max_disparity(16))
+            .predict_toward(reference, target, side)
+            .expect("same size");
+        assert_eq!(within, sixteen, "{side:?}");
+        // A bound below the true disparity (5) cannot find it.
+        let short = sgm
+            .predict_toward_within(reference, target, side, 4)
+            .expect("same size");
+        let cols = if side == Side::Right { 8..96 } else { 0..88 };
+        assert!(share_correct(&within, cols.clone()) > 0.98);
+        assert!(share_correct(&short, cols) < 0.05);
+    }
 }

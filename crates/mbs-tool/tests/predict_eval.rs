@@ -372,6 +372,55 @@ fn middlebury_and_eth3d_folders_predict_and_eval_by_region() {
     );
 }
 
+/// A Middlebury scene's `calib.txt` `ndisp` is the built-in matcher's
+/// search range for that scene (bit-equal to `--max-disparity ndisp` on
+/// the pair alone, so not the default 128), and `--max-disparity` still
+/// overrides it.
+#[test]
+fn middlebury_calib_ndisp_is_the_search_range_unless_the_flag_says_otherwise() {
+    let dir = tempfile::tempdir().unwrap();
+    let middlebury = dir.path().join("MiddEval3/trainingQ");
+    two_view_folder(&middlebury, "Teddy", &middlebury.join("Teddy"));
+    std::fs::write(
+        middlebury.join("Teddy/calib.txt"),
+        "cam0=[375 0 100; 0 375 90; 0 0 1]\ndoffs=0\nbaseline=160\nwidth=450\nheight=375\nndisp=56\n",
+    )
+    .unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let predict = |source: &[String], max_disparity: Option<&str>, out: &Path| {
+        let mut args: Vec<String> = vec!["predict".into()];
+        args.extend_from_slice(source);
+        if let Some(n) = max_disparity {
+            args.extend(["--max-disparity".into(), n.into()]);
+        }
+        args.extend(["--out".into(), s(out)]);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let output = run(&args);
+        assert!(output.status.success(), "{}", text(&output));
+    };
+    let folder = [String::from("--middlebury"), s(&middlebury)];
+    let pair = [
+        String::from("--left"),
+        s(&middlebury.join("Teddy/im0.png")),
+        "--right".into(),
+        s(&middlebury.join("Teddy/im1.png")),
+    ];
+    let map = |path: PathBuf| pfm::read_pfm_grey(&path).unwrap();
+    predict(&folder, None, &dir.path().join("calib"));
+    predict(&pair, Some("56"), &dir.path().join("pair56"));
+    predict(&pair, None, &dir.path().join("default"));
+    let calib = map(dir.path().join("calib/Teddy.pfm"));
+    assert_eq!(calib, map(dir.path().join("pair56/im0.pfm")));
+    assert_ne!(calib, map(dir.path().join("default/im0.pfm")));
+
+    predict(&folder, Some("40"), &dir.path().join("flag"));
+    predict(&pair, Some("40"), &dir.path().join("pair40"));
+    assert_eq!(
+        map(dir.path().join("flag/Teddy.pfm")),
+        map(dir.path().join("pair40/im0.pfm"))
+    );
+}
+
 /// The frame name of Teddy laid out as a DrivingStereo frame.
 const DRIVING_STEREO_FRAME: &str = "2018-08-17-09-45-58_2018-08-17-10-23-24-800";
 

@@ -16,7 +16,7 @@ mod select;
 
 pub use estimate::estimate_max_disparity;
 
-use mbs_core::{FloatImage, MaskImage, RgbImage};
+use mbs_core::{FloatImage, MaskImage, RgbImage, Side};
 use rayon::prelude::*;
 
 use crate::error::{InferError, Result};
@@ -251,6 +251,20 @@ impl StereoMatcher for Sgm {
         check_same_size(left, right)?;
         self.config.validate()?;
         predict_mirrored(&self.for_pair(left, right)?, left, right)
+    }
+
+    fn predict_toward_within(
+        &self,
+        reference: &RgbImage,
+        target: &RgbImage,
+        side: Side,
+        bound: u32,
+    ) -> Result<Disparity> {
+        let within = Sgm::new(SgmConfig {
+            max_disparity: bound.min(MAX_DISPARITY),
+            ..self.config
+        });
+        within.predict_toward(reference, target, side)
     }
 }
 

@@ -10,8 +10,10 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::ValueEnum;
+use mbs_core::RgbImage;
+use mbs_dataset::pairs::StereoPair;
 use mbs_infer::onnx::{ModelCard, OnnxStereo};
-use mbs_infer::{Sgm, SgmConfig, SgmPaths, StereoMatcher};
+use mbs_infer::{Disparity, InferError, Sgm, SgmConfig, SgmPaths, StereoMatcher};
 use mbs_nets::{BackboneKind, NetworkConfig, NetworkMatcher};
 
 use crate::cli::onnx::OnnxArgs;
@@ -63,8 +65,9 @@ pub struct StereoSourceArgs {
     )]
     pub set: Vec<String>,
     /// Number of disparities the built-in matcher searches, up to 4096 (0 =
-    /// estimate per pair, at most 256) [default: the command's]; with a
-    /// network, the top of --color's scale (0 = each map's maximum).
+    /// estimate per pair, at most 256) [default: a Middlebury or ETH3D
+    /// scene's calib.txt ndisp, else the command's]; with a network, the
+    /// top of --color's scale (0 = each map's maximum).
     #[arg(long, value_name = "N", value_parser = crate::cli::values::sgm_disparities, help_heading = "Disparity source")]
     pub max_disparity: Option<u32>,
     /// Aggregation paths of the built-in matcher [default: the command's].
@@ -154,11 +157,47 @@ impl StereoSourceArgs {
         Ok(())
     }
 
-    /// The chosen source as a matcher (see [`StereoSourceArgs::open`]).
-    pub fn matcher(&self, preset: SgmConfig) -> anyhow::Result<Box<dyn StereoMatcher>> {
-        Ok(match self.open(preset)? {
+    /// The chosen source as a matcher of listed pairs (see
+    /// [`StereoSourceArgs::open`]).
+    pub fn matcher(&self, preset: SgmConfig) -> anyhow::Result<PairMatcher> {
+        let matcher: Box<dyn StereoMatcher> = match self.open(preset)? {
             StereoSource::BuiltIn(config) => Box::new(Sgm::new(config)),
             StereoSource::Network(network) => network,
+        };
+        Ok(PairMatcher {
+            matcher,
+            pair_bounds: self.max_disparity.is_none(),
         })
+    }
+}
+
+/// The chosen disparity source for listed pairs: a pair whose dataset
+/// bounds its disparities (Middlebury's and ETH3D's `calib.txt` `ndisp`)
+/// is searched within that bound unless `--max-disparity` fixed the range.
+pub struct PairMatcher {
+    matcher: Box<dyn StereoMatcher>,
+    /// Whether the pairs' own bounds apply (no `--max-disparity`).
+    pair_bounds: bool,
+}
+
+impl PairMatcher {
+    /// The source's name, for logs and tables.
+    pub fn name(&self) -> &str {
+        self.matcher.name()
+    }
+
+    /// The disparity of `pair` from its views `reference` and `target`.
+    pub fn predict(
+        &self,
+        pair: &StereoPair,
+        reference: &RgbImage,
+        target: &RgbImage,
+    ) -> Result<Disparity, InferError> {
+        match pair.disparity_bound.filter(|_| self.pair_bounds) {
+            Some(bound) => self
+                .matcher
+                .predict_toward_within(reference, target, pair.side, bound),
+            None => self.matcher.predict_toward(reference, target, pair.side),
+        }
     }
 }

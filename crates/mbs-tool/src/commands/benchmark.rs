@@ -127,7 +127,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .threshold
             .unwrap_or_else(|| benchmark.customary_threshold());
         eprintln!("{label}: {} images", items.len());
-        let (scored, summary) = score_all(&items, Some(matcher.as_ref()), None, &[threshold]);
+        let (scored, summary) = score_all(&items, Some(&matcher), None, &[threshold]);
         columns.push(Column {
             label,
             threshold,

@@ -17,7 +17,7 @@ use crate::cli::shard::Shard;
 #[derive(Parser)]
 #[command(after_help = "Examples:
   mbs-tool decode-depth /data/MBS20K --out /data/MBS20K-depth --all-pairs
-  mbs-tool decode-depth mbs-demo/manifest.json --pairs 0:1,0:4 --disparity-format pfm
+  mbs-tool decode-depth mbs-demo/data/manifest.json --pairs 0:1,0:4 --disparity-format pfm
   mbs-tool decode-depth /data/MBS20K --shard $SLURM_ARRAY_TASK_ID/16
   srun -n 16 mbs-tool decode-depth /data/MBS20K --shard auto     # or mpirun -np 16
 

@@ -11,18 +11,18 @@ use mbs_core::formats::{read_disparity, rgb};
 use mbs_core::metrics::{MetricsReport, RegionSums, evaluate};
 use mbs_dataset::ground_truth::{GroundTruthFile, NocSource, find_map};
 use mbs_dataset::pairs::{PairSource, StereoPair};
-use mbs_infer::{SgmConfig, StereoMatcher};
+use mbs_infer::SgmConfig;
 
 use crate::cli::batch;
 use crate::cli::pairs::PairArgs;
-use crate::cli::source::StereoSourceArgs;
+use crate::cli::source::{PairMatcher, StereoSourceArgs};
 
 /// Arguments of `eval`.
 #[derive(Parser)]
 #[command(after_help = "Examples:
   mbs-tool eval pred/disp_0 --kitti /data/kitti2015/training
   mbs-tool eval pred/im2.pfm --gt teddy/disp2.png --gt-scale 4 --json
-  mbs-tool eval pred --manifest mbs-demo/manifest.json --pair 0:1
+  mbs-tool eval pred --manifest mbs-demo/data/manifest.json --pair 0:1
   mbs-tool eval --checkpoint mbs-demo/run --manifest mbs-demo/train-data/manifest.json --split test
   mbs-tool eval --backbone raft-stereo --weights raftstereo-eth3d.pth --kitti /data/kitti2015/training
   mbs-tool eval --kitti /data/kitti2015/training --max-disparity 192   # the built-in matcher
@@ -133,7 +133,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         false => None,
     };
-    let (scored, summary) = score_all(&items, matcher.as_deref(), args.gt_scale, &args.thresholds);
+    let (scored, summary) = score_all(&items, matcher.as_ref(), args.gt_scale, &args.thresholds);
     if scored.is_empty() {
         bail!("no image could be scored (see above)");
     }
@@ -152,7 +152,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// others are scored.
 pub fn score_all(
     items: &[Item],
-    matcher: Option<&dyn StereoMatcher>,
+    matcher: Option<&PairMatcher>,
     gt_scale: Option<f32>,
     thresholds: &[f32],
 ) -> (Vec<(String, RegionSums)>, batch::Summary) {
@@ -230,10 +230,7 @@ pub fn items(pairs: Vec<StereoPair>, predictions: Option<&Path>) -> Vec<Item> {
 
 /// Reads an item's prediction, or computes it with the disparity source;
 /// with the file it came from (for messages).
-fn predict(
-    item: &Item,
-    matcher: Option<&dyn StereoMatcher>,
-) -> anyhow::Result<(FloatImage, PathBuf)> {
+fn predict(item: &Item, matcher: Option<&PairMatcher>) -> anyhow::Result<(FloatImage, PathBuf)> {
     match (&item.prediction, matcher) {
         (Prediction::File(path), _) => Ok((read_disparity(path, None)?, path.clone())),
         (Prediction::Missing(folder), _) => bail!(
@@ -244,7 +241,7 @@ fn predict(
         (Prediction::Pair(pair), Some(matcher)) => {
             let reference = rgb::read_rgb(&pair.reference)?;
             let target = rgb::read_rgb(&pair.target)?;
-            let disparity = matcher.predict_toward(&reference, &target, pair.side)?;
+            let disparity = matcher.predict(pair, &reference, &target)?;
             Ok((disparity.disparity, pair.reference.clone()))
         }
         (Prediction::Pair(pair), None) => {

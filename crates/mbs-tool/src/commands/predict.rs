@@ -9,20 +9,20 @@ use clap::Parser;
 use mbs_core::confine::join_confined;
 use mbs_core::formats::{DisparityFormat, rgb};
 use mbs_dataset::pairs::StereoPair;
-use mbs_infer::{SgmConfig, StereoMatcher};
+use mbs_infer::SgmConfig;
 use mbs_viz::colormap::{colorize_disparity, disparity_scale};
 
 use crate::cli::batch::{self, Outcome};
 use crate::cli::pairs::PairArgs;
 use crate::cli::shard::Shard;
-use crate::cli::source::StereoSourceArgs;
+use crate::cli::source::{PairMatcher, StereoSourceArgs};
 
 /// Arguments of `predict`.
 #[derive(Parser)]
 #[command(after_help = "Examples:
   mbs-tool predict --left im2.png --right im6.png --max-disparity 64 --out pred --color
   mbs-tool predict --kitti /data/kitti2015/training --format png16 --out pred/disp_0
-  mbs-tool predict --manifest mbs-demo/manifest.json --pair 2:1 --out pred
+  mbs-tool predict --manifest mbs-demo/data/manifest.json --pair 2:1 --out pred
   mbs-tool predict --kitti DIR --model igev.onnx --card igev --device cuda --out pred
   mbs-tool predict --manifest data/manifest.json --pair 0:1 --checkpoint runs/demo --out pred
   mbs-tool predict --kitti DIR --backbone raft-stereo --weights raftstereo-sceneflow.pth --out pred
@@ -85,16 +85,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &pairs,
         "pairs",
         |p| p.reference.display().to_string(),
-        |p| predict_one(&args, matcher.as_ref(), p),
+        |p| predict_one(&args, &matcher, p),
     );
     summary.finish("predict", "pairs")
 }
 
-fn predict_one(
-    args: &Args,
-    matcher: &dyn StereoMatcher,
-    pair: &StereoPair,
-) -> anyhow::Result<Outcome> {
+fn predict_one(args: &Args, matcher: &PairMatcher, pair: &StereoPair) -> anyhow::Result<Outcome> {
     let out = join_confined(
         &args.out,
         &format!("{}.{}", pair.id, args.format.extension()),
@@ -105,11 +101,16 @@ fn predict_one(
     }
     let reference = rgb::read_rgb(&pair.reference)?;
     let target = rgb::read_rgb(&pair.target)?;
-    let prediction = matcher.predict_toward(&reference, &target, pair.side)?;
+    let prediction = matcher.predict(pair, &reference, &target)?;
     let disparity = &prediction.disparity;
     args.format.write(&out, disparity)?;
     if args.color {
-        let top = match args.source.max_disparity.unwrap_or(0) {
+        let top = match args
+            .source
+            .max_disparity
+            .or(pair.disparity_bound)
+            .unwrap_or(0)
+        {
             0 => disparity_scale([disparity]),
             n => n as f32,
         };

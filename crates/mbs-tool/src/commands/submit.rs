@@ -12,10 +12,10 @@ use mbs_core::formats::rgb;
 use mbs_dataset::benchmark::Benchmark;
 use mbs_dataset::pairs::{PairSource, StereoPair};
 use mbs_dataset::submission::SubmissionLayout;
-use mbs_infer::{SgmConfig, StereoMatcher};
+use mbs_infer::SgmConfig;
 
 use crate::cli::batch::{self, Outcome};
-use crate::cli::source::StereoSourceArgs;
+use crate::cli::source::{PairMatcher, StereoSourceArgs};
 
 /// Arguments of `submit`.
 #[derive(Parser)]
@@ -76,7 +76,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "pairs",
         |p| p.reference.display().to_string(),
         |pair| {
-            let outcome = submit_one(&args, &layout, matcher.as_ref(), pair)?;
+            let outcome = submit_one(&args, &layout, &matcher, pair)?;
             if let Some(s) = outcome.1 {
                 seconds
                     .lock()
@@ -129,7 +129,7 @@ fn layout(args: &Args) -> anyhow::Result<(Benchmark, PathBuf, SubmissionLayout)>
 fn submit_one(
     args: &Args,
     layout: &SubmissionLayout,
-    matcher: &dyn StereoMatcher,
+    matcher: &PairMatcher,
     pair: &StereoPair,
 ) -> anyhow::Result<(Outcome, Option<f64>)> {
     let out: &Path = &args.out;
@@ -139,7 +139,7 @@ fn submit_one(
     let reference = rgb::read_rgb(&pair.reference)?;
     let target = rgb::read_rgb(&pair.target)?;
     let start = Instant::now();
-    let prediction = matcher.predict_toward(&reference, &target, pair.side)?;
+    let prediction = matcher.predict(pair, &reference, &target)?;
     let seconds = start.elapsed().as_secs_f64();
     layout.write(out, &pair.id, &prediction.disparity, seconds)?;
     Ok((Outcome::Done, Some(seconds)))

@@ -11,7 +11,7 @@ use crate::cli::batch::progress_bar;
 #[derive(Parser)]
 #[command(after_help = "Examples:
   mbs-tool validate /data/MBS20K/manifest.json
-  mbs-tool validate mbs-demo/manifest.json --deep --json > report.json
+  mbs-tool validate mbs-demo/data/manifest.json --deep --json > report.json
 
 Checks: JSON Schema (schemas/manifest.schema.json), unique ids, views per
 sample = cameras of the rig, every file exists and is complete, image sizes
