@@ -3,6 +3,8 @@
 //! target. Drawing is deterministic given the generator; applying the
 //! draws to images is the consumer's (the trainer's tensors, or PyTorch's).
 
+use std::ops::Range;
+
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 
@@ -58,6 +60,19 @@ pub struct AugmentDraws {
     /// `[B, 1, H, W]` row-major: 1 where the target is erased (filled with
     /// its mean colour), else 0.
     pub occlusion: Vec<f32>,
+}
+
+impl AugmentDraws {
+    /// The draws of the items `items` of the batch they were drawn for,
+    /// whose crops have `plane` (height x width) pixels.
+    pub fn of_items(&self, items: Range<usize>, plane: usize) -> AugmentDraws {
+        AugmentDraws {
+            brightness: self.brightness[items.clone()].to_vec(),
+            contrast: self.contrast[items.clone()].to_vec(),
+            saturation: self.saturation[items.clone()].to_vec(),
+            occlusion: self.occlusion[items.start * plane..items.end * plane].to_vec(),
+        }
+    }
 }
 
 impl AugmentConfig {

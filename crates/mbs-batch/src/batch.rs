@@ -1,6 +1,7 @@
 //! One batch on the host: random triplets and crops drawn for a step and
 //! decoded into `[B, 3, H, W]` float buffers.
 
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -20,6 +21,11 @@ use crate::sampling::{Triplet, draw_triplet};
 pub struct HostBatch {
     /// The step this batch is for.
     pub step: usize,
+    /// Items in the step's whole batch.
+    pub batch_size: usize,
+    /// Which of them this batch holds: all, or one share of a
+    /// data-parallel step ([`load_share`]).
+    pub items: Range<usize>,
     /// Crop height.
     pub height: usize,
     /// Crop width.
@@ -54,47 +60,79 @@ pub const MIN_CROP_SIDE: usize = 16;
 /// data is then broken, not one file of it.
 pub const MAX_DRAWS_PER_ITEM: usize = 8;
 
+/// The `part`-th of `parts` consecutive shares of a batch of `items`
+/// items, whose sizes differ by at most one (the first ones are the
+/// larger): the items a device or a process of a data-parallel step takes.
+pub fn share(items: usize, parts: usize, part: usize) -> Range<usize> {
+    let parts = parts.max(1);
+    let (size, larger) = (items / parts, items % parts);
+    let start = part * size + part.min(larger);
+    start..start + size + usize::from(part < larger)
+}
+
 /// Draws and decodes the batch of `step`: for each item a sample, a triplet
 /// and a crop window, all from [`step_rng`]`(seed, step, Batch)`.
 pub fn load_batch(
     samples: &TrainingSamples,
     batch_size: usize,
-    (height, width): (usize, usize),
+    crop: (usize, usize),
     seed: u64,
     step: usize,
 ) -> Result<HostBatch, BatchError> {
+    load_share(samples, batch_size, crop, seed, step, 0..batch_size)
+}
+
+/// The items `items` of the batch of `step` ([`load_batch`]), decoding
+/// only theirs: every item's first draw comes from the step's generator
+/// (the items before `items` are drawn, not decoded, to reach theirs), and
+/// an item whose images do not decode is drawn again from a generator of
+/// its own ([`Stream::Redraw`]), so a share holds exactly the items the
+/// whole batch holds there.
+pub fn load_share(
+    samples: &TrainingSamples,
+    batch_size: usize,
+    (height, width): (usize, usize),
+    seed: u64,
+    step: usize,
+    items: Range<usize>,
+) -> Result<HostBatch, BatchError> {
+    if items.start > items.end || items.end > batch_size {
+        return Err(BatchError::InvalidSetting {
+            name: "items",
+            value: format!("{items:?}"),
+            reason: format!("a range of the batch's {batch_size} items"),
+        });
+    }
     let mut rng = step_rng(seed, step, Stream::Batch);
     let plane = 3 * height * width;
+    let size = items.len();
     let mut batch = HostBatch {
         step,
         height,
         width,
-        reference: Vec::with_capacity(batch_size * plane),
-        student_target: Vec::with_capacity(batch_size * plane),
-        teacher_target: Vec::with_capacity(batch_size * plane),
-        triplets: Vec::with_capacity(batch_size),
-        ratios: Vec::with_capacity(batch_size),
-        sample_ids: Vec::with_capacity(batch_size),
-        windows: Vec::with_capacity(batch_size),
+        batch_size,
+        items: items.clone(),
+        reference: Vec::with_capacity(size * plane),
+        student_target: Vec::with_capacity(size * plane),
+        teacher_target: Vec::with_capacity(size * plane),
+        triplets: Vec::with_capacity(size),
+        ratios: Vec::with_capacity(size),
+        sample_ids: Vec::with_capacity(size),
+        windows: Vec::with_capacity(size),
         skipped: Vec::new(),
     };
-    for _ in 0..batch_size {
-        let mut draws = 0;
-        let item = loop {
-            let sample = &samples.samples[rng.random_range(0..samples.samples.len())];
-            let triplet = draw_triplet(samples.rig.num_views, &mut rng);
-            let (image_width, image_height) = (sample.size.0 as usize, sample.size.1 as usize);
-            let top = rng.random_range(0..=image_height.saturating_sub(height));
-            let left = rng.random_range(0..=image_width.saturating_sub(width));
-            let window = Window {
-                top,
-                left,
-                height,
-                width,
-            };
-            draws += 1;
-            match decode_item(sample, triplet) {
-                Ok(views) => break (sample, triplet, window, views),
+    for item in 0..items.end {
+        let first = Draw::from(samples, (height, width), &mut rng);
+        if !items.contains(&item) {
+            continue;
+        }
+        let mut redraws = step_rng(seed, step, Stream::Redraw(item));
+        let mut draw = first;
+        let mut draws = 1;
+        let views = loop {
+            let sample = &samples.samples[draw.sample];
+            match decode_item(sample, draw.triplet) {
+                Ok(views) => break views,
                 Err(Unusable::Fatal(error)) => return Err(error),
                 // A file whose header is fine and pixels are not (validate
                 // --deep finds them) costs its items, not the run.
@@ -108,17 +146,54 @@ pub fn load_batch(
                     )));
                 }
             }
+            draw = Draw::from(samples, (height, width), &mut redraws);
+            draws += 1;
         };
-        let (sample, triplet, window, [reference, student, teacher]) = item;
-        append_chw(&window, &reference, &mut batch.reference);
-        append_chw(&window, &student, &mut batch.student_target);
-        append_chw(&window, &teacher, &mut batch.teacher_target);
-        batch.ratios.push(triplet.ratio(&samples.rig));
-        batch.triplets.push(triplet);
-        batch.sample_ids.push(sample.id.clone());
-        batch.windows.push(window);
+        let [reference, student, teacher] = views;
+        append_chw(&draw.window, &reference, &mut batch.reference);
+        append_chw(&draw.window, &student, &mut batch.student_target);
+        append_chw(&draw.window, &teacher, &mut batch.teacher_target);
+        batch.ratios.push(draw.triplet.ratio(&samples.rig));
+        batch.triplets.push(draw.triplet);
+        batch
+            .sample_ids
+            .push(samples.samples[draw.sample].id.clone());
+        batch.windows.push(draw.window);
     }
     Ok(batch)
+}
+
+/// The random choices of one item: a sample, a triplet of its views and a
+/// crop window.
+struct Draw {
+    sample: usize,
+    triplet: Triplet,
+    window: Window,
+}
+
+impl Draw {
+    /// The next item's choices from `rng` for crops of `height x width`.
+    fn from<R: Rng>(
+        samples: &TrainingSamples,
+        (height, width): (usize, usize),
+        rng: &mut R,
+    ) -> Self {
+        let sample = rng.random_range(0..samples.samples.len());
+        let triplet = draw_triplet(samples.rig.num_views, rng);
+        let (image_width, image_height) = samples.samples[sample].size;
+        let top = rng.random_range(0..=(image_height as usize).saturating_sub(height));
+        let left = rng.random_range(0..=(image_width as usize).saturating_sub(width));
+        Draw {
+            sample,
+            triplet,
+            window: Window {
+                top,
+                left,
+                height,
+                width,
+            },
+        }
+    }
 }
 
 /// Why an item's views cannot be used.
@@ -183,6 +258,36 @@ impl HostBatch {
     pub fn is_empty(&self) -> bool {
         self.triplets.is_empty()
     }
+
+    /// The batch as `parts` consecutive shares ([`share`]), one for each
+    /// device of a data-parallel step; the skipped images go with the
+    /// first.
+    pub fn split(mut self, parts: usize) -> Vec<HostBatch> {
+        let plane = 3 * self.height * self.width;
+        let len = self.len();
+        let mut skipped = std::mem::take(&mut self.skipped);
+        (0..parts.max(1))
+            .map(|part| {
+                let range = share(len, parts, part);
+                let pixels = range.start * plane..range.end * plane;
+                HostBatch {
+                    step: self.step,
+                    batch_size: self.batch_size,
+                    items: self.items.start + range.start..self.items.start + range.end,
+                    height: self.height,
+                    width: self.width,
+                    reference: self.reference[pixels.clone()].to_vec(),
+                    student_target: self.student_target[pixels.clone()].to_vec(),
+                    teacher_target: self.teacher_target[pixels].to_vec(),
+                    triplets: self.triplets[range.clone()].to_vec(),
+                    ratios: self.ratios[range.clone()].to_vec(),
+                    sample_ids: self.sample_ids[range.clone()].to_vec(),
+                    windows: self.windows[range].to_vec(),
+                    skipped: std::mem::take(&mut skipped),
+                }
+            })
+            .collect()
+    }
 }
 
 #[cfg(test)]
@@ -219,6 +324,53 @@ mod tests {
             rig: mbs_core::Rig::centred(3, 0.1, 100.0, 32, 16),
             samples,
         }
+    }
+
+    #[test]
+    fn shares_are_consecutive_cover_the_batch_and_differ_by_at_most_one() {
+        let shares: Vec<_> = (0..3).map(|part| share(8, 3, part)).collect();
+        assert_eq!(shares, [0..3, 3..6, 6..8]);
+        assert_eq!(share(4, 2, 1), 2..4);
+        assert_eq!(share(1, 2, 1), 1..1);
+    }
+
+    /// A share holds exactly the items the whole batch holds there, with
+    /// only its own items decoded, also when another share's items meet
+    /// unusable images and are drawn again; split on the host, the whole
+    /// batch gives the same shares.
+    #[test]
+    fn a_share_decodes_only_its_items_and_they_are_the_whole_batchs() {
+        let dir = tempfile::tempdir().unwrap();
+        for corrupt in [&[][..], &[1]] {
+            let samples = samples(dir.path(), corrupt);
+            let whole = load_batch(&samples, 4, (16, 16), 7, 3).unwrap();
+            let halves =
+                [0..2, 2..4].map(|items| load_share(&samples, 4, (16, 16), 7, 3, items).unwrap());
+            for (half, split) in halves.iter().zip(whole.clone().split(2)) {
+                // Two of the step's four items decoded, pixels included.
+                assert_eq!(half.len(), 2);
+                assert_eq!(half.reference.len(), 2 * 3 * 16 * 16);
+                assert_eq!(
+                    (
+                        &half.triplets,
+                        &half.sample_ids,
+                        &half.windows,
+                        &half.reference
+                    ),
+                    (
+                        &split.triplets,
+                        &split.sample_ids,
+                        &split.windows,
+                        &split.reference
+                    ),
+                );
+                assert_eq!((half.items.clone(), half.batch_size), (split.items, 4));
+            }
+            assert_eq!(halves[0].items, 0..2);
+        }
+        let samples = samples(dir.path(), &[]);
+        let err = load_share(&samples, 4, (16, 16), 7, 3, 3..5).unwrap_err();
+        assert!(err.to_string().contains("4 items"), "{err}");
     }
 
     #[test]

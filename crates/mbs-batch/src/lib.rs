@@ -15,7 +15,9 @@ pub mod samples;
 pub mod sampling;
 
 pub use augment::{AugmentConfig, AugmentDraws};
-pub use batch::{HostBatch, MAX_BATCH_SIZE, MAX_DRAWS_PER_ITEM, MIN_CROP_SIDE, load_batch};
+pub use batch::{
+    HostBatch, MAX_BATCH_SIZE, MAX_DRAWS_PER_ITEM, MIN_CROP_SIDE, load_batch, load_share, share,
+};
 pub use error::BatchError;
 pub use rng::{Stream, step_rng};
 pub use samples::{TrainingSamples, ViewPaths};

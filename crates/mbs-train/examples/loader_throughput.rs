@@ -109,7 +109,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let start = Instant::now();
         let mut loader = BatchLoader::start(
             Arc::clone(&samples),
-            settings.batch,
+            (settings.batch, 0..settings.batch),
             settings.crop,
             1,
             (0, settings.steps),

@@ -298,14 +298,11 @@ fn main() -> Result<(), Box<dyn Error>> {
             let grad = prediction.grad(&gradients).ok_or("no gradient")?;
             fixture.add_tensor(format!("{name}/grad_{i}"), grad);
         }
-        let scalars = [
-            ("total", Some(out.total)),
-            ("geometry", out.geometry),
-            ("photometric", out.photometric),
-            ("smoothness", out.smoothness),
-            ("range", out.range),
-            ("view", out.view),
-        ];
+        let terms = out
+            .terms
+            .iter()
+            .map(|(term, value)| (term.name(), value.cloned()));
+        let scalars = std::iter::once(("total", Some(out.total))).chain(terms);
         for (part, value) in scalars {
             if let Some(value) = value {
                 fixture.add_tensor(format!("{name}/{part}"), value.detach().without_autodiff());

@@ -120,7 +120,7 @@ impl RunConfig {
     /// The settings whose default depends on the backbone, as `key=value`
     /// overrides under the user's own. RAFT-Stereo and IGEV-Stereo, whose
     /// iterative updates can take the disparities anywhere, train from
-    /// random weights with the S3 safeguards (README, "S3 from random
+    /// random weights with the S3 safeguards (docs/training.md, "S3 from random
     /// weights"): the geometry term off for the first 30 % of the run and
     /// rising over the next half, its target matched to the student's
     /// scale, a photometric gradient outside the student's mask, and the
@@ -206,7 +206,7 @@ fn overlay_users(
 }
 
 /// The settings added after the first checkpoints were written, with what
-/// runs did before them: the S3 safeguards (README, "S3 from random
+/// runs did before them: the S3 safeguards (docs/training.md, "S3 from random
 /// weights"), all off before they existed, the teacher's iterations, and
 /// the photometric term's reduction.
 fn legacy_values() -> [(&'static str, Value); 8] {

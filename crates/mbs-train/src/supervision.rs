@@ -188,7 +188,7 @@ pub fn worse_than_untrained(step: usize, untrained: f64, out3: f64) -> Option<St
     (out3 > untrained + WORSE_BY_POINTS).then(|| {
         format!(
             "step {step}: held-out Out-3 ALL is {out3:.1} %, worse than the untrained \
-             network's {untrained:.1} %: training is collapsing (README, \"S3 from random \
+             network's {untrained:.1} %: training is collapsing (docs/training.md, \"S3 from random \
              weights\"; lower --lr, or keep the geometry term off longer)"
         )
     })

@@ -5,9 +5,9 @@
 use burn::tensor::{Device, Tensor};
 use mbs_core::Side;
 
-use mbs_batch::HostBatch;
 use mbs_batch::rng::{Stream, step_rng};
 use mbs_batch::sampling::Triplet;
+use mbs_batch::{HostBatch, share};
 
 use crate::augment::{self, AugmentConfig};
 use mbs_nets::host::chw_tensor;
@@ -35,17 +35,21 @@ pub struct StepBatch {
 }
 
 impl StepBatch {
-    /// The tensors of `host`'s step on `device`, with the student's input
-    /// augmented by the draws of `config` from
-    /// [`step_rng`]`(seed, step, Augment)`.
+    /// The tensors of `host`'s items on `device`, with the student's input
+    /// augmented by their draws of `config` for the step's whole batch
+    /// from [`step_rng`]`(seed, step, Augment)`, so that a share of a
+    /// batch is augmented as the same items of the whole batch are.
     pub fn from_host(host: HostBatch, device: &Device, config: &AugmentConfig, seed: u64) -> Self {
         let shape = [host.len(), 3, host.height, host.width];
         let tensor = |data: Vec<f32>| chw_tensor(data, shape, device);
         let reference = tensor(host.reference);
         let student_target = tensor(host.student_target);
         let mut rng = step_rng(seed, host.step, Stream::Augment);
+        let draws = config
+            .draw(host.batch_size, host.height, host.width, &mut rng)
+            .of_items(host.items, host.height * host.width);
         let (augmented_reference, augmented_target) =
-            augment::augment(config, reference.clone(), student_target.clone(), &mut rng);
+            augment::apply(&draws, reference.clone(), student_target.clone());
         StepBatch {
             reference,
             student_target,
@@ -58,19 +62,15 @@ impl StepBatch {
         }
     }
 
-    /// Splits the items into `parts` consecutive shares whose sizes differ
-    /// by at most one (the first ones are the larger); `parts` is at most
-    /// the number of items.
+    /// Splits the items into `parts` consecutive shares
+    /// ([`mbs_batch::share`]); `parts` is at most the number of items.
     pub fn split(self, parts: usize) -> Vec<StepBatch> {
         let items = self.reference.dims()[0];
         let parts = parts.clamp(1, items.max(1));
-        let mut start = 0;
         (0..parts)
             .map(|part| {
-                let size = items / parts + usize::from(part < items % parts);
-                let range = start..start + size;
-                start += size;
-                let take = |tensor: &Tensor<4>| tensor.clone().narrow(0, range.start, size);
+                let range = share(items, parts, part);
+                let take = |tensor: &Tensor<4>| tensor.clone().narrow(0, range.start, range.len());
                 StepBatch {
                     reference: take(&self.reference),
                     student_target: take(&self.student_target),

@@ -1,15 +1,18 @@
 //! Batches decoded on worker threads ahead of the training step. Worker `w`
 //! of `W` loads steps `first + w`, `first + w + W`, ... into its own
 //! two-slot channel, and the consumer reads the channels in turn, so
-//! batches arrive in step order and at most `2 W` wait in memory.
+//! batches arrive in step order and at most `2 W` wait in memory. A
+//! process of a data-parallel run loads only its share of each batch's
+//! items.
 
+use std::ops::Range;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::thread::JoinHandle;
 
 use crate::error::TrainError;
 use mbs_batch::TrainingSamples;
-use mbs_batch::{HostBatch, load_batch};
+use mbs_batch::{HostBatch, load_share};
 
 /// Batches waiting per worker.
 const SLOTS: usize = 2;
@@ -27,17 +30,25 @@ pub struct BatchLoader {
 struct Job {
     samples: Arc<TrainingSamples>,
     batch_size: usize,
+    items: Range<usize>,
     crop: (usize, usize),
     seed: u64,
-    steps: std::iter::StepBy<std::ops::Range<usize>>,
+    steps: std::iter::StepBy<Range<usize>>,
     sender: SyncSender<Result<HostBatch, TrainError>>,
 }
 
 impl Job {
     fn run(self) {
         for step in self.steps {
-            let batch = load_batch(&self.samples, self.batch_size, self.crop, self.seed, step)
-                .map_err(TrainError::from);
+            let batch = load_share(
+                &self.samples,
+                self.batch_size,
+                self.crop,
+                self.seed,
+                step,
+                self.items.clone(),
+            )
+            .map_err(TrainError::from);
             let failed = batch.is_err();
             // A closed channel means the consumer stopped: nothing more to do.
             if self.sender.send(batch).is_err() || failed {
@@ -48,10 +59,11 @@ impl Job {
 }
 
 impl BatchLoader {
-    /// Starts `workers` threads loading the batches of steps `first..end`.
+    /// Starts `workers` threads loading the items `items` of the batches
+    /// of `batch_size` items of steps `first..end`.
     pub fn start(
         samples: Arc<TrainingSamples>,
-        batch_size: usize,
+        (batch_size, items): (usize, Range<usize>),
         crop: (usize, usize),
         seed: u64,
         (first, end): (usize, usize),
@@ -65,6 +77,7 @@ impl BatchLoader {
             let job = Job {
                 samples: Arc::clone(&samples),
                 batch_size,
+                items: items.clone(),
                 crop,
                 seed,
                 steps: (first + w..end).step_by(workers),

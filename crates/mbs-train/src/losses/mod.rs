@@ -12,6 +12,7 @@ pub mod geometry;
 pub mod photometric;
 pub mod range;
 pub mod smoothness;
+pub mod terms;
 pub mod warp;
 
 use burn::config::Config;
@@ -25,11 +26,12 @@ use mbs_nets::ranges;
 use photometric::photometric_map;
 use range::{out_of_range, out_of_view};
 use smoothness::edge_aware_smoothness;
+pub use terms::{Term, Terms};
 use warp::{lands_inside, warp_to_reference};
 
 /// Hyper-parameters and ablation switches of the S3 loss; the defaults are
 /// the paper's but for the two safeguards `range_weight` and
-/// `out_of_view_invalid` (README, "S3 from random weights").
+/// `out_of_view_invalid` (docs/training.md, "S3 from random weights").
 #[derive(Config, Debug, PartialEq)]
 pub struct LossConfig {
     /// Photometric threshold `tau` of the validity masks.
@@ -101,7 +103,7 @@ pub struct LossConfig {
     /// photometric term their scale; `false` (the default) is the paper's
     /// term. It stops a runaway of the disparities' scale; training runs of
     /// RAFT-Stereo and IGEV-Stereo default to `true`
-    /// ([`crate::RunConfig::backbone_defaults`]; README, "S3 from random
+    /// ([`crate::RunConfig::backbone_defaults`]; docs/training.md, "S3 from random
     /// weights").
     #[config(default = false)]
     pub geometry_scale_match: bool,
@@ -110,7 +112,7 @@ pub struct LossConfig {
     /// that happens to resemble the reference pixel would pass the paper's
     /// tests (`P < tau`, `P < P_identity`): such false matches let a
     /// teacher whose disparities are far too large supervise the student,
-    /// which then grows its own (README, "S3 from random weights"). The
+    /// which then grows its own (docs/training.md, "S3 from random weights"). The
     /// paper leaves this open (PyTorch's `grid_sample` pads with zeros,
     /// which mostly fails the tests); `false` keeps the border's verdict.
     #[config(default = true)]
@@ -216,18 +218,11 @@ pub struct LossInputs {
 pub struct LossOutput {
     /// The weighted total `L`, differentiable in the student disparity.
     pub total: Tensor<1>,
-    /// `mean(A |d_s - r d_t|)`, unweighted.
-    pub geometry: Option<Tensor<1>>,
-    /// `mean(M_s P_s)`, before `lambda_p` (with `M_s` weighted and the mean
-    /// taken as [`LossConfig::outside_mask_weight`] and
-    /// [`LossConfig::photometric_mask_mean`] say).
-    pub photometric: Option<Tensor<1>>,
-    /// `L_s`, before `lambda_s`.
-    pub smoothness: Option<Tensor<1>>,
-    /// The range term, before `lambda_r` (`None` when its weight is 0).
-    pub range: Option<Tensor<1>>,
-    /// The view term, before `lambda_v` (`None` when its weight is 0).
-    pub view: Option<Tensor<1>>,
+    /// Each term before its weight (the photometric one with `M_s`
+    /// weighted and the mean taken as [`LossConfig::outside_mask_weight`]
+    /// and [`LossConfig::photometric_mask_mean`] say); the range and view
+    /// terms are off when their weights are 0.
+    pub terms: Terms<Tensor<1>>,
     /// Student validity mask `M_s` (0/1), when the photometric or geometry term is on.
     pub student_mask: Option<Tensor<4>>,
     /// Teacher validity mask `M_t` (0/1), when the geometry term is on.
@@ -240,6 +235,13 @@ pub struct LossOutput {
 #[derive(Debug, Clone)]
 pub struct S3Loss {
     config: LossConfig,
+}
+
+impl LossOutput {
+    /// The value of `term`, when it is on.
+    pub fn term(&self, term: Term) -> Option<Tensor<1>> {
+        self.terms.get(term).cloned()
+    }
 }
 
 impl S3Loss {
@@ -348,11 +350,7 @@ impl S3Loss {
         let mut total = Tensor::<1>::zeros([1], &student.device());
         let mut out = LossOutput {
             total: total.clone(),
-            geometry: None,
-            photometric: None,
-            smoothness: None,
-            range: None,
-            view: None,
+            terms: Terms::default(),
             student_mask: None,
             teacher_mask: None,
             weight_map: None,
@@ -374,7 +372,7 @@ impl S3Loss {
                     false => masked.mean(),
                 };
                 total = total + term.clone() * config.lambda_p;
-                out.photometric = Some(term);
+                out.terms.set(Term::Photometric, term);
             }
             if let Some((m_t, teacher_disparity)) = &shared.teacher {
                 let a = weight_map(m_t.clone(), m_s.clone(), config.effective_omega());
@@ -387,7 +385,7 @@ impl S3Loss {
                     config.geometry_scale_match,
                 );
                 total = total + term.clone() * inputs.geometry_weight;
-                out.geometry = Some(term);
+                out.terms.set(Term::Geometry, term);
                 out.teacher_mask = Some(m_t.clone());
                 out.weight_map = Some(a);
             }
@@ -396,12 +394,12 @@ impl S3Loss {
         if config.range_weight > 0.0 {
             let term = out_of_range(student.clone());
             total = total + term.clone() * config.range_weight;
-            out.range = Some(term);
+            out.terms.set(Term::Range, term);
         }
         if config.view_weight > 0.0 {
             let term = out_of_view(student.clone(), &inputs.student_sides);
             total = total + term.clone() * config.view_weight;
-            out.view = Some(term);
+            out.terms.set(Term::View, term);
         }
         if config.smoothness {
             let term = edge_aware_smoothness(
@@ -410,7 +408,7 @@ impl S3Loss {
                 config.normalise_smoothness,
             );
             total = total + term.clone() * config.lambda_s();
-            out.smoothness = Some(term);
+            out.terms.set(Term::Smoothness, term);
         }
         out.total = total;
         out

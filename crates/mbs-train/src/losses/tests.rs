@@ -82,10 +82,10 @@ fn hand_computed_total_and_parts() {
         &rows([0.0, 0.0, 1.0, 2.0]),
         0.0,
     );
-    assert!((scalar(out.geometry) - 0.5).abs() < 1e-6);
-    assert!((scalar(out.photometric) - 0.0125).abs() < 1e-6);
+    assert!((scalar(out.term(Term::Geometry)) - 0.5).abs() < 1e-6);
+    assert!((scalar(out.term(Term::Photometric)) - 0.0125).abs() < 1e-6);
     let smooth = (-0.2f32).exp() / 3.0;
-    assert!((scalar(out.smoothness) - smooth).abs() < 1e-6);
+    assert!((scalar(out.term(Term::Smoothness)) - smooth).abs() < 1e-6);
     let total = values(out.total)[0];
     assert!(
         (total - (0.5 + 0.125 + 0.01 * smooth)).abs() < 1e-6,
@@ -104,22 +104,26 @@ fn ablation_switches() {
     };
     // OAE off: A = [0, 0, 1, 1], L_g = 1/4.
     let out = compute(l1_config().with_occlusion_enhancement(false));
-    assert!((scalar(out.geometry) - 0.25).abs() < 1e-6);
+    assert!((scalar(out.term(Term::Geometry)) - 0.25).abs() < 1e-6);
     // PTF off: M_s = [0, 1, 1, 1], M_t = [0, 1, 1, 1], L_g = 1/4, L_p = 0.2/4.
     let out = compute(l1_config().with_threshold_filter(false));
-    assert!((scalar(out.geometry) - 0.25).abs() < 1e-6);
-    assert!((scalar(out.photometric) - 0.05).abs() < 1e-6);
+    assert!((scalar(out.term(Term::Geometry)) - 0.25).abs() < 1e-6);
+    assert!((scalar(out.term(Term::Photometric)) - 0.05).abs() < 1e-6);
     // Table 3 (A): no geometry term, so no teacher mask and no weight map.
     let out = compute(l1_config().with_geometry(false));
-    assert!(out.geometry.is_none() && out.weight_map.is_none() && out.teacher_mask.is_none());
+    assert!(
+        out.term(Term::Geometry).is_none()
+            && out.weight_map.is_none()
+            && out.teacher_mask.is_none()
+    );
     let smooth = (-0.2f32).exp() / 3.0;
     assert!((values(out.total)[0] - (0.125 + 0.01 * smooth)).abs() < 1e-6);
     // The photometric term over M_s = [0, 1, 1, 0] only: 0.05 / 2.
     let out = compute(l1_config().with_photometric_mask_mean(true));
-    assert!((scalar(out.photometric) - 0.025).abs() < 1e-6);
+    assert!((scalar(out.term(Term::Photometric)) - 0.025).abs() < 1e-6);
     // Table 3 (B): geometry + photometric only.
     let out = compute(l1_config().with_smoothness(false));
-    assert!(out.smoothness.is_none());
+    assert!(out.term(Term::Smoothness).is_none());
     assert!((values(out.total)[0] - 0.625).abs() < 1e-6);
 }
 
@@ -198,7 +202,10 @@ fn a_sequence_adds_each_earlier_prediction_weighted() {
         "the earlier prediction has a loss of its own"
     );
     // The reported terms are the final prediction's.
-    assert_eq!(scalar(sequence.geometry), scalar(last.geometry));
+    assert_eq!(
+        scalar(sequence.term(Term::Geometry)),
+        scalar(last.term(Term::Geometry))
+    );
     // An earlier prediction of another shape is refused.
     let wrong = Tensor::<4>::zeros([1, 1, 2, 3], &device);
     assert!(
@@ -275,7 +282,7 @@ fn a_pixel_outside_the_students_mask_keeps_a_photometric_gradient() {
             .expect("valid")
             .compute(batch)
             .expect("shapes match");
-        let photometric = scalar(out.photometric.clone());
+        let photometric = scalar(out.term(Term::Photometric));
         let grad = values(
             student
                 .grad(&out.total.backward())
@@ -318,8 +325,8 @@ fn a_warp_past_the_targets_edge_is_pulled_back_by_the_view_term_only() {
             .expect("valid")
             .compute(batch)
             .expect("shapes match");
-        assert_eq!(scalar(out.range.clone()), 0.0);
-        let view = out.view.clone().map(|v| values(v)[0]);
+        assert_eq!(scalar(out.term(Term::Range)), 0.0);
+        let view = out.term(Term::View).map(|v| values(v)[0]);
         let grad = values(
             student
                 .grad(&out.total.backward())

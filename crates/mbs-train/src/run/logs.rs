@@ -13,6 +13,7 @@ use serde_json::{Value, json};
 
 use crate::data::validation::ValidationMetrics;
 use crate::error::TrainError;
+use crate::losses::Term;
 use crate::step::StepReport;
 
 /// File of the loss log.
@@ -78,11 +79,8 @@ pub(crate) struct Interval {
     start: Instant,
     steps: usize,
     loss: f64,
-    geometry: f64,
-    photometric: f64,
-    smoothness: f64,
-    range: f64,
-    view: f64,
+    /// The sums of the terms, per term.
+    terms: [f64; Term::COUNT],
     student_mask: f64,
     teacher_mask: f64,
     outside: f64,
@@ -99,11 +97,7 @@ impl Interval {
             start: Instant::now(),
             steps: 0,
             loss: 0.0,
-            geometry: 0.0,
-            photometric: 0.0,
-            smoothness: 0.0,
-            range: 0.0,
-            view: 0.0,
+            terms: [0.0; Term::COUNT],
             student_mask: 0.0,
             teacher_mask: 0.0,
             outside: 0.0,
@@ -123,11 +117,9 @@ impl Interval {
     pub(crate) fn add(&mut self, report: &StepReport) {
         self.steps += 1;
         self.loss += f64::from(report.loss);
-        self.geometry += f64::from(report.terms.geometry.unwrap_or(0.0));
-        self.photometric += f64::from(report.terms.photometric.unwrap_or(0.0));
-        self.smoothness += f64::from(report.terms.smoothness.unwrap_or(0.0));
-        self.range += f64::from(report.terms.range.unwrap_or(0.0));
-        self.view += f64::from(report.terms.view.unwrap_or(0.0));
+        for (term, value) in report.terms.iter() {
+            self.terms[term.index()] += f64::from(value.copied().unwrap_or(0.0));
+        }
         let supervision = &report.supervision;
         self.student_mask += f64::from(supervision.student_mask.unwrap_or(0.0));
         self.teacher_mask += f64::from(supervision.teacher_mask.unwrap_or(0.0));
@@ -159,18 +151,13 @@ impl Interval {
             lr: 0.0,
             momentum: 0.0,
         });
-        let term = |on: Option<f32>, sum: f64| on.map(|_| sum / n);
+        let mean = |on: Option<f32>, sum: f64| on.map(|_| sum / n);
         let mut line = json!({
             "step": steps,
             "loss": self.loss / n,
-            "geometry": term(last.terms.geometry, self.geometry),
-            "photometric": term(last.terms.photometric, self.photometric),
-            "smoothness": term(last.terms.smoothness, self.smoothness),
-            "range": term(last.terms.range, self.range),
-            "view": term(last.terms.view, self.view),
             "supervision": {
-                "student_mask": term(last.supervision.student_mask, self.student_mask),
-                "teacher_mask": term(last.supervision.teacher_mask, self.teacher_mask),
+                "student_mask": mean(last.supervision.student_mask, self.student_mask),
+                "teacher_mask": mean(last.supervision.teacher_mask, self.teacher_mask),
                 "outside": self.outside / n,
                 "disparity": {
                     "min": self.disparity_min,
@@ -184,6 +171,9 @@ impl Interval {
             "samples_per_s": self.samples_per_second(batch_size),
             "data_wait_ms": 1e3 * self.data_wait.as_secs_f64() / n,
         });
+        for term in Term::ALL {
+            line[term.name()] = json!(mean(last.terms.value(term), self.terms[term.index()]));
+        }
         if let Some(scale) = last.loss_scale {
             line["loss_scale"] = json!(scale);
         }

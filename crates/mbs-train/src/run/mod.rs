@@ -25,6 +25,7 @@ use std::time::Instant;
 
 use burn::module::Module;
 use burn::tensor::Device;
+use mbs_batch::share;
 use mbs_core::atomic::write_bytes_atomic;
 use mbs_core::{FloatImage, RgbImage};
 use mbs_dataset::Manifest;
@@ -386,9 +387,14 @@ impl TrainingRun {
         let total = self.config.steps();
         let first = self.trainer.steps_taken();
         let data = self.config.data.clone();
+        // Each process of several loads only its share of each batch.
+        let items = match &self.processes {
+            Some(processes) => share(data.batch_size, processes.size(), processes.rank()),
+            None => 0..data.batch_size,
+        };
         let mut loader = BatchLoader::start(
             Arc::clone(&self.samples),
-            data.batch_size,
+            (data.batch_size, items),
             (data.crop_height, data.crop_width),
             self.config.seed,
             (first, total),
@@ -433,14 +439,18 @@ impl TrainingRun {
                     skipped.len()
                 )));
             }
-            let batch = StepBatch::from_host(
-                batch,
-                &self.devices[0],
-                &self.config.augment,
-                self.config.seed,
-            );
+            // Several devices take their shares from the host, not through
+            // the first one.
+            let home = match self.devices.len() {
+                1 => self.devices[0].clone(),
+                _ => Device::flex(),
+            };
+            let batch = StepBatch::from_host(batch, &home, &self.config.augment, self.config.seed);
             let report = match &self.processes {
-                Some(processes) => self.trainer.step_distributed(batch, processes.as_ref())?,
+                Some(processes) => {
+                    self.trainer
+                        .step_distributed(batch, data.batch_size, processes.as_ref())?
+                }
                 None => self.trainer.step_parallel(batch, &self.devices)?,
             };
             let taken = report.step + 1;

@@ -17,6 +17,7 @@ use serde_json::Value;
 use super::Visual;
 use super::logs::{TRAIN_LOG, VAL_LOG, read_log};
 use crate::error::TrainError;
+use crate::losses::Term;
 use crate::tensorboard::EventWriter;
 
 /// The curves of a run.
@@ -155,8 +156,8 @@ impl RunReport {
     /// Redraws `loss.png` and `val.png` from the logs.
     pub fn curves(&self) -> Result<(), TrainError> {
         let train = read_log(&self.out.join(TRAIN_LOG))?;
-        let losses: Vec<Series> = ["loss", "geometry", "photometric", "smoothness"]
-            .iter()
+        let losses: Vec<Series> = std::iter::once("loss")
+            .chain(Term::ALL.map(Term::name))
             .map(|key| series(&train, key, &[key]))
             .filter(|s| !s.points.is_empty())
             .collect();

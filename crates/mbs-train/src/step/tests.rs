@@ -4,10 +4,12 @@
 
 use super::*;
 use crate::augment::{AugmentConfig, augment};
+use crate::losses::LossConfig;
 use crate::precision::{LossScale, Precision};
 use crate::sampling::{Triplet, TripletSampler};
+use crate::schedule::OneCycleConfig;
 use burn::module::Module;
-use burn::tensor::{Device, TensorData};
+use burn::tensor::{Device, Tensor, TensorData};
 use mbs_core::geometry::{Rig, Side};
 use mbs_nets::{CostVolumeNet, CostVolumeNetConfig};
 use rand::{Rng, SeedableRng};

@@ -91,20 +91,20 @@ impl Report {
 
 impl Observer for Report {
     fn on_step(&mut self, report: &StepReport, samples_per_second: f64) {
-        let term = |name: &str, value: Option<f32>| {
-            value.map_or(String::new(), |v| format!(" {name} {v:.3}"))
-        };
         self.bar.set_position(report.step as u64 + 1);
         let share = |name: &str, value: Option<f32>| {
             value.map_or(String::new(), |v| format!(" {name} {:.0}%", 100.0 * v))
         };
         let supervision = &report.supervision;
+        let terms: Vec<String> = report
+            .terms
+            .iter()
+            .filter_map(|(term, value)| Some(format!("{} {:.3}", term.letter(), value?)))
+            .collect();
         self.bar.set_message(format!(
-            "loss {:.3} ({}{}{} ) masks{}{} {:.1} samples/s{}",
+            "loss {:.3} ({}) masks{}{} {:.1} samples/s{}",
             report.loss,
-            term("g", report.terms.geometry).trim_start(),
-            term("p", report.terms.photometric),
-            term("s", report.terms.smoothness),
+            terms.join(" "),
             share("s", supervision.student_mask),
             share("t", supervision.teacher_mask),
             samples_per_second,
