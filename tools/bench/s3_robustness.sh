@@ -6,7 +6,7 @@
 # 0.6 x before). Prints a Markdown table (BENCHMARKS.md, "S3 robustness").
 # Both networks are validated at the 3 iterations they train with: from
 # random weights, more iterations of an update than it was trained for can
-# diverge (README, "S3 from random weights").
+# diverge (docs/training.md, "S3 from random weights").
 #
 #   bash tools/bench/s3_robustness.sh [MBS_TOOL] [OUT_DIR] [-- EXTRA --set FLAGS...]
 #

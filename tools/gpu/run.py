@@ -25,7 +25,7 @@ the run with a diagnosis:
 7. autotune: phase 4's steps again with the binary built with burn's
    autotune (`mbs-tool-autotune.xz`, or --autotune-binary), its time over
    the default build's: the figure that decides whether mbs's CUDA build
-   turns autotune on (README, "Kernels").
+   turns autotune on (docs/gpus.md, "Kernels").
 
 Everything goes to --out as it happens: results.json (rewritten after each
 phase), logs/ (each command's output), gpu_samples.csv (nvidia-smi every

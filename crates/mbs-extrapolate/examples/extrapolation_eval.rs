@@ -2,7 +2,7 @@
 //! pair of views one and two steps apart extrapolated with the built-in
 //! matcher, the new views scored against the real views one baseline
 //! further out, for the default settings and the alternatives, as Markdown
-//! tables (README, BENCHMARKS). With `--json`, one line of per-scene means
+//! tables (docs/quality.md, BENCHMARKS.md). With `--json`, one line of per-scene means
 //! of the default settings for `tools/bench/extrapolation_vs_opencv.py`.
 //! With `--hci DIR`, the HCI light-field scene "antinous" (its centre row,
 //! `input_Cam036.png` .. `input_Cam044.png`; CC BY-NC-SA, so not shipped:
