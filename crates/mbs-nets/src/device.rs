@@ -85,31 +85,78 @@ pub fn open_device(name: &str) -> Result<Device, NetError> {
     name.trim().parse::<DeviceName>()?.open()
 }
 
-/// The device of one of several processes on a machine (the ranks of an
-/// MPI job) that were all given `list`: `cuda` and `vulkan` without an
-/// index become GPU `local_rank` (`cuda:LOCAL_RANK`), a named device
-/// (`cpu`, `cuda:2`) stays as it is, and a list is refused, since each
-/// process trains on one device.
-pub fn device_of_process(list: &str, local_rank: usize) -> Result<String, NetError> {
-    let name = list.trim();
-    if name.contains(',') {
-        return Err(NetError::Device {
-            name: name.into(),
-            reason: "each process of a multi-process run trains on one device: give one \
-                     (`cuda` takes the GPU of the process's local rank)"
-                .into(),
-        });
-    }
-    Ok(match name {
-        "cuda" | "vulkan" => format!("{name}:{local_rank}"),
-        _ => name.to_string(),
-    })
+/// The devices of a `--device` flag, parsed once: one device, or a
+/// comma-separated list of them (data parallel), each remembered as
+/// written (`cuda` names no GPU in particular, `cuda:0` does).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DeviceList {
+    /// Each device, and whether its index was written.
+    devices: Vec<(DeviceName, bool)>,
 }
 
-/// Opens each device of the comma-separated `list`, in order. The same
-/// device may appear twice (its shards then run one after the other).
-pub fn open_devices(list: &str) -> Result<Vec<Device>, NetError> {
-    list.split(',').map(open_device).collect()
+impl FromStr for DeviceList {
+    type Err = NetError;
+
+    fn from_str(list: &str) -> Result<Self, NetError> {
+        let devices = list
+            .split(',')
+            .map(|name| {
+                let name = name.trim();
+                Ok((name.parse()?, name.contains(':')))
+            })
+            .collect::<Result<_, NetError>>()?;
+        Ok(Self { devices })
+    }
+}
+
+impl fmt::Display for DeviceList {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, (name, indexed)) in self.devices.iter().enumerate() {
+            let separator = if i == 0 { "" } else { "," };
+            match (name, indexed) {
+                (DeviceName::Cuda(_), false) => write!(f, "{separator}cuda")?,
+                _ => write!(f, "{separator}{name}")?,
+            }
+        }
+        Ok(())
+    }
+}
+
+impl DeviceList {
+    /// The devices' names, in order.
+    pub fn names(&self) -> Vec<DeviceName> {
+        self.devices.iter().map(|(name, _)| *name).collect()
+    }
+
+    /// The device of one of several processes on a machine (the ranks of
+    /// an MPI job) that were all given this list: `cuda` and `vulkan`
+    /// without an index become GPU `local_rank` (`cuda:LOCAL_RANK`), a
+    /// named device (`cpu`, `cuda:2`) stays as it is, and a list is
+    /// refused, since each process trains on one device.
+    pub fn of_process(&self, local_rank: usize) -> Result<DeviceList, NetError> {
+        let [(name, indexed)] = self.devices[..] else {
+            return Err(NetError::Device {
+                name: self.to_string(),
+                reason: "each process of a multi-process run trains on one device: give one \
+                         (`cuda` takes the GPU of the process's local rank)"
+                    .into(),
+            });
+        };
+        let name = match (name, indexed) {
+            (DeviceName::Cuda(_), false) => DeviceName::Cuda(local_rank),
+            (DeviceName::Vulkan(None), _) => DeviceName::Vulkan(Some(local_rank)),
+            _ => name,
+        };
+        Ok(DeviceList {
+            devices: vec![(name, true)],
+        })
+    }
+
+    /// Opens each device, in order ([`DeviceName::open`]). The same device
+    /// may appear twice (its shares then run one after the other).
+    pub fn open(&self) -> Result<Vec<Device>, NetError> {
+        self.devices.iter().map(|(name, _)| name.open()).collect()
+    }
 }
 
 #[cfg(feature = "vulkan")]
@@ -247,6 +294,10 @@ mod tests {
 
     #[test]
     fn each_process_takes_the_gpu_of_its_local_rank_unless_one_is_named() {
+        let device_of_process = |list: &str, rank| {
+            let list: DeviceList = list.parse().expect("known devices");
+            list.of_process(rank).map(|device| device.to_string())
+        };
         assert_eq!(device_of_process("cuda", 3).expect("one"), "cuda:3");
         assert_eq!(device_of_process(" vulkan ", 1).expect("one"), "vulkan:1");
         assert_eq!(device_of_process("cuda:0", 3).expect("one"), "cuda:0");
@@ -255,6 +306,16 @@ mod tests {
             .expect_err("a list")
             .to_string();
         assert!(message.contains("trains on one device"), "{message}");
+        let list: DeviceList = "cuda, cuda:1,vulkan".parse().expect("known devices");
+        assert_eq!(list.to_string(), "cuda,cuda:1,vulkan");
+        assert_eq!(
+            list.names(),
+            [
+                DeviceName::Cuda(0),
+                DeviceName::Cuda(1),
+                DeviceName::Vulkan(None)
+            ]
+        );
     }
 
     #[test]
@@ -274,7 +335,14 @@ mod tests {
             let message = open_device(bad).expect_err(bad).to_string();
             assert!(message.contains("unknown device"), "{bad}: {message}");
         }
-        assert_eq!(open_devices("cpu, cpu").map(|d| d.len()).ok(), Some(2));
+        assert_eq!(
+            "cpu, cpu"
+                .parse::<DeviceList>()
+                .and_then(|l| l.open())
+                .map(|d| d.len())
+                .ok(),
+            Some(2)
+        );
         #[cfg(not(feature = "cuda"))]
         {
             let message = open_device("cuda:1")

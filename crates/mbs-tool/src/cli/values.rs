@@ -3,6 +3,7 @@
 //! work starts.
 
 use mbs_core::limits::{MAX_IMAGE_SIDE, MAX_JOBS, MAX_VIEWS};
+use mbs_nets::device::DeviceList;
 
 /// A finite number above zero (focal lengths, baselines, depths, scales).
 pub fn positive(text: &str) -> Result<f64, String> {
@@ -45,11 +46,10 @@ pub fn device(text: &str) -> Result<String, String> {
         .map_err(|e| e.to_string())
 }
 
-/// A comma-separated list of [`device`] names (data-parallel training).
-pub fn devices(text: &str) -> Result<String, String> {
-    text.split(',')
-        .try_for_each(|name| device(name.trim()).map(drop))?;
-    Ok(text.to_string())
+/// A comma-separated list of [`device`] names (data-parallel training),
+/// parsed once.
+pub fn devices(text: &str) -> Result<DeviceList, String> {
+    text.parse().map_err(|e: mbs_nets::NetError| e.to_string())
 }
 
 /// Worker threads: 0 (one per core) up to [`MAX_JOBS`].

@@ -17,7 +17,7 @@ use mbs_infer::SgmConfig;
 use serde_json::{Value, json};
 
 use crate::cli::source::StereoSourceArgs;
-use crate::commands::eval::{items, score_all};
+use crate::commands::eval::{Item, items, score_all};
 
 /// Arguments of `benchmark`.
 #[derive(Parser)]
@@ -89,35 +89,7 @@ struct Column {
 /// Runs `benchmark`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
-    let folders: Vec<(Benchmark, &PathBuf)> = [
-        (Benchmark::Kitti, &args.kitti),
-        (Benchmark::Middlebury, &args.middlebury),
-        (Benchmark::Eth3d, &args.eth3d),
-        (Benchmark::DrivingStereo, &args.drivingstereo),
-        (Benchmark::SceneFlow, &args.sceneflow),
-    ]
-    .into_iter()
-    .flat_map(|(benchmark, dirs)| dirs.iter().map(move |dir| (benchmark, dir)))
-    .collect();
-    if folders.is_empty() {
-        bail!(
-            "no benchmark folder: give --kitti, --middlebury, --eth3d, --drivingstereo or \
-             --sceneflow DIR (each may be repeated)"
-        );
-    }
-    // Every folder is listed before anything is predicted, so that a
-    // folder off its layout stops the command at once.
-    let mut listed = Vec::new();
-    for &(benchmark, dir) in &folders {
-        let source = PairSource::Benchmark {
-            benchmark,
-            dir: dir.clone(),
-        };
-        let pairs = source
-            .scored_pairs()
-            .with_context(|| format!("{benchmark} folder {}", dir.display()))?;
-        listed.push((benchmark, dir, items(pairs, None)));
-    }
+    let listed = list_folders(&args)?;
     args.source.refuse_unused_device()?;
     let matcher = args.source.matcher(SgmConfig::default())?;
     let mut columns = Vec::new();
@@ -158,6 +130,41 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("{failed} images failed (see above); the others are scored");
     }
     Ok(())
+}
+
+/// Every folder the flags give, in flag order, with its items to score;
+/// all are listed before anything is predicted, so that a folder off its
+/// layout stops the command at once.
+fn list_folders(args: &Args) -> anyhow::Result<Vec<(Benchmark, &PathBuf, Vec<Item>)>> {
+    let folders: Vec<(Benchmark, &PathBuf)> = [
+        (Benchmark::Kitti, &args.kitti),
+        (Benchmark::Middlebury, &args.middlebury),
+        (Benchmark::Eth3d, &args.eth3d),
+        (Benchmark::DrivingStereo, &args.drivingstereo),
+        (Benchmark::SceneFlow, &args.sceneflow),
+    ]
+    .into_iter()
+    .flat_map(|(benchmark, dirs)| dirs.iter().map(move |dir| (benchmark, dir)))
+    .collect();
+    if folders.is_empty() {
+        bail!(
+            "no benchmark folder: give --kitti, --middlebury, --eth3d, --drivingstereo or \
+             --sceneflow DIR (each may be repeated)"
+        );
+    }
+    folders
+        .into_iter()
+        .map(|(benchmark, dir)| {
+            let source = PairSource::Benchmark {
+                benchmark,
+                dir: dir.clone(),
+            };
+            let pairs = source
+                .scored_pairs()
+                .with_context(|| format!("{benchmark} folder {}", dir.display()))?;
+            Ok((benchmark, dir, items(pairs, None)))
+        })
+        .collect()
 }
 
 /// A folder's column name: the benchmark (KITTI with its year) and the

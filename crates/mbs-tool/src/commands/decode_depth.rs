@@ -7,7 +7,9 @@ use clap::Parser;
 use mbs_core::Rig;
 use mbs_core::formats::{DepthFormat, DisparityFormat};
 use mbs_dataset::Manifest;
-use mbs_dataset::mbs20k::{DepthDecoding, depth_images_in_folder, depth_images_in_manifest};
+use mbs_dataset::mbs20k::{
+    DepthDecoding, DepthImage, depth_images_in_folder, depth_images_in_manifest,
+};
 
 use crate::cli::batch::{self, Outcome};
 use crate::cli::pairs::parse_pair;
@@ -67,26 +69,7 @@ pub struct Args {
 /// Runs `decode-depth`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
-    let (jobs, rig, camera, manifest_max) = if args.input.is_dir() {
-        let rig = Rig {
-            num_views: args.views,
-            baseline_m: args.baseline,
-            focal_px: args.focal,
-            ..Rig::mbs20k()
-        };
-        (
-            depth_images_in_folder(&args.input, args.out.as_deref())?,
-            rig,
-            0,
-            None,
-        )
-    } else {
-        let manifest = Manifest::load(&args.input)?;
-        let depth = manifest.depth.as_ref();
-        let camera = depth.map_or(0, |d| d.camera);
-        let jobs = depth_images_in_manifest(&args.input, &manifest, args.out.as_deref())?;
-        (jobs, manifest.rig, camera, depth.map(|d| d.max_depth_m))
-    };
+    let (jobs, rig, camera, manifest_max) = input_images(&args)?;
     let max_depth_m = args
         .max_depth
         .or(manifest_max)
@@ -125,6 +108,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
     );
     summary.finish("decode-depth", "images")
+}
+
+/// The depth images of the input (a folder, or a manifest's samples),
+/// the rig that took them, the depth camera and the manifest's largest
+/// depth.
+fn input_images(args: &Args) -> anyhow::Result<(Vec<DepthImage>, Rig, usize, Option<f64>)> {
+    if args.input.is_dir() {
+        let rig = Rig {
+            num_views: args.views,
+            baseline_m: args.baseline,
+            focal_px: args.focal,
+            ..Rig::mbs20k()
+        };
+        let jobs = depth_images_in_folder(&args.input, args.out.as_deref())?;
+        return Ok((jobs, rig, 0, None));
+    }
+    let manifest = Manifest::load(&args.input)?;
+    let depth = manifest.depth.as_ref();
+    let camera = depth.map_or(0, |d| d.camera);
+    let jobs = depth_images_in_manifest(&args.input, &manifest, args.out.as_deref())?;
+    Ok((jobs, manifest.rig, camera, depth.map(|d| d.max_depth_m)))
 }
 
 fn requested_targets(

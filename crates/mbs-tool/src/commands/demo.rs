@@ -46,22 +46,89 @@ fn strings(args: &[&str]) -> Vec<String> {
     args.iter().map(|s| s.to_string()).collect()
 }
 
+/// Where the demo writes, under its `--out`.
+struct Folders {
+    data: PathBuf,
+    manifest: PathBuf,
+    decoded: PathBuf,
+    extrapolated: PathBuf,
+    run: PathBuf,
+    train_data: PathBuf,
+}
+
+impl Folders {
+    fn under(out: &Path) -> Self {
+        let data = out.join("data");
+        let train_data = out.join("train-data");
+        Folders {
+            manifest: data.join("manifest.json"),
+            data,
+            decoded: out.join("decoded"),
+            extrapolated: out.join("extrapolated"),
+            run: out.join("run"),
+            train_data,
+        }
+    }
+}
+
+/// The flags of the demo's training run (step 6b) besides its manifest,
+/// folder and steps: a small batch and crop, and a schedule for 300 steps.
+const TRAIN_SETTINGS: [&str; 20] = [
+    "--batch-size",
+    "4",
+    "--crop",
+    "96x160",
+    "--lr",
+    "0.002",
+    "--max-disparity",
+    "64",
+    "--val-every",
+    "100",
+    "--set",
+    "trainer.ema_base=0.9",
+    "--set",
+    "trainer.lr.pct_start=0.1",
+    "--set",
+    "augment.occlusion_min_side=10",
+    "--set",
+    "augment.occlusion_max_side=30",
+    "--set",
+    "data.val_pairs=[[0,1],[2,1],[2,3]]",
+];
+
 /// Runs `demo`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let data = args.out.join("data");
-    let decoded = args.out.join("decoded");
-    let manifest = data.join("manifest.json");
-    let (data_s, decoded_s, manifest_s) = (
-        data.display().to_string(),
-        decoded.display().to_string(),
-        manifest.display().to_string(),
+    let folders = Folders::under(&args.out);
+    make_data(&args, &folders)?;
+    let manifest = Manifest::load(&folders.manifest)?;
+    eprintln!("\n== 4. Check: decoded disparity against the renderer's exact ground truth");
+    let (epe, pixels) = decoded_vs_ground_truth(&manifest, &folders.data, &folders.decoded)?;
+    eprintln!(
+        "pair 0:4 over {pixels} pixels nearer than 200 m: EPE {epe:.4} px (KITTI PNG quantisation is 1/256 px)"
+    );
+    extrapolate_and_compare(&folders, &folders.data.join(&manifest.samples[0].id))?;
+    train_and_evaluate(&args, &folders)?;
+    println!(
+        "\nSets per town and weather:\n{}",
+        Counts::of(&manifest).table()
+    );
+    print_outputs(&folders);
+    Ok(())
+}
+
+/// Steps 1 to 3: synthesise a small dataset, validate it and decode its
+/// depth.
+fn make_data(args: &Args, folders: &Folders) -> anyhow::Result<()> {
+    let (data, decoded, manifest) = (
+        folders.data.display().to_string(),
+        folders.decoded.display().to_string(),
+        folders.manifest.display().to_string(),
     );
     let frames = args.frames.to_string();
-
     let synth_args = strings(&[
         "synth",
         "--out",
-        &data_s,
+        &data,
         "--frames",
         &frames,
         "--weathers",
@@ -79,35 +146,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     synth::run(synth::Args::try_parse_from(&synth_args)?)?;
 
-    let validate_args = strings(&["validate", &manifest_s, "--deep"]);
+    let validate_args = strings(&["validate", &manifest, "--deep"]);
     step(
         "2. Validate it against the schema and the files on disk",
         &validate_args,
     );
     validate::run(validate::Args::try_parse_from(&validate_args)?)?;
 
-    let decode_args = strings(&[
-        "decode-depth",
-        &manifest_s,
-        "--out",
-        &decoded_s,
-        "--all-pairs",
-    ]);
+    let decode_args = strings(&["decode-depth", &manifest, "--out", &decoded, "--all-pairs"]);
     step(
         "3. Decode the CARLA depth PNGs into metres and disparity",
         &decode_args,
     );
-    decode_depth::run(decode_depth::Args::try_parse_from(&decode_args)?)?;
+    decode_depth::run(decode_depth::Args::try_parse_from(&decode_args)?)
+}
 
-    eprintln!("\n== 4. Check: decoded disparity against the renderer's exact ground truth");
-    let manifest_data = Manifest::load(&manifest)?;
-    let (epe, pixels) = decoded_vs_ground_truth(&manifest_data, &data, &decoded)?;
-    eprintln!(
-        "pair 0:4 over {pixels} pixels nearer than 200 m: EPE {epe:.4} px (KITTI PNG quantisation is 1/256 px)"
-    );
-
-    let sample = data.join(&manifest_data.samples[0].id);
-    let extrapolated = args.out.join("extrapolated");
+/// Step 5: cameras 0 and 3 of `sample` extrapolated from its pair (1, 2),
+/// compared with the rendered ones.
+fn extrapolate_and_compare(folders: &Folders, sample: &Path) -> anyhow::Result<()> {
     let view = |k: usize| {
         sample
             .join(mbs_dataset::mbs20k::view_file(k))
@@ -121,7 +177,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "--right",
         &view(2),
         "--out",
-        &extrapolated.display().to_string(),
+        &folders.extrapolated.display().to_string(),
         "--preview",
     ]);
     step(
@@ -130,52 +186,52 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     extrapolate::run(extrapolate::Args::try_parse_from(&extrapolate_args)?)?;
     for (new, rendered) in [("image_1.png", 0), ("image_4.png", 3)] {
-        let ours = rgb::read_rgb(&extrapolated.join(new))?;
+        let ours = rgb::read_rgb(&folders.extrapolated.join(new))?;
         let truth = rgb::read_rgb(&sample.join(mbs_dataset::mbs20k::view_file(rendered)))?;
         let db = psnr(&ours, &truth, None).context("views of different sizes")?;
         eprintln!("{new} vs rendered camera {rendered}: PSNR {db:.2} dB");
     }
+    Ok(())
+}
 
-    train_and_evaluate(&args)?;
-
-    println!(
-        "\nSets per town and weather:\n{}",
-        Counts::of(&manifest_data).table()
-    );
+/// Lists what the demo wrote.
+fn print_outputs(folders: &Folders) {
     println!("Outputs:");
     println!(
         "  {}/<Town>/<Weather>/<frame>/rgb_0..4.png, depth_0.png, gt/   views and ground truth",
-        data.display()
+        folders.data.display()
     );
     println!(
         "  {}                                           the manifest",
-        manifest.display()
+        folders.manifest.display()
     );
     println!(
         "  {}/<Town>/<Weather>/<frame>/depth_0.exr, disp_0_T.png   decoded depth and disparity",
-        decoded.display()
+        folders.decoded.display()
     );
     println!(
         "  {}/image_1.png, image_4.png, mask_*.png, preview.png   extrapolated views",
-        extrapolated.display()
+        folders.extrapolated.display()
     );
     println!(
         "  {}/loss.png, val.png, visuals/, checkpoints/        the training run",
-        args.out.join("run").display()
+        folders.run.display()
     );
-    Ok(())
 }
 
 /// Steps 6 and 7: a short S3 run on small synthetic scenes (two training
 /// towns, Town10 held out) and the trained teacher's scores.
-fn train_and_evaluate(args: &Args) -> anyhow::Result<()> {
-    let data = args.out.join("train-data");
-    let run = args.out.join("run");
-    let manifest = data.join("manifest.json").display().to_string();
+fn train_and_evaluate(args: &Args, folders: &Folders) -> anyhow::Result<()> {
+    let run = folders.run.display().to_string();
+    let manifest = folders
+        .train_data
+        .join("manifest.json")
+        .display()
+        .to_string();
     let synth_args = strings(&[
         "synth",
         "--out",
-        &data.display().to_string(),
+        &folders.train_data.display().to_string(),
         "--frames",
         "6",
         "--towns",
@@ -197,34 +253,8 @@ fn train_and_evaluate(args: &Args) -> anyhow::Result<()> {
     synth::run(synth::Args::try_parse_from(&synth_args)?)?;
 
     let steps = args.train_steps.to_string();
-    let train_args = strings(&[
-        "train",
-        &manifest,
-        "--out",
-        &run.display().to_string(),
-        "--steps",
-        &steps,
-        "--batch-size",
-        "4",
-        "--crop",
-        "96x160",
-        "--lr",
-        "0.002",
-        "--max-disparity",
-        "64",
-        "--val-every",
-        "100",
-        "--set",
-        "trainer.ema_base=0.9",
-        "--set",
-        "trainer.lr.pct_start=0.1",
-        "--set",
-        "augment.occlusion_min_side=10",
-        "--set",
-        "augment.occlusion_max_side=30",
-        "--set",
-        "data.val_pairs=[[0,1],[2,1],[2,3]]",
-    ]);
+    let mut train_args = strings(&["train", &manifest, "--out", &run, "--steps", &steps]);
+    train_args.extend(strings(&TRAIN_SETTINGS));
     step(
         "6b. Train the built-in network with S3, no ground truth (about a minute)",
         &train_args,
@@ -234,7 +264,7 @@ fn train_and_evaluate(args: &Args) -> anyhow::Result<()> {
     let eval_args = strings(&[
         "eval",
         "--checkpoint",
-        &run.display().to_string(),
+        &run,
         "--manifest",
         &manifest,
         "--pair",

@@ -160,42 +160,8 @@ fn parse_inpaint(s: &str) -> Result<InpaintKind, String> {
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
     let (frames, out) = match &args.kitti {
-        Some(root) => {
-            let out = args.out.clone().unwrap_or_else(|| root.clone());
-            let dirs = match &args.disparity_dir {
-                Some(dir) => (Some(dir.join("disparity_2")), Some(dir.join("disparity_3"))),
-                None => (
-                    args.left_disparity_dir.clone(),
-                    args.right_disparity_dir.clone(),
-                ),
-            };
-            for dir in [&dirs.0, &dirs.1].into_iter().flatten() {
-                warn_if_ground_truth(dir);
-            }
-            let pairs = PairSource::Kitti {
-                dir: root.clone(),
-                frames: KittiFrames::All,
-            }
-            .pairs()?;
-            let frames = kitti_frames(&pairs, &out, (dirs.0.as_deref(), dirs.1.as_deref()));
-            (frames, out)
-        }
-        None => {
-            let (Some(left), Some(right), Some(out)) = (&args.left, &args.right, &args.out) else {
-                bail!("give --left, --right and --out, or --kitti");
-            };
-            crate::cli::require_file(left, "left view")?;
-            crate::cli::require_file(right, "right view")?;
-            let pair = PairSource::Single {
-                left: left.clone(),
-                right: right.clone(),
-            }
-            .pairs()?
-            .remove(0);
-            let files = (args.left_disparity.clone(), args.right_disparity.clone());
-            let frame = pair_frame(&pair, out, files, args.disparity_dir.as_deref())?;
-            (vec![frame], out.clone())
-        }
+        Some(root) => kitti_job(&args, root)?,
+        None => single_pair_job(&args)?,
     };
     // Models and networks are opened before anything is written, so a bad
     // source leaves no output folder behind.
@@ -220,25 +186,74 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     let result = summary.finish("extrapolate", "frames");
     if args.shard.is_none() {
-        let done: Vec<_> = frames
-            .iter()
-            .filter(|f| f.is_done(false))
-            .map(Frame::files)
-            .collect();
-        if done.is_empty() {
-            eprintln!("extrapolate: no frame is complete, so no manifest was written");
-            return result;
-        }
-        let manifest = four_view_manifest(&done, &out, args.focal, args.baseline)?;
-        let path = out.join("manifest.json");
-        manifest.save(&path)?;
-        eprintln!(
-            "extrapolate: {} four-view samples -> {}",
-            manifest.samples.len(),
-            path.display()
-        );
+        write_manifest(&args, &frames, &out)?;
     }
     result
+}
+
+/// The frames of the KITTI folder `root` and the folder they go to (the
+/// input's own unless `--out` says otherwise), with their disparities
+/// from the folders given (a warning when one is KITTI's ground truth).
+fn kitti_job(args: &Args, root: &Path) -> anyhow::Result<(Vec<Frame>, PathBuf)> {
+    let out = args.out.clone().unwrap_or_else(|| root.to_path_buf());
+    let dirs = match &args.disparity_dir {
+        Some(dir) => (Some(dir.join("disparity_2")), Some(dir.join("disparity_3"))),
+        None => (
+            args.left_disparity_dir.clone(),
+            args.right_disparity_dir.clone(),
+        ),
+    };
+    for dir in [&dirs.0, &dirs.1].into_iter().flatten() {
+        warn_if_ground_truth(dir);
+    }
+    let pairs = PairSource::Kitti {
+        dir: root.to_path_buf(),
+        frames: KittiFrames::All,
+    }
+    .pairs()?;
+    let frames = kitti_frames(&pairs, &out, (dirs.0.as_deref(), dirs.1.as_deref()));
+    Ok((frames, out))
+}
+
+/// The one frame of `--left` and `--right`, and `--out`.
+fn single_pair_job(args: &Args) -> anyhow::Result<(Vec<Frame>, PathBuf)> {
+    let (Some(left), Some(right), Some(out)) = (&args.left, &args.right, &args.out) else {
+        bail!("give --left, --right and --out, or --kitti");
+    };
+    crate::cli::require_file(left, "left view")?;
+    crate::cli::require_file(right, "right view")?;
+    let pair = PairSource::Single {
+        left: left.clone(),
+        right: right.clone(),
+    }
+    .pairs()?
+    .remove(0);
+    let files = (args.left_disparity.clone(), args.right_disparity.clone());
+    let frame = pair_frame(&pair, out, files, args.disparity_dir.as_deref())?;
+    Ok((vec![frame], out.clone()))
+}
+
+/// Writes `out/manifest.json`, the four-view samples of the complete
+/// `frames` (none: nothing is written, and it is said).
+fn write_manifest(args: &Args, frames: &[Frame], out: &Path) -> anyhow::Result<()> {
+    let done: Vec<_> = frames
+        .iter()
+        .filter(|f| f.is_done(false))
+        .map(Frame::files)
+        .collect();
+    if done.is_empty() {
+        eprintln!("extrapolate: no frame is complete, so no manifest was written");
+        return Ok(());
+    }
+    let manifest = four_view_manifest(&done, out, args.focal, args.baseline)?;
+    let path = out.join("manifest.json");
+    manifest.save(&path)?;
+    eprintln!(
+        "extrapolate: {} four-view samples -> {}",
+        manifest.samples.len(),
+        path.display()
+    );
+    Ok(())
 }
 
 /// Warns when a disparity folder is KITTI's ground truth: views warped with

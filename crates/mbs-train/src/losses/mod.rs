@@ -356,40 +356,7 @@ impl S3Loss {
             weight_map: None,
         };
         if let Some(identity) = &shared.student_identity {
-            let p_s = self.photometric(
-                &inputs.reference,
-                inputs.student_target.clone(),
-                Some((student.clone(), &inputs.student_sides)),
-            );
-            let m_s = validity_mask(p_s.clone(), identity.clone(), config.mask_parts());
-            let m_s = self.in_view(m_s, student.clone(), &inputs.student_sides);
-            if config.photometric {
-                let beta = config.outside_mask_weight;
-                let weights = m_s.clone() * (1.0 - beta) + beta;
-                let masked = weights.clone() * p_s;
-                let term = match config.photometric_mask_mean {
-                    true => masked.sum() / weights.sum().clamp_min(1.0),
-                    false => masked.mean(),
-                };
-                total = total + term.clone() * config.lambda_p;
-                out.terms.set(Term::Photometric, term);
-            }
-            if let Some((m_t, teacher_disparity)) = &shared.teacher {
-                let a = weight_map(m_t.clone(), m_s.clone(), config.effective_omega());
-                let term = geometry_consistency(
-                    student.clone(),
-                    teacher_disparity.clone(),
-                    &inputs.ratios,
-                    a.clone(),
-                    (config.max_target_disparity > 0.0).then_some(config.max_target_disparity),
-                    config.geometry_scale_match,
-                );
-                total = total + term.clone() * inputs.geometry_weight;
-                out.terms.set(Term::Geometry, term);
-                out.teacher_mask = Some(m_t.clone());
-                out.weight_map = Some(a);
-            }
-            out.student_mask = Some(m_s);
+            total = self.masked_terms(inputs, shared, identity, &student, &mut out, total);
         }
         if config.range_weight > 0.0 {
             let term = out_of_range(student.clone());
@@ -412,6 +379,57 @@ impl S3Loss {
         }
         out.total = total;
         out
+    }
+
+    /// Adds to `total` the terms that need the student's validity mask
+    /// `M_s` (`identity`: the student pair's identity photometric map): the
+    /// photometric term and, with the teacher's mask in `shared`, the
+    /// geometry term; records them and the masks in `out`.
+    fn masked_terms(
+        &self,
+        inputs: &LossInputs,
+        shared: &Shared,
+        identity: &Tensor<4>,
+        student: &Tensor<4>,
+        out: &mut LossOutput,
+        mut total: Tensor<1>,
+    ) -> Tensor<1> {
+        let config = &self.config;
+        let p_s = self.photometric(
+            &inputs.reference,
+            inputs.student_target.clone(),
+            Some((student.clone(), &inputs.student_sides)),
+        );
+        let m_s = validity_mask(p_s.clone(), identity.clone(), config.mask_parts());
+        let m_s = self.in_view(m_s, student.clone(), &inputs.student_sides);
+        if config.photometric {
+            let beta = config.outside_mask_weight;
+            let weights = m_s.clone() * (1.0 - beta) + beta;
+            let masked = weights.clone() * p_s;
+            let term = match config.photometric_mask_mean {
+                true => masked.sum() / weights.sum().clamp_min(1.0),
+                false => masked.mean(),
+            };
+            total = total + term.clone() * config.lambda_p;
+            out.terms.set(Term::Photometric, term);
+        }
+        if let Some((m_t, teacher_disparity)) = &shared.teacher {
+            let a = weight_map(m_t.clone(), m_s.clone(), config.effective_omega());
+            let term = geometry_consistency(
+                student.clone(),
+                teacher_disparity.clone(),
+                &inputs.ratios,
+                a.clone(),
+                (config.max_target_disparity > 0.0).then_some(config.max_target_disparity),
+                config.geometry_scale_match,
+            );
+            total = total + term.clone() * inputs.geometry_weight;
+            out.terms.set(Term::Geometry, term);
+            out.teacher_mask = Some(m_t.clone());
+            out.weight_map = Some(a);
+        }
+        out.student_mask = Some(m_s);
+        total
     }
 }
 

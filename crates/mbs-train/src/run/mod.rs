@@ -16,44 +16,37 @@
 //! back to the checkpoint's step and batch `k` is drawn exactly as in an
 //! uninterrupted run (see [`crate::data::step_rng`]).
 
-use std::fs;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, PoisonError};
-use std::time::Instant;
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex};
 
-use burn::module::Module;
 use burn::tensor::Device;
-use mbs_batch::share;
-use mbs_core::atomic::write_bytes_atomic;
 use mbs_core::{FloatImage, RgbImage};
-use mbs_dataset::Manifest;
 
 use crate::checkpoint::{self, Checkpoint};
 use crate::config::RunConfig;
 use crate::data::StepBatch;
 use crate::data::validation::{ValidationMetrics, ValidationPair};
-use crate::data::{BatchLoader, TrainingSamples, ValidationSet};
-use crate::distributed::{Collective, agree, check_same_weights};
+use crate::data::{TrainingSamples, ValidationSet};
+use crate::distributed::{Collective, check_same_weights};
 use crate::error::TrainError;
-use crate::precision::check_support;
 use crate::step::{S3Trainer, StepReport};
-use crate::supervision::{CollapseWatch, worse_than_untrained};
 use mbs_nets::StereoNetwork;
 use mbs_nets::checkpoint::TrainedNetworks;
 use mbs_nets::host::image_tensor;
 use mbs_nets::official::StateDict;
 
 mod logs;
+mod open;
 mod report;
 mod resume;
+mod steps;
 
-use logs::{Interval, open_log, truncate_log, write_line};
 pub use logs::{TRAIN_LOG, VAL_LOG, read_log, validation_json};
+use logs::{open_log, write_line};
 use report::RunReport;
 pub use report::{LOSS_PLOT, TENSORBOARD_DIR, VAL_PLOT, VISUALS_DIR};
-use resume::check_resumable;
 pub use resume::computing_differences;
 
 /// burn's CPU random generator is one per process: seeding it and drawing
@@ -205,113 +198,35 @@ impl TrainingRun {
         processes: Option<Rc<dyn Collective>>,
     ) -> Result<(Self, Start), TrainError> {
         config.validate()?;
-        let Some(device) = devices.first().cloned() else {
-            return Err(TrainError::Config("no device to train on".into()));
-        };
-        if let Some(processes) = processes.as_ref().filter(|_| devices.len() > 1) {
-            return Err(TrainError::Distributed(format!(
-                "each of the {} processes trains on one device, not {}: give one device per \
-                 process",
-                processes.size(),
-                devices.len()
-            )));
-        }
-        // What shares each batch: the processes, or this one's devices.
-        let (sharers, what) = match &processes {
-            Some(processes) => (processes.size(), "processes"),
-            None => (devices.len(), "devices"),
-        };
-        if config.data.batch_size < sharers {
-            return Err(TrainError::Config(format!(
-                "data.batch_size {} is smaller than the {sharers} {what} that share it",
-                config.data.batch_size
-            )));
-        }
-        let named = devices.iter().map(|device| (format!("{device:?}"), device));
-        check_support(config.trainer.precision, named)?;
-        let parsed = Manifest::load(manifest)?;
-        let crop = (config.data.crop_height, config.data.crop_width);
-        let samples = TrainingSamples::from_manifest(manifest, &parsed, crop)?;
-        samples.check_files(manifest)?;
-        let validation = ValidationSet::from_manifest(
-            manifest,
-            &parsed,
-            &config.data.val_pairs,
-            config.data.val_split,
-            config.data.val_samples,
-        )?;
+        let device = open::check_placement(&config, &devices, processes.as_deref())?;
+        let (samples, validation) = open::load_data(manifest, &config)?;
         let train_device = device.clone().autodiff();
         let latest = Checkpoint::latest(out)?;
         if let Some(processes) = &processes {
-            let mut identity = run_identity(&config, manifest)?;
-            identity["checkpoint"] = latest.as_ref().map(|c| c.state.steps).into();
-            identity["init"] = init.map(|p| p.display().to_string()).into();
-            agree(processes.as_ref(), &identity)?;
+            let steps = latest.as_ref().map(|c| c.state.steps);
+            open::agree_on_start(processes.as_ref(), &config, manifest, steps, init)?;
         }
         let writer = processes.as_ref().is_none_or(|p| p.rank() == 0);
-        // Fresh weights are drawn on the CPU and moved, so a seed gives the
-        // same network on every device. Only they need the seed; a
-        // checkpoint has its own.
-        let init_device = Device::flex().autodiff();
-        let drawing = WEIGHT_DRAWING
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        if latest.is_none() {
-            init_device.seed(config.seed);
-        }
-        let fresh = config.network.init(&init_device)?;
-        // Forking while `fresh` still shares the (lazy) parameters makes
-        // burn initialise them where they are and copy them over.
-        let mut student = fresh.clone().fork(&train_device);
-        drop(fresh);
-        drop(drawing);
-        if let (None, Some(init)) = (&latest, init) {
-            student = student.with_state_dict(&initial_weights(init)?, init)?;
-        }
+        let init = init.filter(|_| latest.is_none());
+        let student = open::first_student(&config, &train_device, latest.is_none(), init)?;
         let mut trainer = S3Trainer::new(student, &config.trainer)?;
         let start = match latest {
             Some(checkpoint) => {
-                check_resumable(&checkpoint, &config)?;
-                let steps = checkpoint.state.steps;
-                let networks = checkpoint.networks()?;
-                trainer.restore(
-                    networks.student(&train_device)?,
-                    networks.teacher(&device)?,
-                    checkpoint.optimizer()?,
-                    steps,
-                    checkpoint.state.loss_scale,
-                );
-                if writer {
-                    truncate_log(&out.join(TRAIN_LOG), steps)?;
-                    truncate_log(&out.join(VAL_LOG), steps)?;
-                }
-                Start::Resumed(steps)
+                let devices = (&device, &train_device);
+                open::resume(&mut trainer, &checkpoint, &config, devices)?;
+                Start::Resumed(trainer.steps_taken())
             }
-            None => {
-                for log in [TRAIN_LOG, VAL_LOG].into_iter().filter(|_| writer) {
-                    let path = out.join(log);
-                    if path.exists() {
-                        fs::remove_file(&path).map_err(|e| TrainError::data(&path, e))?;
-                    }
-                }
-                Start::Fresh
-            }
+            None => Start::Fresh,
         };
         if let Some(processes) = &processes {
-            let steps = trainer.steps_taken();
-            check_same_weights(
-                processes.as_ref(),
-                &[trainer.student(), trainer.teacher()],
-                steps,
-            )?;
+            let networks = [trainer.student(), trainer.teacher()];
+            check_same_weights(processes.as_ref(), &networks, trainer.steps_taken())?;
         }
         if writer {
-            let config_json = serde_json::to_vec_pretty(&config.to_json()?)
-                .map_err(|e| TrainError::Config(e.to_string()))?;
-            write_bytes_atomic(&out.join(CONFIG_FILE), &config_json)?;
+            open::prepare_folder(out, &config, start)?;
         }
-        let resumed_after = match &start {
-            Start::Resumed(steps) => Some(*steps),
+        let resumed_after = match start {
+            Start::Resumed(steps) => Some(steps),
             Start::Fresh => None,
         };
         let report = RunReport::new(out, config.network.max_disparity as f32, resumed_after);
@@ -377,144 +292,6 @@ impl TrainingRun {
             }
         }
         result
-    }
-
-    fn take_steps(
-        &mut self,
-        observer: &mut dyn Observer,
-        stop: &AtomicBool,
-    ) -> Result<End, TrainError> {
-        let total = self.config.steps();
-        let first = self.trainer.steps_taken();
-        let data = self.config.data.clone();
-        // Each process of several loads only its share of each batch.
-        let items = match &self.processes {
-            Some(processes) => share(data.batch_size, processes.size(), processes.rank()),
-            None => 0..data.batch_size,
-        };
-        let mut loader = BatchLoader::start(
-            Arc::clone(&self.samples),
-            (data.batch_size, items),
-            (data.crop_height, data.crop_width),
-            self.config.seed,
-            (first, total),
-            data.loading_threads(),
-        );
-        let mut log = open_log(&self.out.join(TRAIN_LOG))?;
-        let mut interval = Interval::new();
-        let mut skipped = std::collections::BTreeSet::new();
-        let mut newly_skipped = Vec::new();
-        let images = self.samples.samples.len() * self.samples.rig.num_views;
-        let skip_limit = (images / 100).max(10);
-        let mut watch = CollapseWatch::default();
-        let mut alert = None;
-        let mut metrics = None;
-        let writer = self.is_writer();
-        if first == 0 && writer {
-            metrics = self.validate(observer)?;
-        }
-        // The untrained network's score, from this session or the log.
-        let untrained_out3 = read_log(&self.out.join(VAL_LOG))
-            .ok()
-            .and_then(|lines| lines.into_iter().find(|l| l["step"] == 0))
-            .and_then(|line| line["ALL"]["out3"].as_f64());
-        loop {
-            let asked = Instant::now();
-            let Some(batch) = loader.next_batch() else {
-                break;
-            };
-            interval.add_data_wait(asked.elapsed());
-            let batch = batch?;
-            for (path, error) in &batch.skipped {
-                if skipped.insert(path.clone()) {
-                    observer.on_alert(&format!("skipping an unusable image: {error}"));
-                    newly_skipped.push(error.clone());
-                }
-            }
-            if skipped.len() > skip_limit {
-                return Err(TrainError::Input(format!(
-                    "{} training images could not be used, more than the {skip_limit} a run \
-                     skips (1 % of its images, at least 10); check the data with \
-                     `mbs-tool validate --deep`",
-                    skipped.len()
-                )));
-            }
-            // Several devices take their shares from the host, not through
-            // the first one.
-            let home = match self.devices.len() {
-                1 => self.devices[0].clone(),
-                _ => Device::flex(),
-            };
-            let batch = StepBatch::from_host(batch, &home, &self.config.augment, self.config.seed);
-            let report = match &self.processes {
-                Some(processes) => {
-                    self.trainer
-                        .step_distributed(batch, data.batch_size, processes.as_ref())?
-                }
-                None => self.trainer.step_parallel(batch, &self.devices)?,
-            };
-            let taken = report.step + 1;
-            interval.add(&report);
-            observer.on_step(&report, interval.samples_per_second(data.batch_size));
-            if let Some(message) = watch.observe(report.step, &report.supervision) {
-                observer.on_alert(&message);
-                alert = Some(message);
-            }
-            // Validation first, so that its warning goes into this step's log line.
-            let validating = taken % self.config.val_every == 0 || taken == total;
-            if let (Some(processes), true) = (&self.processes, validating) {
-                let networks = [self.trainer.student(), self.trainer.teacher()];
-                check_same_weights(processes.as_ref(), &networks, taken)?;
-            }
-            if validating && writer {
-                metrics = self.validate(observer)?;
-                let out3 = metrics.as_ref().and_then(|m| m.all().out(3.0));
-                if let (Some(untrained), Some(out3)) = (untrained_out3, out3)
-                    && let Some(message) = worse_than_untrained(taken, untrained, out3)
-                {
-                    observer.on_alert(&message);
-                    alert = Some(message);
-                }
-            }
-            if (taken % self.config.log_every == 0 || taken == total) && writer {
-                let mut line = interval.json(taken, data.batch_size);
-                if let Some(message) = alert.take() {
-                    line["warning"] = message.into();
-                }
-                if !skipped.is_empty() {
-                    line["skipped_images"] = skipped.len().into();
-                }
-                if !newly_skipped.is_empty() {
-                    line["skipped"] = std::mem::take(&mut newly_skipped).into();
-                }
-                write_line(&mut log, &self.out.join(TRAIN_LOG), &line)?;
-                let logged = self.report.log_line("train", &line);
-                warn(observer, logged);
-                interval = Interval::new();
-            }
-            let mut stopping = stop.load(Ordering::Relaxed);
-            if let Some(processes) = &self.processes {
-                // Every rank stops at the same step when any was asked to.
-                stopping = processes
-                    .gather(&[u8::from(stopping)])
-                    .iter()
-                    .any(|b| b[0] == 1);
-            }
-            let checkpointing =
-                taken % self.config.checkpoint_every == 0 || taken == total || stopping;
-            if checkpointing && writer {
-                self.checkpoint(observer)?;
-            }
-            if stopping && taken < total {
-                return Ok(End::Stopped(taken));
-            }
-        }
-        if writer {
-            warn(observer, self.report.curves());
-        }
-        Ok(End::Finished {
-            metrics: metrics.map(Box::new),
-        })
     }
 
     fn checkpoint(&self, observer: &mut dyn Observer) -> Result<(), TrainError> {

@@ -245,18 +245,12 @@ impl<B: Backbone> S3Trainer<B> {
         self.loss_scale
     }
 
-    /// Clips `grads`, steps the optimiser and updates the teacher. An f16
-    /// step whose gradients overflowed changes neither network; it only
-    /// lowers the loss scale (its report's `grad_norm` is not finite).
-    fn apply(
-        &mut self,
-        mut grads: GradientsParams,
-        values: LossValues,
-    ) -> Result<StepReport, TrainError> {
-        let lr = self.lr.lr(self.step);
-        let loss_scale = self.loss_scale.map(|s| s.scale);
-        let grad_norm =
-            unscale_and_clip(&self.student, &mut grads, self.grad_clip_norm, self.scale())?;
+    /// Whether the step whose loss is `loss` and gradient norm `grad_norm`
+    /// is skipped: an f16 step whose gradients overflowed (which lowers
+    /// the loss scale), unless that has happened [`MAX_SKIPPED_STEPS`]
+    /// times in a row; a run in another precision cannot skip, so a value
+    /// that is not finite there has diverged.
+    fn skips(&mut self, loss: f32, grad_norm: f64) -> Result<bool, TrainError> {
         let diverged = |what: String| TrainError::Diverged {
             step: self.step + 1,
             what,
@@ -266,9 +260,7 @@ impl<B: Backbone> S3Trainer<B> {
                 scale.update(grad_norm.is_finite());
                 !grad_norm.is_finite()
             }
-            None if !values.total.is_finite() => {
-                return Err(diverged(format!("the loss is {}", values.total)));
-            }
+            None if !loss.is_finite() => return Err(diverged(format!("the loss is {loss}"))),
             None if !grad_norm.is_finite() => {
                 return Err(diverged(format!("the gradient norm is {grad_norm}")));
             }
@@ -286,6 +278,22 @@ impl<B: Backbone> S3Trainer<B> {
                 self.scale()
             )));
         }
+        Ok(skipped)
+    }
+
+    /// Clips `grads`, steps the optimiser and updates the teacher. An f16
+    /// step whose gradients overflowed changes neither network; it only
+    /// lowers the loss scale (its report's `grad_norm` is not finite).
+    fn apply(
+        &mut self,
+        mut grads: GradientsParams,
+        values: LossValues,
+    ) -> Result<StepReport, TrainError> {
+        let lr = self.lr.lr(self.step);
+        let loss_scale = self.loss_scale.map(|s| s.scale);
+        let grad_norm =
+            unscale_and_clip(&self.student, &mut grads, self.grad_clip_norm, self.scale())?;
+        let skipped = self.skips(values.total, grad_norm)?;
         if !skipped {
             self.student = self.optimizer.step(lr, self.student.clone(), grads);
         }

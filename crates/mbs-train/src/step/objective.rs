@@ -12,6 +12,7 @@ use crate::error::TrainError;
 use crate::losses::{LossInputs, LossOutput, S3Loss, Terms};
 use crate::precision::{Precision, cast_network};
 use crate::supervision::{Supervision, measure};
+use mbs_core::Side;
 use mbs_nets::host::read_scalar;
 use mbs_nets::{Backbone, predict, predict_sequence};
 
@@ -70,10 +71,6 @@ impl Objective {
         batch: StepBatch,
         dtype: Option<FloatDType>,
     ) -> Result<(LossOutput, Tensor<1>), TrainError> {
-        let input = |image: Tensor<4>| match dtype {
-            Some(dtype) => image.cast(dtype),
-            None => image,
-        };
         let StepBatch {
             reference,
             student_target,
@@ -84,37 +81,12 @@ impl Objective {
             teacher_sides,
             ratios,
         } = batch;
-        // Only the geometry term reads the teacher (Table 3 (A) runs without it).
-        let teacher_disparity = if self.loss.config().geometry {
-            let (reference, target) = (input(reference.clone()), input(teacher_target.clone()));
-            match self.teacher_test_iters {
-                true => predict(teacher, reference, target, &teacher_sides),
-                false => predict_sequence(teacher, reference, target, &teacher_sides)
-                    .pop()
-                    .ok_or_else(|| TrainError::Shape("the teacher predicted nothing".into()))?,
-            }
-            .cast(FloatDType::F32)
-        } else {
-            let [batch, _, height, width] = reference.dims();
-            Tensor::zeros([batch, 1, height, width], &reference.device())
-        };
-        let mut predictions: Vec<_> = predict_sequence(
-            student,
-            input(augmented_reference),
-            input(augmented_target),
-            &student_sides,
-        )
-        .into_iter()
-        .map(|prediction| prediction.cast(FloatDType::F32))
-        .collect();
-        let weights = sequence_weights(
-            predictions.len(),
-            self.sequence_gamma,
-            self.final_prediction_only,
-        );
-        let student_disparity = predictions
-            .pop()
-            .ok_or_else(|| TrainError::Shape("the student returned no prediction".into()))?;
+        let clean_pair = (reference.clone(), teacher_target.clone());
+        let teacher_disparity =
+            self.teacher_disparity(teacher, clean_pair, &teacher_sides, dtype)?;
+        let student_input = (augmented_reference, augmented_target);
+        let (student_disparity, earlier) =
+            self.student_predictions(student, student_input, &student_sides, dtype)?;
         let final_prediction = student_disparity.clone();
         let sides = student_sides.clone();
         let inputs = LossInputs {
@@ -128,13 +100,6 @@ impl Objective {
             ratios,
             geometry_weight: self.geometry_weight,
         };
-        // The final prediction's terms are the ones reported; the earlier
-        // predictions add their weighted totals.
-        let earlier = predictions
-            .into_iter()
-            .zip(weights)
-            .filter(|(_, weight)| *weight > 0.0)
-            .collect();
         let out = self.loss.compute_sequence(inputs, earlier)?;
         let measured = measure(
             final_prediction,
@@ -143,6 +108,65 @@ impl Objective {
             out.teacher_mask.clone(),
         );
         Ok((out, measured))
+    }
+
+    /// The teacher's pseudo-labels `d_t` (f32) on the clean pair
+    /// `(reference, target)`, the teacher in `dtype`; zeros when the
+    /// geometry term, their only reader, is off (Table 3 (A)).
+    fn teacher_disparity<B: Backbone>(
+        &self,
+        teacher: &B,
+        (reference, target): (Tensor<4>, Tensor<4>),
+        sides: &[Side],
+        dtype: Option<FloatDType>,
+    ) -> Result<Tensor<4>, TrainError> {
+        if !self.loss.config().geometry {
+            let [batch, _, height, width] = reference.dims();
+            return Ok(Tensor::zeros(
+                [batch, 1, height, width],
+                &reference.device(),
+            ));
+        }
+        let (reference, target) = (in_dtype(reference, dtype), in_dtype(target, dtype));
+        let disparity = match self.teacher_test_iters {
+            true => predict(teacher, reference, target, sides),
+            false => predict_sequence(teacher, reference, target, sides)
+                .pop()
+                .ok_or_else(|| TrainError::Shape("the teacher predicted nothing".into()))?,
+        };
+        Ok(disparity.cast(FloatDType::F32))
+    }
+
+    /// The student's predictions (f32) on its augmented pair `input`, the
+    /// student in `dtype`: the final one, whose terms are the ones
+    /// reported, and each earlier one whose sequence weight is not 0, with
+    /// that weight (it adds its weighted total).
+    fn student_predictions<B: Backbone>(
+        &self,
+        student: &B,
+        (reference, target): (Tensor<4>, Tensor<4>),
+        sides: &[Side],
+        dtype: Option<FloatDType>,
+    ) -> Result<(Tensor<4>, Vec<(Tensor<4>, f64)>), TrainError> {
+        let (reference, target) = (in_dtype(reference, dtype), in_dtype(target, dtype));
+        let mut predictions: Vec<_> = predict_sequence(student, reference, target, sides)
+            .into_iter()
+            .map(|prediction| prediction.cast(FloatDType::F32))
+            .collect();
+        let weights = sequence_weights(
+            predictions.len(),
+            self.sequence_gamma,
+            self.final_prediction_only,
+        );
+        let last = predictions
+            .pop()
+            .ok_or_else(|| TrainError::Shape("the student returned no prediction".into()))?;
+        let earlier = predictions
+            .into_iter()
+            .zip(weights)
+            .filter(|(_, weight)| *weight > 0.0)
+            .collect();
+        Ok((last, earlier))
     }
 
     /// The gradients of `weight` times the loss of `batch` for `student`
@@ -173,6 +197,14 @@ impl Objective {
             GradientsParams::from_grads(total.backward(), student),
             values,
         ))
+    }
+}
+
+/// `image` in `dtype` (`None`: as it is, f32).
+fn in_dtype(image: Tensor<4>, dtype: Option<FloatDType>) -> Tensor<4> {
+    match dtype {
+        Some(dtype) => image.cast(dtype),
+        None => image,
     }
 }
 

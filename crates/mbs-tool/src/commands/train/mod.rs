@@ -10,9 +10,10 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Context, bail};
+use burn::tensor::Device;
 use clap::Parser;
 use mbs_nets::checkpoint::CHECKPOINTS_DIR;
-use mbs_nets::device::device_of_process;
+use mbs_nets::device::DeviceList;
 use mbs_train::checkpoint::Checkpoint;
 use mbs_train::distributed::{Collective, agree, all_succeeded};
 use mbs_train::run::{End, Quiet, Start, TrainingRun, computing_differences, run_identity};
@@ -117,7 +118,7 @@ pub struct Args {
     /// means GPU LOCAL_RANK, the process's rank on its machine (from MPI,
     /// whatever the launcher), so N processes per node use its first N GPUs.
     #[arg(long, default_value = "cpu", value_parser = crate::cli::values::devices)]
-    pub device: String,
+    pub device: DeviceList,
     /// The format the networks compute in (trainer.precision): f32, or mixed
     /// precision with bf16 or f16 (weights, optimiser state and losses stay
     /// f32; f16 scales its loss dynamically). A device that cannot compute in
@@ -275,7 +276,9 @@ impl std::fmt::Display for Stopped {
 
 impl std::error::Error for Stopped {}
 
-/// Trains into `out`; with `processes`, as this process's rank of them.
+/// Trains into `out`; with `processes`, as this process's rank of them:
+/// the devices opened, the folder readied, the run opened, then trained
+/// until its end or a stop request.
 fn train(
     args: &Args,
     config: RunConfig,
@@ -283,39 +286,101 @@ fn train(
     out: &Path,
     processes: Option<&Rc<dyn Collective>>,
 ) -> anyhow::Result<()> {
+    let devices = open_devices(args, &config, processes)?;
+    crate::cli::require_file(manifest, "manifest")?;
+    prepare_folder(args, &config, manifest, out, processes)?;
+    let (mut training, start) = TrainingRun::open_on(
+        manifest,
+        out,
+        config,
+        devices,
+        args.init.as_deref(),
+        processes.cloned(),
+    )?;
+    let writer = training.is_writer();
+    let total = training.config().steps();
+    if let Start::Resumed(steps) = start
+        && steps >= total
+    {
+        if writer {
+            eprintln!(
+                "train: {} is complete ({steps} of {total} steps); --restart to train again",
+                out.display()
+            );
+        }
+        return Ok(());
+    }
+    if writer {
+        announce(args, &training, start, out, processes);
+    }
+    let stop = stop_requests()?;
+    if !writer {
+        return match training.run(&mut Quiet, &stop)? {
+            End::Stopped(_) => Err(ReportedByRankZero.into()),
+            End::Finished { .. } => Ok(()),
+        };
+    }
+    let mut report = Report::new(out, training.config(), training.steps_taken())?;
+    let end = training.run(&mut report, &stop)?;
+    report.finish()?;
+    match end {
+        End::Stopped(steps) => Err(Stopped { steps, total }.into()),
+        End::Finished { metrics } => {
+            report.summary(metrics.as_deref());
+            Ok(())
+        }
+    }
+}
+
+/// The devices `--device` names for this process (the rank's local GPU
+/// under MPI), opened before anything is removed or written (a bad name
+/// is an input error, on every rank alike), with the run's precision
+/// checked on each and its memory estimated.
+fn open_devices(
+    args: &Args,
+    config: &RunConfig,
+    processes: Option<&Rc<dyn Collective>>,
+) -> anyhow::Result<Vec<Device>> {
     let device_list = match processes {
-        Some(processes) => device_of_process(&args.device, processes.local_rank())?,
+        Some(processes) => args.device.of_process(processes.local_rank())?,
         None => args.device.clone(),
     };
-    // Before anything is removed or written: a bad device name is an input error.
-    let devices = mbs_nets::device::open_devices(&device_list);
+    let devices = device_list.open();
     if let Some(processes) = processes {
         let outcome = devices.as_ref().map(drop).map_err(|e| e.to_string());
         all_succeeded(processes.as_ref(), outcome)?;
     }
     let devices = devices?;
-    let names = device_list.split(',').map(|name| name.trim().to_string());
-    mbs_train::precision::check_support(config.trainer.precision, names.zip(&devices))?;
-    let device_names = device_list
-        .split(',')
-        .map(|name| name.trim().parse())
-        .collect::<Result<Vec<_>, _>>()?;
-    let writer = processes.is_none_or(|p| p.rank() == 0);
-    if let Some(warning) = mbs_train::memory::check(&config, &device_names)?
-        && writer
+    let names = device_list.names();
+    let labelled = names.iter().map(ToString::to_string).zip(&devices);
+    mbs_train::precision::check_support(config.trainer.precision, labelled)?;
+    if let Some(warning) = mbs_train::memory::check(config, &names)?
+        && processes.is_none_or(|p| p.rank() == 0)
     {
         eprintln!("warning: {warning}");
     }
-    crate::cli::require_file(manifest, "manifest")?;
+    Ok(devices)
+}
+
+/// Readies `out` (its checkpoints removed with `--restart`), once every
+/// process agrees on the command, by the writer alone while the others
+/// wait.
+fn prepare_folder(
+    args: &Args,
+    config: &RunConfig,
+    manifest: &Path,
+    out: &Path,
+    processes: Option<&Rc<dyn Collective>>,
+) -> anyhow::Result<()> {
     if let Some(processes) = processes {
         // Agreed before rank 0 touches the folder, so that a mismatch
         // leaves nothing behind.
-        let mut command = run_identity(&config, manifest)?;
+        let mut command = run_identity(config, manifest)?;
         command["restart"] = args.restart.into();
-        command["device"] = args.device.clone().into();
+        command["device"] = args.device.to_string().into();
         agree(processes.as_ref(), &command)?;
     }
-    if writer {
+    if processes.is_none_or(|p| p.rank() == 0) {
         if args.restart {
             let checkpoints = out.join(CHECKPOINTS_DIR);
             if checkpoints.exists() {
@@ -334,34 +399,16 @@ fn train(
         // The others wait until rank 0 has prepared the folder.
         processes.gather(&[]);
     }
-    let (mut training, start) = TrainingRun::open_on(
-        manifest,
-        out,
-        config,
-        devices,
-        args.init.as_deref(),
-        processes.cloned(),
-    )?;
-    let total = training.config().steps();
-    if let Start::Resumed(steps) = start
-        && steps >= total
-    {
-        if writer {
-            eprintln!(
-                "train: {} is complete ({steps} of {total} steps); --restart to train again",
-                out.display()
-            );
-        }
-        return Ok(());
-    }
-    if writer {
-        announce(args, &training, start, out, processes);
-    }
+    Ok(())
+}
+
+/// The flag that Ctrl-C, SIGTERM and SIGUSR1 set to stop the run with a
+/// checkpoint; a second Ctrl-C while it is written gives up at once.
+fn stop_requests() -> anyhow::Result<Arc<AtomicBool>> {
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
     ctrlc::set_handler(move || {
         if flag.swap(true, Ordering::Relaxed) {
-            // A second Ctrl-C while the checkpoint is written: give up now.
             std::process::exit(130);
         }
     })
@@ -372,22 +419,7 @@ fn train(
     #[cfg(unix)]
     signal_hook::flag::register(signal_hook::consts::SIGUSR1, Arc::clone(&stop))
         .context("cannot install the SIGUSR1 handler")?;
-    if !writer {
-        return match training.run(&mut Quiet, &stop)? {
-            End::Stopped(_) => Err(ReportedByRankZero.into()),
-            End::Finished { .. } => Ok(()),
-        };
-    }
-    let mut report = Report::new(out, training.config(), training.steps_taken())?;
-    let end = training.run(&mut report, &stop)?;
-    report.finish()?;
-    match end {
-        End::Stopped(steps) => Err(Stopped { steps, total }.into()),
-        End::Finished { metrics } => {
-            report.summary(metrics.as_deref());
-            Ok(())
-        }
-    }
+    Ok(stop)
 }
 
 /// Says what the run does: where it starts, on how many processes, and
