@@ -17,14 +17,23 @@ bash tools/setup-system.sh
 # (crates/mbs-tool/tests/train_mpi.rs) run the binary that `mpirun` launches.
 cargo test --workspace --locked --features mbs-tool/mpi
 # The Python package (python/, pyo3 + maturin) built from this tree into a
-# virtual environment, .venv-test/, with its test requirements from PyPI
-# (numpy, pytest, PyTorch for mbs.torch), then its tests against the
-# mbs-tool binary the Rust tests just built. They fail, never skip, when a
-# part is missing.
+# virtual environment, .venv-test/, with its `test` extra from PyPI (numpy,
+# pytest, PyTorch for mbs.torch, mypy, ruff; python/pyproject.toml), then
+# its checks and its tests against the mbs-tool binary the Rust tests just
+# built. They fail, never skip, when a part is missing.
 [ -x .venv-test/bin/python ] || python3 -m venv .venv-test
 # Without pip's cache: PyTorch and its CUDA libraries are about 4 GB of
 # wheels that would otherwise stay on disk twice.
 .venv-test/bin/python -m pip install --quiet --disable-pip-version-check --no-cache-dir \
-    -r python/requirements-test.txt ./python
+    './python[test]'
+# Lints, formatting and types, configured in python/pyproject.toml: ruff over
+# python/ (package, tests, example), mypy --strict over the package (with its
+# native module's stubs, mbs/_native.pyi) and its tests.
+(
+    cd python
+    ../.venv-test/bin/python -m ruff check .
+    ../.venv-test/bin/python -m ruff format --check .
+    ../.venv-test/bin/python -m mypy
+)
 MBS_TOOL="$PWD/target/debug/mbs-tool" \
     .venv-test/bin/python -m pytest -q -p no:cacheprovider python/tests

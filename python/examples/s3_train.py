@@ -36,7 +36,6 @@ import copy
 import importlib
 import json
 import sys
-
 from pathlib import Path
 
 import numpy as np
@@ -68,12 +67,15 @@ class CostVolumeNet(nn.Module):
         super().__init__()
         self.candidates = max_disparity // 4
         self.features = nn.Sequential(
-            nn.Conv2d(3, features // 2, 3, 2, 1), nn.ReLU(),
-            nn.Conv2d(features // 2, features, 3, 2, 1), nn.ReLU(),
+            nn.Conv2d(3, features // 2, 3, 2, 1),
+            nn.ReLU(),
+            nn.Conv2d(features // 2, features, 3, 2, 1),
+            nn.ReLU(),
             nn.Conv2d(features, features, 3, 1, 1),
         )
         self.aggregate = nn.Sequential(
-            nn.Conv2d(self.candidates + features, hidden, 3, 1, 1), nn.ReLU(),
+            nn.Conv2d(self.candidates + features, hidden, 3, 1, 1),
+            nn.ReLU(),
             nn.Conv2d(hidden, self.candidates, 3, 1, 1),
         )
 
@@ -84,8 +86,14 @@ class CostVolumeNet(nn.Module):
         shifted = F.pad(right_f, (self.candidates - 1, 0))
         quarter_width = left_f.shape[3]
         volume = torch.cat(
-            [(left_f * shifted[..., self.candidates - 1 - d : self.candidates - 1 - d + quarter_width]).sum(1, keepdim=True)
-             for d in range(self.candidates)], 1)
+            [
+                (left_f * shifted[..., self.candidates - 1 - d : self.candidates - 1 - d + quarter_width]).sum(
+                    1, keepdim=True
+                )
+                for d in range(self.candidates)
+            ],
+            1,
+        )
         logits = self.aggregate(torch.cat([volume, left_f], 1)) + volume * 10.0
         values = torch.arange(self.candidates, dtype=left.dtype, device=left.device).view(1, -1, 1, 1)
         quarter = (logits.softmax(1) * values).sum(1, keepdim=True) * 4.0
@@ -157,15 +165,22 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=2, help="DataLoader worker processes")
     parser.add_argument("--network", default="cost-volume", help="module:Class, or the built-in cost-volume")
-    parser.add_argument("--geometry-start", type=float, default=0.0,
-                        help="share of the run before the geometry term (0.3 for RAFT/IGEV-Stereo from scratch)")
+    parser.add_argument(
+        "--geometry-start",
+        type=float,
+        default=0.0,
+        help="share of the run before the geometry term (0.3 for RAFT/IGEV-Stereo from scratch)",
+    )
     parser.add_argument("--geometry-warmup", type=float, default=0.0, help="share over which it then rises")
     parser.add_argument("--log", help="write each step's losses here as JSON lines")
     parser.add_argument("--save", help="write the teacher's state_dict here at the end")
     parser.add_argument("--device", help="torch device, e.g. cuda:1 (default: cuda when PyTorch sees a GPU, else cpu)")
-    parser.add_argument("--precision", choices=["f32", "bf16", "f16"], default="f32",
-                        help="the networks under autocast in this format on the device (f16 with a grad scaler); "
-                             "the loss stays f32")
+    parser.add_argument(
+        "--precision",
+        choices=["f32", "bf16", "f16"],
+        default="f32",
+        help="the networks under autocast in this format on the device (f16 with a grad scaler); the loss stays f32",
+    )
     args = parser.parse_args(argv)
 
     torch.manual_seed(args.seed)
@@ -185,7 +200,8 @@ def main(argv=None):
     loss_fn = S3Loss()
     optimiser = torch.optim.Adam(student.parameters(), lr=args.lr)
     schedule = torch.optim.lr_scheduler.OneCycleLR(
-        optimiser, args.lr, total_steps=args.steps, pct_start=0.01, cycle_momentum=False, anneal_strategy="linear")
+        optimiser, args.lr, total_steps=args.steps, pct_start=0.01, cycle_momentum=False, anneal_strategy="linear"
+    )
     data = MultiBaselineDataset(args.manifest, args.steps, args.batch_size, args.crop, args.seed)
     loader = DataLoader(data, batch_size=None, num_workers=args.workers)
     log = open(args.log, "w") if args.log else None
@@ -193,29 +209,50 @@ def main(argv=None):
 
     def score(step):
         scores = {"step": step, **evaluate(teacher, pairs, device)}
-        print(f"held-out after {step} steps: EPE {scores['epe']:.2f} px, Out-3 {scores['out3']:.1f} %, "
-              f"photometric error {scores['photometric']:.4f}", flush=True)
+        print(
+            f"held-out after {step} steps: EPE {scores['epe']:.2f} px, Out-3 {scores['out3']:.1f} %, "
+            f"photometric error {scores['photometric']:.4f}",
+            flush=True,
+        )
         if log:
             log.write(json.dumps({"eval": scores}) + "\n")
 
     score(0)
     for batch in loader:
         step = batch["step"]
-        images = {name: batch[name].to(device) for name in
-                  ["reference", "student_target", "teacher_target", "brightness", "contrast", "saturation",
-                   "occlusion"]}
+        images = {
+            name: batch[name].to(device)
+            for name in [
+                "reference",
+                "student_target",
+                "teacher_target",
+                "brightness",
+                "contrast",
+                "saturation",
+                "occlusion",
+            ]
+        }
         images["augmented_reference"], images["augmented_target"] = augment_batch(images)
         with torch.no_grad(), autocast():
-            teacher_disparity = predict(teacher, images["reference"], images["teacher_target"],
-                                        batch["teacher_sides"])[-1].float()
+            teacher_disparity = predict(teacher, images["reference"], images["teacher_target"], batch["teacher_sides"])[
+                -1
+            ].float()
         with autocast():
-            student_disparities = predict(student, images["augmented_reference"], images["augmented_target"],
-                                          batch["student_sides"])
+            student_disparities = predict(
+                student, images["augmented_reference"], images["augmented_target"], batch["student_sides"]
+            )
         student_disparities = [d.float() for d in student_disparities]
-        out = loss_fn(images["reference"], images["student_target"], images["teacher_target"],
-                      student_disparities, teacher_disparity, batch["student_sides"], batch["teacher_sides"],
-                      batch["ratios"].to(device),
-                      geometry_weight=geometry_weight(step, args.steps, args.geometry_start, args.geometry_warmup))
+        out = loss_fn(
+            images["reference"],
+            images["student_target"],
+            images["teacher_target"],
+            student_disparities,
+            teacher_disparity,
+            batch["student_sides"],
+            batch["teacher_sides"],
+            batch["ratios"].to(device),
+            geometry_weight=geometry_weight(step, args.steps, args.geometry_start, args.geometry_warmup),
+        )
         optimiser.zero_grad()
         scaler.scale(out.total).backward()
         scaler.unscale_(optimiser)
@@ -239,8 +276,11 @@ def main(argv=None):
             log.write(json.dumps(record) + "\n")
     score(args.steps)
     if device.type == "cuda":
-        print(f"peak GPU memory {torch.cuda.max_memory_allocated(device) / 2**20:.0f} MiB "
-              f"({torch.cuda.get_device_name(device)})", flush=True)
+        print(
+            f"peak GPU memory {torch.cuda.max_memory_allocated(device) / 2**20:.0f} MiB "
+            f"({torch.cuda.get_device_name(device)})",
+            flush=True,
+        )
     if log:
         log.close()
     if args.save:

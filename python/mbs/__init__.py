@@ -1,6 +1,9 @@
-"""mbs from Python: disparity and depth files, CARLA depth, the built-in matcher,
-extrapolation, procedural scenes with exact ground truth, manifests (and in
-``mbs.torch``, S3 for PyTorch networks).
+"""mbs from Python: stereo files, CARLA depth, the built-in matcher and more.
+
+Disparity and depth files, CARLA depth, the built-in matcher, extrapolation,
+procedural scenes with exact ground truth, manifests (and in ``mbs.torch``,
+S3 for PyTorch networks). The package is typed (``py.typed``, with stubs for
+its native module).
 
 Conventions, the same for every function:
 
@@ -23,6 +26,9 @@ Example::
 """
 
 import json as _json
+from os import PathLike as _PathLike
+from typing import Any as _Any
+from typing import Union as _Union
 
 from mbs import _native
 from mbs._native import (
@@ -42,21 +48,56 @@ from mbs._native import (
 )
 
 
-def load_manifest(path):
-    """A dataset manifest as a dict (rig, samples, provenance), checked
-    against the schema and the confinement rule of its paths, which are
-    relative to the manifest's folder. ``OSError`` names a manifest that
-    cannot be read or is not valid."""
-    return _json.loads(_native.load_manifest_json(path))
+def load_manifest(path: _Union[str, _PathLike[str]]) -> dict[str, _Any]:
+    """Load a dataset manifest, checked against the schema and the confinement rule.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The manifest (JSON); its paths are relative to its folder, and
+        confined to it.
+
+    Returns
+    -------
+    dict
+        The manifest: ``rig``, ``samples``, ``provenance`` and the rest of
+        its schema.
+
+    Raises
+    ------
+    OSError
+        The manifest cannot be read or is not valid (the message names it).
+    """
+    manifest: dict[str, _Any] = _json.loads(_native.load_manifest_json(path))
+    return manifest
 
 
-def validate(path, deep=False):
-    """``mbs-tool validate --json``'s report as a dict: ``manifest``,
-    ``deep``, ``samples``, ``files_checked`` and ``problems`` (each with its
-    ``kind``, ``message`` and, where it has them, ``sample`` and ``path``).
-    The manifest is clean when ``problems`` is empty; ``deep`` decodes every
-    pixel of every file."""
-    return _json.loads(_native.validate_json(path, deep))
+def validate(path: _Union[str, _PathLike[str]], deep: bool = False) -> dict[str, _Any]:
+    """Validate a manifest and its files, as ``mbs-tool validate --json``.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The manifest.
+    deep : bool, default False
+        Whether every pixel of every file is decoded.
+
+    Returns
+    -------
+    dict
+        The command's report: ``manifest``, ``deep``, ``samples``,
+        ``files_checked`` and ``problems`` (each with its ``kind``,
+        ``message`` and, where it has them, ``sample`` and ``path``). The
+        manifest is clean when ``problems`` is empty; a manifest that
+        cannot be read is a problem of the report, not an exception.
+
+    Raises
+    ------
+    OSError
+        The report cannot be encoded (it names the manifest).
+    """
+    report: dict[str, _Any] = _json.loads(_native.validate_json(path, deep))
+    return report
 
 
 __all__ = [

@@ -45,7 +45,36 @@ fn augment_settings(json: &str) -> PyResult<AugmentConfig> {
     Ok(augment)
 }
 
-/// The batches of a run over the `train` samples of a manifest.
+/// The training batches of a run over the ``train`` samples of a manifest.
+///
+/// As ``mbs-tool train`` draws and decodes them;
+/// ``mbs.torch.MultiBaselineDataset`` wraps it.
+///
+/// Parameters
+/// ----------
+/// manifest : str or os.PathLike
+///     The manifest; its ``train`` samples are read, each at least the crop.
+/// batch_size : int
+///     Items per batch, 1 to 1024.
+/// crop_height, crop_width : int
+///     The crops' sides, 16 to 32768.
+/// seed : int
+///     The run's seed, 0 to ``2**64 - 1``.
+/// augment_json : str, default "{}"
+///     A JSON object of ``trainer.augment``-style keys; missing ones take the
+///     paper's values, unknown ones are refused.
+///
+/// Raises
+/// ------
+/// OSError
+///     The manifest cannot be used, or a sample is smaller than the crop (the
+///     message names the manifest).
+/// ValueError
+///     A setting is out of range or unknown (the message begins with its
+///     name).
+/// TypeError
+///     An integer argument is not an integer (the message begins with its
+///     name).
 #[pyclass(frozen, module = "mbs._native")]
 pub struct HostBatches {
     manifest: PathBuf,
@@ -60,7 +89,8 @@ pub struct HostBatches {
 impl HostBatches {
     /// Reads the manifest's `train` samples (every one at least the crop);
     /// `augment_json` holds `trainer.augment`-style keys, missing ones at
-    /// the paper's values.
+    /// the paper's values. (Python shows the struct's doc: pyo3 keeps no
+    /// doc of `#[new]`.)
     #[new]
     #[pyo3(signature = (manifest, batch_size, crop_height, crop_width, seed, augment_json = "{}"))]
     fn new(
@@ -92,16 +122,36 @@ impl HostBatches {
         })
     }
 
-    /// The batch of `step` as a dict of NumPy arrays and lists: the clean
-    /// crops `reference`, `student_target` and `teacher_target`
-    /// (`float32`, `[B, 3, H, W]` in `[0, 1]`), `ratios` (`float64`),
-    /// `triplets` (`int64`, `[B, 3]`: reference, student and teacher
-    /// view), `windows` (`int64`, `[B, 2]`: top and left of the crop),
-    /// `student_sides` and `teacher_sides` (`"left"`/`"right"`),
-    /// `sample_ids`, `skipped` (unreadable images met and replaced, each
-    /// `(path, error)`), and the augmentation's draws: `brightness`,
-    /// `contrast`, `saturation` (`float32`, `[B]`) and `occlusion`
-    /// (`float32`, `[B, 1, H, W]`, 1 where the target is erased).
+    /// Draws and decodes the batch of a step.
+    ///
+    /// Parameters
+    /// ----------
+    /// step : int
+    ///     The step, 0 to ``2**32 - 1``.
+    ///
+    /// Returns
+    /// -------
+    /// dict
+    ///     NumPy arrays and lists: the clean crops ``reference``,
+    ///     ``student_target`` and ``teacher_target`` (``float32``,
+    ///     ``[B, 3, H, W]`` in ``[0, 1]``), ``ratios`` (``float64``,
+    ///     ``[B]``), ``triplets`` (``int64``, ``[B, 3]``: reference, student
+    ///     and teacher view), ``windows`` (``int64``, ``[B, 2]``: top and
+    ///     left of the crop), ``student_sides`` and ``teacher_sides``
+    ///     (``"left"``/``"right"``), ``sample_ids``, ``skipped`` (unreadable
+    ///     images met and replaced, each ``(path, error)``), and the
+    ///     augmentation's draws: ``brightness``, ``contrast``,
+    ///     ``saturation`` (``float32``, ``[B]``) and ``occlusion``
+    ///     (``float32``, ``[B, 1, H, W]``, 1 where the target is erased).
+    ///
+    /// Raises
+    /// ------
+    /// OSError
+    ///     The batch cannot be read (the message names the manifest).
+    /// ValueError
+    ///     ``step`` is out of range.
+    /// TypeError
+    ///     ``step`` is not an integer.
     fn batch<'py>(&self, py: Python<'py>, step: Integer) -> PyResult<Bound<'py, PyDict>> {
         let step: usize = step.within("step", 0..=i128::from(u32::MAX))?;
         let (batch, draws) = py

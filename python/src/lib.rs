@@ -170,27 +170,91 @@ fn write_file(
     py.detach(|| write(path)).map_err(|e| os_error(path, e))
 }
 
-/// Reads an image (PNG, PPM, ...) as a uint8 HxWx3 RGB array (grey and
-/// 16-bit images are converted, alpha dropped).
+/// Reads an image (PNG, PPM, ...) as an RGB array.
+///
+/// Grey and 16-bit images are converted to 8-bit RGB, alpha is dropped.
+///
+/// Parameters
+/// ----------
+/// path : str or os.PathLike
+///     The file.
+///
+/// Returns
+/// -------
+/// numpy.ndarray
+///     ``uint8``, shape ``(H, W, 3)``, RGB.
+///
+/// Raises
+/// ------
+/// OSError
+///     The file cannot be read or decoded (the message names it).
 #[pyfunction]
 fn read_rgb(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArrayDyn<u8>>> {
     read_file(py, &path, rgb::read_rgb)
 }
 
-/// Writes a uint8 HxWx3 RGB array as a PNG.
+/// Writes an RGB array as a PNG.
+///
+/// Parameters
+/// ----------
+/// path : str or os.PathLike
+///     The file to write: a new file, or a regular file that it replaces.
+/// image : numpy.ndarray
+///     ``uint8``, shape ``(H, W, 3)``, RGB.
+///
+/// Raises
+/// ------
+/// ValueError
+///     ``image`` is not such an array (the message begins with ``image:``).
+/// OSError
+///     The file cannot be written, or is not a regular file (a folder, a
+///     device, a FIFO, a socket; it is left as it was); the message names
+///     it.
 #[pyfunction]
 fn write_rgb(py: Python<'_>, path: PathBuf, image: &Bound<'_, PyAny>) -> PyResult<()> {
     let image = rgb_image("image", image)?;
     write_file(py, &path, |path| rgb::write_rgb_png(path, &image))
 }
 
-/// Reads a single-channel PFM (disparity or depth) as a float32 HxW array.
+/// Reads a single-channel PFM (disparity or depth).
+///
+/// Parameters
+/// ----------
+/// path : str or os.PathLike
+///     The file.
+///
+/// Returns
+/// -------
+/// numpy.ndarray
+///     ``float32``, shape ``(H, W)``; ``inf`` where a pixel has no value.
+///
+/// Raises
+/// ------
+/// OSError
+///     The file cannot be read or decoded (the message names it).
 #[pyfunction]
 fn read_pfm(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArrayDyn<f32>>> {
     read_file(py, &path, pfm::read_pfm_grey)
 }
 
-/// Writes a float32 HxW array as a little-endian single-channel PFM.
+/// Writes a disparity or depth map as a little-endian single-channel PFM.
+///
+/// Parameters
+/// ----------
+/// path : str or os.PathLike
+///     The file to write: a new file, or a regular file that it replaces.
+/// map : numpy.ndarray
+///     ``float32``, shape ``(H, W)``; every value is kept, ``inf`` and NaN
+///     too.
+///
+/// Raises
+/// ------
+/// ValueError
+///     ``map`` is not such an array (the message begins with ``map:``).
+/// OSError
+///     The file cannot be written, or is not a regular file (a folder, a
+///     device, a FIFO, a socket; it is left as it was); the message names
+///     it.
 #[pyfunction]
 fn write_pfm(py: Python<'_>, path: PathBuf, map: &Bound<'_, PyAny>) -> PyResult<()> {
     let map = float_map("map", map)?;
@@ -199,14 +263,47 @@ fn write_pfm(py: Python<'_>, path: PathBuf, map: &Bound<'_, PyAny>) -> PyResult<
     })
 }
 
-/// Reads a KITTI 16-bit PNG disparity (value / 256; 0 is invalid, `inf`).
+/// Reads a KITTI 16-bit PNG disparity.
+///
+/// Parameters
+/// ----------
+/// path : str or os.PathLike
+///     The file.
+///
+/// Returns
+/// -------
+/// numpy.ndarray
+///     ``float32``, shape ``(H, W)``: each value / 256; 0 (invalid) is
+///     ``inf``.
+///
+/// Raises
+/// ------
+/// OSError
+///     The file cannot be read or decoded (the message names it).
 #[pyfunction]
 fn read_kitti_disparity(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArrayDyn<f32>>> {
     read_file(py, &path, png16::read_kitti_disparity)
 }
 
-/// Writes a disparity as a KITTI 16-bit PNG (value x 256; `inf`, NaN and
-/// values that do not fit are written as 0, invalid).
+/// Writes a disparity as a KITTI 16-bit PNG.
+///
+/// Parameters
+/// ----------
+/// path : str or os.PathLike
+///     The file to write: a new file, or a regular file that it replaces.
+/// disparity : numpy.ndarray
+///     ``float32``, shape ``(H, W)``; written as value x 256, with ``inf``,
+///     NaN and values that do not fit written as 0 (invalid).
+///
+/// Raises
+/// ------
+/// ValueError
+///     ``disparity`` is not such an array (the message begins with
+///     ``disparity:``).
+/// OSError
+///     The file cannot be written, or is not a regular file (a folder, a
+///     device, a FIFO, a socket; it is left as it was); the message names
+///     it.
 #[pyfunction]
 fn write_kitti_disparity(
     py: Python<'_>,
@@ -219,22 +316,70 @@ fn write_kitti_disparity(
     })
 }
 
-/// Reads a single-channel OpenEXR depth map as a float32 HxW array.
+/// Reads a single-channel OpenEXR depth map.
+///
+/// Parameters
+/// ----------
+/// path : str or os.PathLike
+///     The file.
+///
+/// Returns
+/// -------
+/// numpy.ndarray
+///     ``float32``, shape ``(H, W)``.
+///
+/// Raises
+/// ------
+/// OSError
+///     The file cannot be read or decoded (the message names it).
 #[pyfunction]
 fn read_exr(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyArrayDyn<f32>>> {
     read_file(py, &path, exr::read_exr)
 }
 
-/// Writes a float32 HxW array as a single-channel OpenEXR file.
+/// Writes a depth map as a single-channel OpenEXR file.
+///
+/// Parameters
+/// ----------
+/// path : str or os.PathLike
+///     The file to write: a new file, or a regular file that it replaces.
+/// map : numpy.ndarray
+///     ``float32``, shape ``(H, W)``.
+///
+/// Raises
+/// ------
+/// ValueError
+///     ``map`` is not such an array (the message begins with ``map:``).
+/// OSError
+///     The file cannot be written, or is not a regular file (a folder, a
+///     device, a FIFO, a socket; it is left as it was); the message names
+///     it.
 #[pyfunction]
 fn write_exr(py: Python<'_>, path: PathBuf, map: &Bound<'_, PyAny>) -> PyResult<()> {
     let map = float_map("map", map)?;
     write_file(py, &path, |path| exr::write_exr(path, &map))
 }
 
-/// Decodes a CARLA RGB-encoded depth image (uint8 HxWx3) into metres;
-/// depth beyond `max_depth` (200 m by default, as `mbs-tool decode-depth`)
-/// is `inf`.
+/// Decodes a CARLA RGB-encoded depth image into metres.
+///
+/// Parameters
+/// ----------
+/// rgb : numpy.ndarray
+///     ``uint8``, shape ``(H, W, 3)``: the image of CARLA's depth camera.
+/// max_depth : float, default 200.0
+///     Depth beyond it (m) is ``inf``, as ``mbs-tool decode-depth``'s;
+///     positive.
+///
+/// Returns
+/// -------
+/// numpy.ndarray
+///     ``float32``, shape ``(H, W)``: depth in metres.
+///
+/// Raises
+/// ------
+/// ValueError
+///     ``rgb`` is not such an array, or ``max_depth`` is not positive (the
+///     message begins with the argument's name).
 #[pyfunction]
 #[pyo3(signature = (rgb, max_depth = 200.0))]
 fn decode_carla_depth<'py>(
@@ -254,9 +399,33 @@ fn decode_carla_depth<'py>(
     to_numpy(py, depth)
 }
 
-/// Disparity (px) of a depth map (m) for a pair of cameras `baseline` metres
-/// apart with focal length `focal` pixels: `focal * baseline / depth`; depth
-/// that is not finite, not positive or beyond `max_depth` gives `inf`.
+/// Converts a depth map (m) to disparity (px): ``focal * baseline / depth``.
+///
+/// For a pair of cameras ``baseline`` metres apart with focal length
+/// ``focal`` pixels.
+///
+/// Parameters
+/// ----------
+/// depth : numpy.ndarray
+///     ``float32``, shape ``(H, W)``, in metres.
+/// focal : float
+///     The focal length in pixels, positive.
+/// baseline : float
+///     The distance between the cameras in metres, positive.
+/// max_depth : float, default 200.0
+///     Depth beyond it (m) gives ``inf``, as depth that is not finite or not
+///     positive does.
+///
+/// Returns
+/// -------
+/// numpy.ndarray
+///     ``float32``, shape ``(H, W)``: disparity in pixels.
+///
+/// Raises
+/// ------
+/// ValueError
+///     ``depth`` is not such an array, or ``focal`` or ``baseline`` is not a
+///     positive number (the message begins with the argument's name).
 #[pyfunction]
 #[pyo3(signature = (depth, focal, baseline, max_depth = 200.0))]
 fn depth_to_disparity<'py>(
@@ -283,10 +452,35 @@ fn depth_to_disparity<'py>(
     to_numpy(py, map)
 }
 
-/// Left-view disparity of a rectified pair with the built-in semi-global
-/// matcher (`mbs-tool predict`'s defaults): `max_disparity` disparities
-/// (0 estimates the range from the pair, up to 256), 5 or 8 paths, holes
-/// filled from the background side unless `fill` is false (then `inf`).
+/// Matches a rectified pair with the built-in semi-global matcher.
+///
+/// With ``mbs-tool predict``'s defaults.
+///
+/// Parameters
+/// ----------
+/// left, right : numpy.ndarray
+///     The pair's views, ``uint8``, shape ``(H, W, 3)``, RGB, of one size.
+/// max_disparity : int, default 128
+///     The number of disparities, 0 to 4096; 0 estimates the range from the
+///     pair (up to 256).
+/// paths : int, default 5
+///     The matcher's paths, 5 or 8.
+/// fill : bool, default True
+///     Whether holes are filled from the background side (else ``inf``).
+///
+/// Returns
+/// -------
+/// numpy.ndarray
+///     ``float32``, shape ``(H, W)``: the left view's disparity in pixels.
+///
+/// Raises
+/// ------
+/// ValueError
+///     A view is not such an array, the views differ in size, or an integer
+///     is out of range (the message begins with the argument's name).
+/// TypeError
+///     An integer argument is not an integer (a float, a bool, a string; the
+///     message begins with its name).
 #[pyfunction]
 #[pyo3(
     signature = (left, right, max_disparity = Integer::of(128), paths = Integer::of(5), fill = true),
@@ -319,20 +513,51 @@ fn match_stereo<'py>(
     to_numpy(py, disparity.disparity)
 }
 
-/// Two new views of a rectified pair, as `mbs-tool extrapolate` makes them
-/// with its defaults: `image_1` one baseline left of `left` and `image_4`
-/// one baseline right of `right`, by z-buffered forward warping with the
-/// built-in matcher's disparities (tuned for warping; `max_disparity` 0
-/// estimates the range from the pair), holes grown by `dilation` (`none`,
-/// `square`, `ellipse`, `background-side` or `foreground-side`, by
-/// `dilate_radius` pixels) and inpainted (`background` or `isotropic`).
-/// `disparity_left` and `disparity_right` (float32 HxW, `inf` or NaN-free
-/// non-negative values, as `--disparity-left`/`--disparity-right` files)
-/// replace the matcher: given one, the other view's is derived from it by
-/// warping. Returns a dict: `image_1`, `image_4` (uint8 HxWx3), `mask_1`,
-/// `mask_4` (uint8 HxW, 255 where synthesised) and `disparity_2`,
-/// `disparity_3` (float32 HxW, the disparities used for the left and right
-/// views).
+/// Extrapolates two new views of a rectified pair, as ``mbs-tool extrapolate``.
+///
+/// With its defaults: ``image_1`` one baseline left of ``left`` and
+/// ``image_4`` one baseline right of ``right``, by z-buffered forward warping
+/// with the built-in matcher's disparities (tuned for warping), holes grown by
+/// ``dilation`` and inpainted.
+///
+/// Parameters
+/// ----------
+/// left, right : numpy.ndarray
+///     The pair's views, ``uint8``, shape ``(H, W, 3)``, RGB, of one size.
+/// max_disparity : int, default 0
+///     The matcher's number of disparities, 0 to 4096; 0 estimates the range
+///     from the pair.
+/// dilation : str, default "none"
+///     How holes grow: ``"none"``, ``"square"``, ``"ellipse"``,
+///     ``"background-side"`` or ``"foreground-side"``.
+/// dilate_radius : int, default 2
+///     By how many pixels, 0 to 32768.
+/// inpaint : str, default "background"
+///     How holes are filled: ``"background"`` or ``"isotropic"``.
+/// disparity_left, disparity_right : numpy.ndarray, optional
+///     ``float32``, shape ``(H, W)``: disparities (non-negative, or ``inf``
+///     where unknown; no NaN) that replace the matcher, as the command's
+///     ``--left-disparity``/``--right-disparity`` files; given one, the other
+///     view's is derived from it by warping.
+///
+/// Returns
+/// -------
+/// dict
+///     ``image_1``, ``image_4`` (``uint8``, ``(H, W, 3)``), ``mask_1``,
+///     ``mask_4`` (``uint8``, ``(H, W)``, 255 where synthesised) and
+///     ``disparity_2``, ``disparity_3`` (``float32``, ``(H, W)``, the
+///     disparities used for the left and right views).
+///
+/// Raises
+/// ------
+/// ValueError
+///     A view or disparity is not such an array or not of the views' size,
+///     a disparity has a NaN or negative value, a setting is unknown or out
+///     of range (the message begins with the argument's name), or the
+///     extrapolation fails (``left, right:``).
+/// TypeError
+///     An integer argument is not an integer (a float, a bool, a string; the
+///     message begins with its name).
 #[pyfunction]
 #[pyo3(
     signature = (left, right, max_disparity = Integer::of(0), dilation = "none", dilate_radius = Integer::of(2), inpaint = "background", disparity_left = None, disparity_right = None),
@@ -418,8 +643,24 @@ fn extrapolate<'py>(
     Ok(out)
 }
 
-/// A manifest, checked against the schema and the confinement rule, as
-/// JSON text (`mbs.load_manifest` parses it).
+/// Loads a manifest, checked against the schema and the confinement rule.
+///
+/// ``mbs.load_manifest`` parses what it returns.
+///
+/// Parameters
+/// ----------
+/// path : str or os.PathLike
+///     The manifest.
+///
+/// Returns
+/// -------
+/// str
+///     The manifest as JSON text.
+///
+/// Raises
+/// ------
+/// OSError
+///     The manifest cannot be read or is not valid (the message names it).
 #[pyfunction]
 fn load_manifest_json(py: Python<'_>, path: PathBuf) -> PyResult<String> {
     let manifest = py
@@ -428,8 +669,26 @@ fn load_manifest_json(py: Python<'_>, path: PathBuf) -> PyResult<String> {
     serde_json::to_string(&manifest).map_err(|e| os_error(&path, e))
 }
 
-/// `mbs-tool validate --json`'s report of a manifest, as JSON text
-/// (`mbs.validate` parses it); `deep` decodes every pixel.
+/// Validates a manifest and its files, as ``mbs-tool validate --json``.
+///
+/// ``mbs.validate`` parses what it returns.
+///
+/// Parameters
+/// ----------
+/// path : str or os.PathLike
+///     The manifest.
+/// deep : bool, default False
+///     Whether every pixel of every file is decoded.
+///
+/// Returns
+/// -------
+/// str
+///     The command's report as JSON text.
+///
+/// Raises
+/// ------
+/// OSError
+///     The report cannot be encoded (the message names the manifest).
 #[pyfunction]
 #[pyo3(signature = (path, deep = false))]
 fn validate_json(py: Python<'_>, path: PathBuf, deep: bool) -> PyResult<String> {
@@ -443,7 +702,7 @@ fn validate_json(py: Python<'_>, path: PathBuf, deep: bool) -> PyResult<String> 
     serde_json::to_string(&report).map_err(|e| os_error(&path, e))
 }
 
-/// The module `mbs._native`.
+/// The native part of ``mbs``, in Rust: use it through ``mbs`` and ``mbs.torch``.
 #[pymodule]
 fn _native(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(read_rgb, module)?)?;

@@ -20,16 +20,52 @@ const MAX_VIEW_SIDE: usize = 4096;
 /// maps of a call then take at most about 1.3 GB).
 const MAX_TOTAL_PIXELS: usize = 1 << 26;
 
-/// A street scene generated from `seed` and rendered by exact ray casting
-/// from a rig of `views` cameras `baseline` metres apart (camera `k` at
-/// `x = k * baseline`), `width x height` pixels, focal length `focal`
-/// pixels, principal point at the centre, under `weather` (`ClearNoon`,
-/// `ClearNight`, `ClearSunset`, `CloudyNoon`, `MidRainyNoon`) with
-/// `supersample^2` samples per pixel. Returns a dict of lists, one entry
-/// per camera: `views` (uint8 HxWx3), `depth` (float32 HxW, planar metres;
-/// the sky is 1000 m) and `disparity` (float32 HxW, `focal * baseline /
-/// depth`: the exact disparity of a one-baseline pair; `k` times it for
-/// cameras `k` apart).
+/// Renders a procedural street scene with exact ground truth.
+///
+/// A scene generated from ``seed``, rendered by exact ray casting from a rig
+/// of ``views`` cameras ``baseline`` metres apart (camera ``k`` at ``x = k *
+/// baseline``) with the principal point at the centre, as ``mbs-tool synth``
+/// renders its frames.
+///
+/// Parameters
+/// ----------
+/// seed : int, default 0
+///     The scene's seed, 0 to ``2**64 - 1``: a seed gives the same scene
+///     every time.
+/// views : int, default 5
+///     The number of cameras, 2 to 16.
+/// width : int, default 192
+///     Each view's width in pixels, 8 to 4096.
+/// height : int, default 96
+///     Each view's height in pixels, 8 to 4096; all views together have at
+///     most ``2**26`` pixels.
+/// focal : float, default 96.0
+///     The focal length in pixels, positive.
+/// baseline : float, default 0.5
+///     The distance between neighbouring cameras in metres, positive.
+/// weather : str, default "ClearNoon"
+///     ``"ClearNoon"``, ``"ClearNight"``, ``"ClearSunset"``, ``"CloudyNoon"``
+///     or ``"MidRainyNoon"``.
+/// supersample : int, default 2
+///     ``supersample**2`` samples per pixel, 1 to 4.
+///
+/// Returns
+/// -------
+/// dict
+///     Lists with one entry per camera: ``views`` (``uint8``, ``(H, W,
+///     3)``), ``depth`` (``float32``, ``(H, W)``, planar metres; the sky is
+///     1000 m) and ``disparity`` (``float32``, ``(H, W)``, ``focal *
+///     baseline / depth``: the exact disparity of a one-baseline pair; ``k``
+///     times it for cameras ``k`` apart).
+///
+/// Raises
+/// ------
+/// ValueError
+///     A setting is out of range or unknown (the message begins with its
+///     name).
+/// TypeError
+///     An integer argument is not an integer (a float, a bool, a string; the
+///     message begins with its name).
 #[pyfunction]
 #[pyo3(
     signature = (seed = Integer::of(0), views = Integer::of(5), width = Integer::of(192), height = Integer::of(96), focal = 96.0, baseline = 0.5, weather = "ClearNoon", supersample = Integer::of(2)),

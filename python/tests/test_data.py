@@ -8,12 +8,18 @@ function promises.
 `mbs-tool` binary of the same tree.
 """
 
+from __future__ import annotations
+
 import json
 import os
 import subprocess
 import threading
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
+import numpy.typing as npt
 import pytest
 
 import mbs
@@ -21,7 +27,7 @@ import mbs
 MBS_TOOL = os.environ.get("MBS_TOOL", "target/debug/mbs-tool")
 
 
-def mbs_tool(*args):
+def mbs_tool(*args: object) -> subprocess.CompletedProcess[str]:
     """Runs mbs-tool and fails the test, with its output, when it fails."""
     done = subprocess.run([MBS_TOOL, *map(str, args)], capture_output=True, text=True)
     assert done.returncode == 0, done.stdout + done.stderr
@@ -29,18 +35,35 @@ def mbs_tool(*args):
 
 
 @pytest.fixture(scope="module")
-def scene(tmp_path_factory):
+def scene(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A small synthetic MBS20K-style set made by `mbs-tool synth`."""
     root = tmp_path_factory.mktemp("synth")
-    mbs_tool("synth", "--out", root, "--seed", "3", "--frames", "1",
-             "--towns", "Town01", "--weathers", "ClearNoon",
-             "--width", "96", "--height", "48", "--focal", "48", "--no-checksums")
+    mbs_tool(
+        "synth",
+        "--out",
+        root,
+        "--seed",
+        "3",
+        "--frames",
+        "1",
+        "--towns",
+        "Town01",
+        "--weathers",
+        "ClearNoon",
+        "--width",
+        "96",
+        "--height",
+        "48",
+        "--focal",
+        "48",
+        "--no-checksums",
+    )
     frames = sorted(root.glob("Town01/ClearNoon/*/"))
     assert frames, f"synth wrote no frame under {root}"
     return frames[0]
 
 
-def test_pfm_round_trip_keeps_every_value_and_inf(tmp_path):
+def test_pfm_round_trip_keeps_every_value_and_inf(tmp_path: Path) -> None:
     disparity = np.arange(12, dtype=np.float32).reshape(3, 4) * 0.25
     disparity[1, 2] = np.inf
     mbs.write_pfm(tmp_path / "d.pfm", disparity)
@@ -49,7 +72,7 @@ def test_pfm_round_trip_keeps_every_value_and_inf(tmp_path):
     np.testing.assert_array_equal(back, disparity)
 
 
-def test_kitti_png_round_trip_within_its_resolution(tmp_path):
+def test_kitti_png_round_trip_within_its_resolution(tmp_path: Path) -> None:
     disparity = np.array([[0.5, 10.25, 200.0], [np.inf, 3.0, 1.0 / 256]], dtype=np.float32)
     mbs.write_kitti_disparity(tmp_path / "d.png", disparity)
     back = mbs.read_kitti_disparity(tmp_path / "d.png")
@@ -58,7 +81,7 @@ def test_kitti_png_round_trip_within_its_resolution(tmp_path):
     assert np.isinf(back[1, 0]), "0 in a KITTI PNG is invalid"
 
 
-def test_rgb_png_round_trip_is_exact(tmp_path):
+def test_rgb_png_round_trip_is_exact(tmp_path: Path) -> None:
     image = (np.arange(5 * 7 * 3) % 251).astype(np.uint8).reshape(5, 7, 3)
     mbs.write_rgb(tmp_path / "i.png", image)
     back = mbs.read_rgb(tmp_path / "i.png")
@@ -66,39 +89,44 @@ def test_rgb_png_round_trip_is_exact(tmp_path):
     np.testing.assert_array_equal(back, image)
 
 
-def test_exr_round_trip_is_exact(tmp_path):
+def test_exr_round_trip_is_exact(tmp_path: Path) -> None:
     depth = np.linspace(0.5, 90.0, 20, dtype=np.float32).reshape(4, 5)
     depth[0, 0] = np.inf
     mbs.write_exr(tmp_path / "z.exr", depth)
     np.testing.assert_array_equal(mbs.read_exr(tmp_path / "z.exr"), depth)
 
 
-def test_carla_depth_and_disparity_equal_decode_depth(scene, tmp_path):
+def test_carla_depth_and_disparity_equal_decode_depth(scene: Path, tmp_path: Path) -> None:
     out = tmp_path / "decoded"
     # Through the manifest, so the rig is synth's (a folder means MBS20K's).
-    mbs_tool("decode-depth", scene.parent.parent.parent / "manifest.json", "--pairs", "0:1",
-             "--disparity-format", "pfm", "--out", out)
+    mbs_tool(
+        "decode-depth",
+        scene.parent.parent.parent / "manifest.json",
+        "--pairs",
+        "0:1",
+        "--disparity-format",
+        "pfm",
+        "--out",
+        out,
+    )
     decoded = out / scene.relative_to(scene.parent.parent.parent)
     rgb = mbs.read_rgb(scene / "depth_0.png")
     depth = mbs.decode_carla_depth(rgb)
     np.testing.assert_array_equal(depth, mbs.read_exr(decoded / "depth_0.exr"))
     # synth's rig: focal 48 px, cameras 0.5 m apart.
     disparity = mbs.depth_to_disparity(depth, focal=48.0, baseline=0.5)
-    np.testing.assert_allclose(
-        disparity, mbs.read_pfm(decoded / "disp_0_1.pfm"), rtol=1e-6
-    )
+    np.testing.assert_allclose(disparity, mbs.read_pfm(decoded / "disp_0_1.pfm"), rtol=1e-6)
 
 
-def test_matcher_equals_predict(scene, tmp_path):
+def test_matcher_equals_predict(scene: Path, tmp_path: Path) -> None:
     left, right = scene / "rgb_1.png", scene / "rgb_2.png"
-    mbs_tool("predict", "--left", left, "--right", right, "--out", tmp_path,
-             "--format", "pfm", "--max-disparity", "32")
+    mbs_tool("predict", "--left", left, "--right", right, "--out", tmp_path, "--format", "pfm", "--max-disparity", "32")
     (written,) = list(tmp_path.glob("*.pfm"))
     ours = mbs.match_stereo(mbs.read_rgb(left), mbs.read_rgb(right), max_disparity=32)
     np.testing.assert_array_equal(ours, mbs.read_pfm(written))
 
 
-def assert_written_as_the_command(views, cli, ours):
+def assert_written_as_the_command(views: Mapping[str, Any], cli: Path, ours: Path) -> None:
     """`mbs.extrapolate`'s views and disparities, written as the command
     writes them, are its files byte for byte; its masks are its masks."""
     ours.mkdir()
@@ -113,12 +141,19 @@ def assert_written_as_the_command(views, cli, ours):
         assert (ours / f"{name}.pfm").read_bytes() == (cli / f"{name}.pfm").read_bytes(), name
 
 
-@pytest.mark.parametrize("options, flags", [
-    ({}, []),
-    ({"dilation": "ellipse", "dilate_radius": 1, "inpaint": "isotropic", "max_disparity": 32},
-     ["--dilation", "ellipse", "--dilate-radius", "1", "--inpaint", "isotropic", "--max-disparity", "32"]),
-])
-def test_extrapolate_equals_the_command_byte_for_byte(scene, tmp_path, options, flags):
+@pytest.mark.parametrize(
+    "options, flags",
+    [
+        ({}, []),
+        (
+            {"dilation": "ellipse", "dilate_radius": 1, "inpaint": "isotropic", "max_disparity": 32},
+            ["--dilation", "ellipse", "--dilate-radius", "1", "--inpaint", "isotropic", "--max-disparity", "32"],
+        ),
+    ],
+)
+def test_extrapolate_equals_the_command_byte_for_byte(
+    scene: Path, tmp_path: Path, options: dict[str, Any], flags: list[str]
+) -> None:
     left, right = scene / "rgb_1.png", scene / "rgb_2.png"
     cli = tmp_path / "cli"
     mbs_tool("extrapolate", "--left", left, "--right", right, "--out", cli, *flags)
@@ -128,12 +163,14 @@ def test_extrapolate_equals_the_command_byte_for_byte(scene, tmp_path, options, 
 
 
 @pytest.mark.parametrize("sides", [("left",), ("right",), ("left", "right")])
-def test_extrapolate_from_disparity_arrays_equals_the_command_from_files(scene, tmp_path, sides):
+def test_extrapolate_from_disparity_arrays_equals_the_command_from_files(
+    scene: Path, tmp_path: Path, sides: tuple[str, ...]
+) -> None:
     """Disparities handed over as arrays replace the matcher exactly as
     --left-disparity/--right-disparity files do (one given: the other
     derived by warping)."""
     left, right = scene / "rgb_1.png", scene / "rgb_2.png"
-    maps = {"left": mbs.match_stereo(mbs.read_rgb(left), mbs.read_rgb(right), max_disparity=32)}
+    maps: dict[str, Any] = {"left": mbs.match_stereo(mbs.read_rgb(left), mbs.read_rgb(right), max_disparity=32)}
     maps["right"] = mbs.extrapolate(mbs.read_rgb(left), mbs.read_rgb(right))["disparity_3"]
     maps["left"][:3, :3] = np.inf  # unknown pixels, filled from the background side
     flags = []
@@ -142,12 +179,13 @@ def test_extrapolate_from_disparity_arrays_equals_the_command_from_files(scene, 
         flags += [f"--{side}-disparity", tmp_path / f"{side}.pfm"]
     cli = tmp_path / "cli"
     mbs_tool("extrapolate", "--left", left, "--right", right, "--out", cli, *flags)
-    views = mbs.extrapolate(mbs.read_rgb(left), mbs.read_rgb(right),
-                            **{f"disparity_{side}": maps[side] for side in sides})
+    views = mbs.extrapolate(
+        mbs.read_rgb(left), mbs.read_rgb(right), **{f"disparity_{side}": maps[side] for side in sides}
+    )
     assert_written_as_the_command(views, cli, tmp_path / "ours")
 
 
-def test_bad_disparity_arrays_are_named(scene):
+def test_bad_disparity_arrays_are_named(scene: Path) -> None:
     left, right = mbs.read_rgb(scene / "rgb_1.png"), mbs.read_rgb(scene / "rgb_2.png")
     height, width = left.shape[:2]
     nan = np.full((height, width), 2.0, np.float32)
@@ -160,10 +198,10 @@ def test_bad_disparity_arrays_are_named(scene):
         ("disparity_right", np.ones((height, width), np.float64), "disparity_right: expected a float32"),
     ]:
         with pytest.raises(ValueError, match=expected):
-            mbs.extrapolate(left, right, **{name: value})
+            mbs.extrapolate(left, right, **{name: value})  # type: ignore[arg-type]  # a float64 array on purpose
 
 
-def test_a_manifest_loads_with_its_rig_and_samples(scene):
+def test_a_manifest_loads_with_its_rig_and_samples(scene: Path) -> None:
     path = scene.parent.parent.parent / "manifest.json"
     manifest = mbs.load_manifest(path)
     with open(path) as file:
@@ -174,7 +212,7 @@ def test_a_manifest_loads_with_its_rig_and_samples(scene):
     assert (path.parent / first["views"][1]).is_file()
 
 
-def test_validate_reports_as_the_command(scene, tmp_path):
+def test_validate_reports_as_the_command(scene: Path, tmp_path: Path) -> None:
     path = scene.parent.parent.parent / "manifest.json"
     clean = mbs.validate(path)
     assert clean == json.loads(mbs_tool("validate", path, "--json").stdout)
@@ -185,15 +223,16 @@ def test_validate_reports_as_the_command(scene, tmp_path):
     view = broken / scene.relative_to(path.parent) / "rgb_0.png"
     view.write_bytes(view.read_bytes()[:100])
     report = mbs.validate(broken / "manifest.json")
-    done = subprocess.run([MBS_TOOL, "validate", str(broken / "manifest.json"), "--json"],
-                          capture_output=True, text=True)
+    done = subprocess.run(
+        [MBS_TOOL, "validate", str(broken / "manifest.json"), "--json"], capture_output=True, text=True
+    )
     assert done.returncode != 0
     assert report == json.loads(done.stdout)
     (problem,) = report["problems"]
     assert problem["path"].endswith("rgb_0.png"), problem
 
 
-def test_a_manifest_that_is_not_one_is_an_os_error_naming_it(tmp_path):
+def test_a_manifest_that_is_not_one_is_an_os_error_naming_it(tmp_path: Path) -> None:
     bad = tmp_path / "bad.json"
     bad.write_text('{"rig": 3}')
     with pytest.raises(OSError, match="bad.json"):
@@ -202,12 +241,12 @@ def test_a_manifest_that_is_not_one_is_an_os_error_naming_it(tmp_path):
         mbs.load_manifest(tmp_path / "missing.json")
 
 
-def test_the_matcher_runs_in_threads(scene):
+def test_the_matcher_runs_in_threads(scene: Path) -> None:
     left, right = mbs.read_rgb(scene / "rgb_1.png"), mbs.read_rgb(scene / "rgb_2.png")
     alone = mbs.match_stereo(left, right, max_disparity=32)
-    results = [None] * 4
+    results: list[npt.NDArray[np.float32] | None] = [None] * 4
 
-    def work(k):
+    def work(k: int) -> None:
         results[k] = mbs.match_stereo(left, right, max_disparity=32)
 
     threads = [threading.Thread(target=work, args=(k,)) for k in range(4)]
@@ -224,7 +263,7 @@ def test_the_matcher_runs_in_threads(scene):
     [
         (lambda: mbs.write_pfm("x.pfm", np.zeros((2, 2), dtype=np.float64)), "map"),
         (lambda: mbs.write_pfm("x.pfm", np.zeros((2, 2, 1), dtype=np.float32)), "map"),
-        (lambda: mbs.write_pfm("x.pfm", [[1.0]]), "map"),
+        (lambda: mbs.write_pfm("x.pfm", [[1.0]]), "map"),  # type: ignore[arg-type]
         (lambda: mbs.write_pfm("x.pfm", np.zeros((0, 3), dtype=np.float32)), "map"),
         (lambda: mbs.decode_carla_depth(np.zeros((4, 4, 4), dtype=np.uint8)), "rgb"),
         (lambda: mbs.decode_carla_depth(np.zeros((4, 4, 3), dtype=np.float32)), "rgb"),
@@ -233,19 +272,28 @@ def test_the_matcher_runs_in_threads(scene):
         (lambda: mbs.depth_to_disparity(np.ones((2, 2), dtype=np.float32), focal=1, baseline=np.nan), "baseline"),
         (lambda: mbs.match_stereo(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 9, 3), np.uint8)), "right"),
         (lambda: mbs.match_stereo(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8), paths=6), "paths"),
-        (lambda: mbs.match_stereo(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8), max_disparity=5000), "max_disparity"),
-        (lambda: mbs.extrapolate(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8), dilation="disc"), "dilation"),
-        (lambda: mbs.extrapolate(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8), inpaint="lama"), "inpaint"),
+        (
+            lambda: mbs.match_stereo(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8), max_disparity=5000),
+            "max_disparity",
+        ),
+        (
+            lambda: mbs.extrapolate(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8), dilation="disc"),  # type: ignore[arg-type]
+            "dilation",
+        ),
+        (
+            lambda: mbs.extrapolate(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8), inpaint="lama"),  # type: ignore[arg-type]
+            "inpaint",
+        ),
         (lambda: mbs.extrapolate(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 7, 3), np.uint8)), "right"),
     ],
 )
-def test_a_wrong_argument_is_a_value_error_naming_it(call, argument):
+def test_a_wrong_argument_is_a_value_error_naming_it(call: Callable[[], object], argument: str) -> None:
     with pytest.raises(ValueError) as error:
         call()
     assert str(error.value).startswith(f"{argument}: "), str(error.value)
 
 
-def test_a_bad_file_is_an_os_error_naming_it(tmp_path):
+def test_a_bad_file_is_an_os_error_naming_it(tmp_path: Path) -> None:
     missing = tmp_path / "missing.pfm"
     with pytest.raises(OSError, match="missing.pfm"):
         mbs.read_pfm(missing)
@@ -258,14 +306,14 @@ def test_a_bad_file_is_an_os_error_naming_it(tmp_path):
         mbs.write_pfm(tmp_path / "a_file" / "d.pfm", np.zeros((2, 2), np.float32))
 
 
-def test_non_contiguous_arrays_are_read_in_their_logical_order(tmp_path):
+def test_non_contiguous_arrays_are_read_in_their_logical_order(tmp_path: Path) -> None:
     base = np.arange(24, dtype=np.float32).reshape(4, 6)
     view = base[:, ::2]
     mbs.write_pfm(tmp_path / "v.pfm", view)
     np.testing.assert_array_equal(mbs.read_pfm(tmp_path / "v.pfm"), view)
 
 
-def test_synth_scene_has_exact_ground_truth():
+def test_synth_scene_has_exact_ground_truth() -> None:
     """Each view warped by its exact disparity rebuilds its neighbour:
     camera 0's pixel x is camera 1's x - d. The rebuild is far closer than
     with no shift; a seed gives the same scene every time."""
@@ -291,9 +339,15 @@ def test_synth_scene_has_exact_ground_truth():
     assert not np.array_equal(other["views"][0], scene["views"][0])
 
 
-def test_synth_scene_names_bad_settings():
-    for kwargs, named in [({"views": 1}, "views"), ({"width": 4}, "width"), ({"focal": -1.0}, "focal"),
-                          ({"weather": "Snow"}, "weather"), ({"supersample": 0}, "supersample"),
-                          ({"width": 8192}, "width"), ({"views": 16, "width": 4096, "height": 4096}, "views")]:
+def test_synth_scene_names_bad_settings() -> None:
+    for kwargs, named in [
+        ({"views": 1}, "views"),
+        ({"width": 4}, "width"),
+        ({"focal": -1.0}, "focal"),
+        ({"weather": "Snow"}, "weather"),
+        ({"supersample": 0}, "supersample"),
+        ({"width": 8192}, "width"),
+        ({"views": 16, "width": 4096, "height": 4096}, "views"),
+    ]:
         with pytest.raises(ValueError, match=named):
-            mbs.synth_scene(**kwargs)
+            mbs.synth_scene(**kwargs)  # type: ignore[arg-type]  # bad settings on purpose

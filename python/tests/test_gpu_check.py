@@ -19,10 +19,26 @@ MBS_TOOL = os.environ.get("MBS_TOOL", str(ROOT / "target" / "debug" / "mbs-tool"
 PHASES = ["environment", "probe", "compact", "raft-stereo", "igev", "precision", "predict", "autotune"]
 
 
-def test_the_gpu_check_runs_every_phase_on_the_cpu(tmp_path):
+def test_the_gpu_check_runs_every_phase_on_the_cpu(tmp_path: Path) -> None:
     out = tmp_path / "results"
-    done = subprocess.run([sys.executable, str(ROOT / "tools" / "gpu" / "run.py"), "--device", "cpu", "--small",
-                           "--binary", MBS_TOOL, "--autotune-binary", MBS_TOOL, "--out", str(out)], capture_output=True, text=True, timeout=1200)
+    done = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "tools" / "gpu" / "run.py"),
+            "--device",
+            "cpu",
+            "--small",
+            "--binary",
+            MBS_TOOL,
+            "--autotune-binary",
+            MBS_TOOL,
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=1200,
+    )
     assert done.returncode == 0, done.stdout + done.stderr
     assert "GPU check on cpu (small)" in done.stdout
     results = json.loads((out / "results.json").read_text())
@@ -49,21 +65,32 @@ def test_the_gpu_check_runs_every_phase_on_the_cpu(tmp_path):
     assert (out / "logs" / "igev-autotune.log").is_file()
 
 
-def test_prepare_assembles_the_folder_and_refuses_one_over_the_limit(tmp_path):
+def test_prepare_assembles_the_folder_and_refuses_one_over_the_limit(tmp_path: Path) -> None:
     binary = tmp_path / "mbs-tool"
     binary.write_bytes(bytes(range(256)) * 4096)
     tuned = tmp_path / "mbs-tool-autotune"
     tuned.write_bytes(bytes(range(255, -1, -1)) * 4096)
     prepare = ["bash", str(ROOT / "tools" / "gpu" / "prepare.sh")]
     folder = tmp_path / "gpu-check"
-    done = subprocess.run([*prepare, str(folder), "--binary", str(binary), "--autotune-binary", str(tuned)],
-                          capture_output=True, text=True, timeout=600)
+    done = subprocess.run(
+        [*prepare, str(folder), "--binary", str(binary), "--autotune-binary", str(tuned)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stdout + done.stderr
     assert f"{folder} is " in done.stdout and "MiB" in done.stdout
     assert lzma.decompress((folder / "mbs-tool.xz").read_bytes()) == binary.read_bytes()
     assert lzma.decompress((folder / "mbs-tool-autotune.xz").read_bytes()) == tuned.read_bytes()
-    for part in ["run.py", "official_predict.py", "bench/official_step_vs_torch.py", "bench/s3_torch.py",
-                 "bench/train_step_vs_torch.py", "data/pair/view1.png", "data/pair/view2.png"]:
+    for part in [
+        "run.py",
+        "official_predict.py",
+        "bench/official_step_vs_torch.py",
+        "bench/s3_torch.py",
+        "bench/train_step_vs_torch.py",
+        "data/pair/view1.png",
+        "data/pair/view2.png",
+    ]:
         assert (folder / part).is_file(), part
     # Random bytes do not compress: 33 MiB of them is over one binary's
     # limit, and 2 x 25 MiB over two binaries'.
@@ -71,8 +98,9 @@ def test_prepare_assembles_the_folder_and_refuses_one_over_the_limit(tmp_path):
         binary.write_bytes(os.urandom(size_mib << 20))
         tuned.write_bytes(os.urandom(size_mib << 20))
         big = tmp_path / "too-big"
-        done = subprocess.run([*prepare, str(big), "--binary", str(binary), *extra],
-                              capture_output=True, text=True, timeout=600)
+        done = subprocess.run(
+            [*prepare, str(big), "--binary", str(binary), *extra], capture_output=True, text=True, timeout=600
+        )
         assert done.returncode == 1, done.stdout + done.stderr
         assert f"over the {limit} MiB limit" in done.stderr
         assert not big.exists() and not Path(f"{big}.partial").exists()

@@ -6,11 +6,16 @@ range with an error that begins with its name; every public function of
 pixels of the loss and never reach an index.
 """
 
+from __future__ import annotations
+
 import math
 import os
 import socket
 import stat
 import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
 import pytest
@@ -39,12 +44,12 @@ MAP = np.ones((4, 4), np.float32)
 
 
 @pytest.fixture
-def special_files(tmp_path):
+def special_files(tmp_path: Path) -> Iterator[list[tuple[str, str]]]:
     """A character device, a FIFO, a socket and a folder in the test's own
     folder, with the words a refusal names their kinds by. The device is
     a copy of /dev/null made with mknod (as root); a user who may not make
     devices gets /dev/null itself, which such a user cannot replace."""
-    device = tmp_path / "device"
+    device: str | Path = tmp_path / "device"
     try:
         os.mknod(device, stat.S_IFCHR | 0o666, os.makedev(1, 3))
     except PermissionError:
@@ -54,12 +59,16 @@ def special_files(tmp_path):
     sock = socket.socket(socket.AF_UNIX)
     sock.bind(str(tmp_path / "socket"))
     (tmp_path / "folder").mkdir()
-    yield [(str(device), "a character device"), (str(fifo), "a FIFO"),
-           (str(tmp_path / "socket"), "a socket"), (str(tmp_path / "folder"), "a folder")]
+    yield [
+        (str(device), "a character device"),
+        (str(fifo), "a FIFO"),
+        (str(tmp_path / "socket"), "a socket"),
+        (str(tmp_path / "folder"), "a folder"),
+    ]
     sock.close()
 
 
-def identity(path):
+def identity(path: str | Path) -> tuple[int, int, int]:
     """Type, inode and device numbers: unchanged when a file is untouched."""
     info = os.lstat(path)
     return stat.S_IFMT(info.st_mode), info.st_ino, info.st_rdev
@@ -74,7 +83,9 @@ WRITERS = [
 
 
 @pytest.mark.parametrize("name, write", WRITERS)
-def test_writers_refuse_special_files_and_leave_them_untouched(special_files, name, write):
+def test_writers_refuse_special_files_and_leave_them_untouched(
+    special_files: list[tuple[str, str]], name: str, write: Callable[[str], None]
+) -> None:
     for path, kind in special_files:
         before = identity(path)
         with pytest.raises(OSError) as error:
@@ -87,7 +98,9 @@ def test_writers_refuse_special_files_and_leave_them_untouched(special_files, na
     assert not [f for f in os.listdir(os.path.dirname(folder)) if f.endswith(".partial")]
 
 
-def test_a_link_to_a_device_is_refused_and_a_link_to_nothing_replaced(special_files, tmp_path):
+def test_a_link_to_a_device_is_refused_and_a_link_to_nothing_replaced(
+    special_files: list[tuple[str, str]], tmp_path: Path
+) -> None:
     device = special_files[0][0]
     link = tmp_path / "link.png"
     link.symlink_to(device)
@@ -106,8 +119,8 @@ def test_a_link_to_a_device_is_refused_and_a_link_to_nothing_replaced(special_fi
         (lambda: mbs.match_stereo(IMAGE, IMAGE, max_disparity=-1), "max_disparity", ValueError),
         (lambda: mbs.match_stereo(IMAGE, IMAGE, max_disparity=2**70), "max_disparity", ValueError),
         (lambda: mbs.match_stereo(IMAGE, IMAGE, max_disparity=2**200), "max_disparity", ValueError),
-        (lambda: mbs.match_stereo(IMAGE, IMAGE, max_disparity=16.5), "max_disparity", TypeError),
-        (lambda: mbs.match_stereo(IMAGE, IMAGE, max_disparity="64"), "max_disparity", TypeError),
+        (lambda: mbs.match_stereo(IMAGE, IMAGE, max_disparity=16.5), "max_disparity", TypeError),  # type: ignore[arg-type]
+        (lambda: mbs.match_stereo(IMAGE, IMAGE, max_disparity="64"), "max_disparity", TypeError),  # type: ignore[arg-type]
         (lambda: mbs.match_stereo(IMAGE, IMAGE, paths=-5), "paths", ValueError),
         (lambda: mbs.match_stereo(IMAGE, IMAGE, paths=True), "paths", TypeError),
         (lambda: mbs.extrapolate(IMAGE, IMAGE, dilate_radius=-1), "dilate_radius", ValueError),
@@ -115,33 +128,56 @@ def test_a_link_to_a_device_is_refused_and_a_link_to_nothing_replaced(special_fi
         (lambda: mbs.extrapolate(IMAGE, IMAGE, max_disparity=-3), "max_disparity", ValueError),
         (lambda: mbs.synth_scene(seed=-1), "seed", ValueError),
         (lambda: mbs.synth_scene(seed=2**64), "seed", ValueError),
-        (lambda: mbs.synth_scene(seed=1.0), "seed", TypeError),
+        (lambda: mbs.synth_scene(seed=1.0), "seed", TypeError),  # type: ignore[arg-type]
         (lambda: mbs.synth_scene(views=-2), "views", ValueError),
         (lambda: mbs.synth_scene(width=-8), "width", ValueError),
-        (lambda: mbs.synth_scene(height=None), "height", TypeError),
+        (lambda: mbs.synth_scene(height=None), "height", TypeError),  # type: ignore[arg-type]
         (lambda: mbs.synth_scene(supersample=2**40), "supersample", ValueError),
     ],
 )
-def test_integer_arguments_are_checked_with_their_names(call, argument, error):
+def test_integer_arguments_are_checked_with_their_names(
+    call: Callable[[], object], argument: str, error: type[Exception]
+) -> None:
     with pytest.raises(error) as raised:
         call()
     assert type(raised.value) is error, repr(raised.value)
     assert str(raised.value).startswith(f"{argument}: "), str(raised.value)
 
 
-def test_numpy_integers_are_integers():
+def test_numpy_integers_are_integers() -> None:
     depth = mbs.match_stereo(IMAGE, IMAGE, max_disparity=np.int64(16), paths=np.uint8(5))
     assert depth.shape == (8, 8)
     assert mbs.synth_scene(seed=np.uint64(3), views=np.int32(2), width=16, height=8)["views"][0].shape == (8, 16, 3)
 
 
 @pytest.fixture(scope="module")
-def manifest(tmp_path_factory):
+def manifest(tmp_path_factory: pytest.TempPathFactory) -> Path:
     root = tmp_path_factory.mktemp("synth")
     done = subprocess.run(
-        [MBS_TOOL, "synth", "--out", str(root), "--weathers", "ClearNoon", "--no-checksums", "--seed", "2",
-         "--frames", "1", "--towns", "Town01", "--width", "64", "--height", "32", "--focal", "32"],
-        capture_output=True, text=True)
+        [
+            MBS_TOOL,
+            "synth",
+            "--out",
+            str(root),
+            "--weathers",
+            "ClearNoon",
+            "--no-checksums",
+            "--seed",
+            "2",
+            "--frames",
+            "1",
+            "--towns",
+            "Town01",
+            "--width",
+            "64",
+            "--height",
+            "32",
+            "--focal",
+            "32",
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert done.returncode == 0, done.stdout + done.stderr
     return root / "manifest.json"
 
@@ -165,7 +201,9 @@ def manifest(tmp_path_factory):
         ({"augment": ["brightness"]}, "augment", ValueError),
     ],
 )
-def test_the_dataset_checks_its_arguments(manifest, kwargs, argument, error):
+def test_the_dataset_checks_its_arguments(
+    manifest: Path, kwargs: dict[str, Any], argument: str, error: type[Exception]
+) -> None:
     settings = {"steps": 1, "batch_size": 1, "crop": (16, 32), **kwargs}
     with pytest.raises(error) as raised:
         MultiBaselineDataset(manifest, **settings)
@@ -175,14 +213,14 @@ def test_the_dataset_checks_its_arguments(manifest, kwargs, argument, error):
         assert "'bogus'" in str(raised.value) or '"bogus"' in str(raised.value)
 
 
-def test_a_dataset_step_must_be_an_integer(manifest):
+def test_a_dataset_step_must_be_an_integer(manifest: Path) -> None:
     data = MultiBaselineDataset(manifest, steps=2, batch_size=1, crop=(16, 32))
     with pytest.raises(TypeError, match="^step: "):
-        data[0.5]
+        data[0.5]  # type: ignore[index]
     assert data[np.int64(1)]["step"] == 1
 
 
-def loss_inputs(batch=2, height=8, width=16):
+def loss_inputs(batch: int = 2, height: int = 8, width: int = 16) -> dict[str, Any]:
     torch.manual_seed(0)
     image = torch.rand(batch, 3, height, width)
     return dict(
@@ -199,7 +237,7 @@ def loss_inputs(batch=2, height=8, width=16):
 
 @pytest.mark.parametrize("which", ["student_disparity", "teacher_disparity"])
 @pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf])
-def test_non_finite_disparities_are_invalid_pixels(which, value):
+def test_non_finite_disparities_are_invalid_pixels(which: str, value: float) -> None:
     """The pixels carry no weight and no gradient; the rest of the loss is
     finite and the same as with those pixels' weights zeroed by hand."""
     inputs = loss_inputs()
@@ -221,7 +259,7 @@ def test_non_finite_disparities_are_invalid_pixels(which, value):
         assert out.teacher_mask[0, 0, 3, 5] == 0 and (out.teacher_mask[1, 0, :, 0] == 0).all()
 
 
-def test_warp_never_indexes_with_a_non_finite_disparity():
+def test_warp_never_indexes_with_a_non_finite_disparity() -> None:
     target = torch.arange(2 * 3 * 4 * 6, dtype=torch.float32).view(2, 3, 4, 6)
     disparity = torch.full((2, 1, 4, 6), math.nan)
     disparity[1] = math.inf
@@ -231,21 +269,21 @@ def test_warp_never_indexes_with_a_non_finite_disparity():
     torch.testing.assert_close(warped[1], target[1, :, :, :1].expand(3, 4, 6))
 
 
-def test_every_mbs_torch_function_names_a_bad_argument():
+def test_every_mbs_torch_function_names_a_bad_argument() -> None:
     images = torch.rand(2, 3, 8, 16)
-    draws = [torch.ones(2), torch.ones(2), torch.ones(2), torch.zeros(2, 1, 8, 16)]
+    draws = (torch.ones(2), torch.ones(2), torch.ones(2), torch.zeros(2, 1, 8, 16))
     network = lambda left, right: left[:, :1]  # noqa: E731
     module = torch.nn.Linear(2, 2)
-    cases = [
+    cases: list[tuple[Callable[[], object], str, type[Exception]]] = [
         (lambda: predict(network, images, images, ["up", "right"]), "sides", ValueError),
         (lambda: predict(network, images, images, "rightleft"), "sides", TypeError),
         (lambda: predict(network, images, images[:, :, :4], ["right", "left"]), "target", ValueError),
         (lambda: predict(network, images, images, ["right"]), "sides", ValueError),
-        (lambda: predict(lambda l, r: l[:, :1, :4], images, images, ["right", "left"]), "network", ValueError),
-        (lambda: predict("net", images, images, ["right", "left"]), "network", ValueError),
+        (lambda: predict(lambda lt, rt: lt[:, :1, :4], images, images, ["right", "left"]), "network", ValueError),
+        (lambda: predict("net", images, images, ["right", "left"]), "network", ValueError),  # type: ignore[arg-type]
         (lambda: mirror_left(images, ["left"]), "sides", ValueError),
         (lambda: mirror_left(images, ["left", "down"]), "sides", ValueError),
-        (lambda: mirror_left([1, 2], ["left", "left"]), "tensor", TypeError),
+        (lambda: mirror_left([1, 2], ["left", "left"]), "tensor", TypeError),  # type: ignore[arg-type]
         (lambda: ssim(images, images, 0), "window", ValueError),
         (lambda: ssim(images, images, 4), "window", ValueError),
         (lambda: ssim(images, images, 17), "window", ValueError),
@@ -257,17 +295,19 @@ def test_every_mbs_torch_function_names_a_bad_argument():
         (lambda: augment_pair(images[:0], images[:0], *draws), "reference", ValueError),
         (lambda: augment_pair(images, images[:, :, :4], *draws), "target", ValueError),
         (lambda: augment_pair(images, images, torch.ones(3), *draws[1:]), "brightness", ValueError),
-        (lambda: augment_pair(images, images, draws[0], torch.tensor([1.0, math.nan]), *draws[2:]),
-         "contrast", ValueError),
+        (
+            lambda: augment_pair(images, images, draws[0], torch.tensor([1.0, math.nan]), *draws[2:]),
+            "contrast",
+            ValueError,
+        ),
         (lambda: augment_pair(images, images, *draws[:3], torch.zeros(2, 1, 8, 8)), "occlusion", ValueError),
         (lambda: augment_batch({"reference": images}), "batch", ValueError),
-        (lambda: augment_batch([images]), "batch", ValueError),
-        (lambda: warp_to_reference(images, torch.zeros(2, 1, 8, 15), torch.ones(2, 1, 1, 1)), "disparity",
-         ValueError),
+        (lambda: augment_batch([images]), "batch", ValueError),  # type: ignore[arg-type]
+        (lambda: warp_to_reference(images, torch.zeros(2, 1, 8, 15), torch.ones(2, 1, 1, 1)), "disparity", ValueError),
         (lambda: warp_to_reference(images, torch.zeros(2, 1, 8, 16), torch.ones(2)), "signs", ValueError),
         (lambda: cosine_momentum(0, 0), "total_steps", ValueError),
         (lambda: cosine_momentum(-1, 10), "step", ValueError),
-        (lambda: cosine_momentum(1.5, 10), "step", TypeError),
+        (lambda: cosine_momentum(1.5, 10), "step", TypeError),  # type: ignore[arg-type]
         (lambda: cosine_momentum(0, 10, base=math.nan), "base", ValueError),
         (lambda: geometry_weight(0, 0), "total_steps", ValueError),
         (lambda: geometry_weight(-1, 10), "step", ValueError),
@@ -275,13 +315,13 @@ def test_every_mbs_torch_function_names_a_bad_argument():
         (lambda: sequence_weights(-1), "n", ValueError),
         (lambda: sequence_weights(0), "n", ValueError),
         (lambda: sequence_weights(3, gamma=math.inf), "gamma", ValueError),
-        (lambda: sequence_weights(3.0), "n", TypeError),
+        (lambda: sequence_weights(3.0), "n", TypeError),  # type: ignore[arg-type]
         (lambda: ema_update_(module, module, math.nan), "momentum", ValueError),
-        (lambda: ema_update_("teacher", module, 0.5), "teacher", ValueError),
+        (lambda: ema_update_("teacher", module, 0.5), "teacher", ValueError),  # type: ignore[arg-type]
         (lambda: S3Loss(tau=math.nan), "tau", ValueError),
         (lambda: S3Loss(omega=math.inf), "omega", ValueError),
-        (lambda: S3Loss(ssim_window=3.0), "ssim_window", TypeError),
-        (lambda: S3Loss(geometry="yes"), "geometry", TypeError),
+        (lambda: S3Loss(ssim_window=3.0), "ssim_window", TypeError),  # type: ignore[arg-type]
+        (lambda: S3Loss(geometry="yes"), "geometry", TypeError),  # type: ignore[arg-type]
         (lambda: S3Loss(outside_mask_weight=-0.1), "outside_mask_weight", ValueError),
     ]
     for call, argument, error in cases:
@@ -291,7 +331,7 @@ def test_every_mbs_torch_function_names_a_bad_argument():
         assert str(raised.value).startswith(f"{argument}: "), (argument, str(raised.value))
 
 
-def test_the_loss_refuses_empty_batches_bad_ratios_and_other_devices():
+def test_the_loss_refuses_empty_batches_bad_ratios_and_other_devices() -> None:
     loss = S3Loss()
     cases = [
         ({**loss_inputs(), "ratios": [0.5, 0.0]}, "ratios"),
@@ -302,8 +342,9 @@ def test_the_loss_refuses_empty_batches_bad_ratios_and_other_devices():
         ({**loss_inputs(), "teacher_disparity": torch.rand(2, 1, 8, 15)}, "teacher_disparity"),
         ({**loss_inputs(), "geometry_weight": math.nan}, "geometry_weight"),
     ]
-    empty = {name: value[:0] if isinstance(value, (torch.Tensor, list)) else value
-             for name, value in loss_inputs().items()}
+    empty = {
+        name: value[:0] if isinstance(value, (torch.Tensor, list)) else value for name, value in loss_inputs().items()
+    }
     cases.append((empty, "reference"))
     # A tensor on another device: the meta device stands for a GPU here.
     cases.append(({**loss_inputs(), "teacher_target": torch.rand(2, 3, 8, 16, device="meta")}, "teacher_target"))

@@ -7,11 +7,15 @@ Bad arguments are `ValueError`s and a bad manifest an `OSError`, each
 naming what is wrong.
 """
 
+from __future__ import annotations
+
 import json
 import os
 import pickle
 import subprocess
 import sys
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -24,23 +28,38 @@ from mbs.torch import MultiBaselineDataset, augment_batch
 MBS_TOOL = os.environ.get("MBS_TOOL", "target/debug/mbs-tool")
 
 
-def synth(root, *args):
+def synth(root: Path, *args: str) -> Path:
     """A synthetic MBS20K-style set made by `mbs-tool synth`; its manifest."""
     done = subprocess.run(
         [MBS_TOOL, "synth", "--out", str(root), "--weathers", "ClearNoon", "--no-checksums", *args],
-        capture_output=True, text=True)
+        capture_output=True,
+        text=True,
+    )
     assert done.returncode == 0, done.stdout + done.stderr
     return root / "manifest.json"
 
 
 @pytest.fixture(scope="module")
-def manifest(tmp_path_factory):
+def manifest(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Three small frames of one town."""
-    return synth(tmp_path_factory.mktemp("synth"), "--seed", "5", "--frames", "3",
-                 "--towns", "Town01", "--width", "96", "--height", "48", "--focal", "48")
+    return synth(
+        tmp_path_factory.mktemp("synth"),
+        "--seed",
+        "5",
+        "--frames",
+        "3",
+        "--towns",
+        "Town01",
+        "--width",
+        "96",
+        "--height",
+        "48",
+        "--focal",
+        "48",
+    )
 
 
-def test_items_are_crops_of_their_views_with_the_rigs_ratios(manifest):
+def test_items_are_crops_of_their_views_with_the_rigs_ratios(manifest: Path) -> None:
     data = MultiBaselineDataset(manifest, steps=4, batch_size=3, crop=(32, 48), seed=11)
     parsed = mbs.load_manifest(manifest)
     samples = {s["id"]: s for s in parsed["samples"]}
@@ -68,7 +87,7 @@ def test_items_are_crops_of_their_views_with_the_rigs_ratios(manifest):
     assert not torch.equal(target, batch["student_target"])
 
 
-def test_a_steps_batch_depends_on_seed_and_step_only(manifest):
+def test_a_steps_batch_depends_on_seed_and_step_only(manifest: Path) -> None:
     data = MultiBaselineDataset(manifest, steps=6, batch_size=2, crop=(32, 48), seed=3)
     again = MultiBaselineDataset(manifest, steps=6, batch_size=2, crop=(32, 48), seed=3)
     other_seed = MultiBaselineDataset(manifest, steps=6, batch_size=2, crop=(32, 48), seed=4)
@@ -86,13 +105,13 @@ def test_a_steps_batch_depends_on_seed_and_step_only(manifest):
             assert torch.equal(a[name], b[name]), name
 
 
-def test_bad_settings_and_manifests_are_named(manifest, tmp_path):
+def test_bad_settings_and_manifests_are_named(manifest: Path, tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="batch_size"):
         MultiBaselineDataset(manifest, steps=1, batch_size=0)
     with pytest.raises(ValueError, match="crop"):
         MultiBaselineDataset(manifest, steps=1, crop=(8, 8))
     with pytest.raises(ValueError, match="crop"):
-        MultiBaselineDataset(manifest, steps=1, crop="big")
+        MultiBaselineDataset(manifest, steps=1, crop="big")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="steps"):
         MultiBaselineDataset(manifest, steps=0)
     with pytest.raises(ValueError, match="augment"):
@@ -109,21 +128,52 @@ def test_bad_settings_and_manifests_are_named(manifest, tmp_path):
         MultiBaselineDataset(manifest, steps=2, crop=(32, 48))[2]
 
 
-def test_the_example_trains_a_pytorch_network_with_s3(tmp_path):
+def test_the_example_trains_a_pytorch_network_with_s3(tmp_path: Path) -> None:
     """python/examples/s3_train.py from random weights on synth data (six
     frames of two towns, the test split held out): the held-out EPE of its
     teacher falls to at most 0.7x the untrained one's, and so does its
     held-out photometric error, to at most 0.85x (measured on this data
     with seeds 0, 1, 2: EPE 0.42x, 0.54x, 0.41x; photometric error 0.71x,
     0.77x, 0.70x)."""
-    manifest = synth(tmp_path / "synth", "--seed", "13", "--frames", "6", "--towns", "Town01,Town10",
-                     "--width", "192", "--height", "96", "--focal", "96")
+    manifest = synth(
+        tmp_path / "synth",
+        "--seed",
+        "13",
+        "--frames",
+        "6",
+        "--towns",
+        "Town01,Town10",
+        "--width",
+        "192",
+        "--height",
+        "96",
+        "--focal",
+        "96",
+    )
     example = os.path.join(os.path.dirname(__file__), "..", "examples", "s3_train.py")
     log = tmp_path / "train.jsonl"
     done = subprocess.run(
-        [sys.executable, example, str(manifest), "--steps", "200", "--batch-size", "4",
-         "--crop", "64x160", "--lr", "3e-3", "--workers", "1", "--log", str(log)],
-        capture_output=True, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
+        [
+            sys.executable,
+            example,
+            str(manifest),
+            "--steps",
+            "200",
+            "--batch-size",
+            "4",
+            "--crop",
+            "64x160",
+            "--lr",
+            "3e-3",
+            "--workers",
+            "1",
+            "--log",
+            str(log),
+        ],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
     assert done.returncode == 0, done.stdout + done.stderr
     lines = [json.loads(line) for line in log.read_text().splitlines()]
     scores = [line["eval"] for line in lines if "eval" in line]
@@ -134,12 +184,12 @@ def test_the_example_trains_a_pytorch_network_with_s3(tmp_path):
     assert scores[1]["photometric"] <= 0.85 * scores[0]["photometric"], scores
 
 
-def test_the_readme_training_loop_runs(manifest):
+def test_the_readme_training_loop_runs(manifest: Path) -> None:
     """The README's twenty-line loop, as written, with the example's
     network for `MyStereoNet` and three steps, runs to a finite loss."""
     readme = open(os.path.join(os.path.dirname(__file__), "..", "..", "README.md")).read()
-    section = readme[readme.index("### S3 for a PyTorch network"):]
-    code = section[section.index("```python") + len("```python"):]
+    section = readme[readme.index("### S3 for a PyTorch network") :]
+    code = section[section.index("```python") + len("```python") :]
     code = code[: code.index("```")]
     assert len(code.strip().splitlines()) <= 22
     code = code.replace("steps = 1000", "steps = 3").replace('"synth/manifest.json"', repr(str(manifest)))
@@ -147,7 +197,7 @@ def test_the_readme_training_loop_runs(manifest):
     sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "examples"))
     from s3_train import CostVolumeNet
 
-    scope = {"MyStereoNet": lambda: CostVolumeNet(max_disparity=16)}
+    scope: dict[str, Any] = {"MyStereoNet": lambda: CostVolumeNet(max_disparity=16)}
     exec(compile(code + "\nlosses = out.total.item()\n", "README.md", "exec"), scope)
     assert np.isfinite(scope["losses"])
     assert scope["batch"]["step"] == 2

@@ -10,20 +10,32 @@ a prediction far outside the image is pulled back, and bad arguments are
 `ValueError`s that name them.
 """
 
+from __future__ import annotations
+
 import json
 import struct
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 import torch
 
-from mbs.torch import S3Loss, augment_pair, cosine_momentum, ema_update_, mirror_left, predict, sequence_weights
+from mbs.torch import (
+    S3Loss,
+    S3LossOutput,
+    augment_pair,
+    cosine_momentum,
+    ema_update_,
+    mirror_left,
+    predict,
+    sequence_weights,
+)
 
 FIXTURE = Path(__file__).parent / "fixtures" / "torch_parity.safetensors"
 
 
-def read_safetensors(path):
+def read_safetensors(path: Path) -> tuple[dict[str, torch.Tensor], dict[str, str]]:
     """Tensors and metadata of a safetensors file (f32 only)."""
     raw = path.read_bytes()
     (length,) = struct.unpack("<Q", raw[:8])
@@ -42,11 +54,11 @@ TENSORS, METADATA = read_safetensors(FIXTURE)
 CASES = json.loads(METADATA["cases"])
 
 
-def sides_of(signs):
+def sides_of(signs: torch.Tensor) -> list[str]:
     return ["right" if s > 0 else "left" for s in signs.tolist()]
 
 
-def run_case(case):
+def run_case(case: dict[str, Any]) -> tuple[S3LossOutput, list[torch.Tensor]]:
     inputs = {name.split("/", 1)[1]: t for name, t in TENSORS.items() if name.startswith("inputs/")}
     count = case["predictions"]
     predictions = [inputs[f"student_disparity_{i}"].clone().requires_grad_(True) for i in range(3 - count, 3)]
@@ -68,7 +80,7 @@ def run_case(case):
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c["name"] for c in CASES])
-def test_loss_matches_the_rust_trainer(case):
+def test_loss_matches_the_rust_trainer(case: dict[str, Any]) -> None:
     name = case["name"]
     out, predictions = run_case(case)
     for part in ["student_mask", "teacher_mask", "weight_map"]:
@@ -89,7 +101,7 @@ def test_loss_matches_the_rust_trainer(case):
         torch.testing.assert_close(prediction.grad, expected, rtol=1e-4, atol=1e-6, msg=f"{name}/grad_{i}")
 
 
-def test_augmentation_matches_the_trainer():
+def test_augmentation_matches_the_trainer() -> None:
     draws = {name: TENSORS[f"augment/{name}"] for name in ["brightness", "contrast", "saturation", "occlusion"]}
     reference, target = augment_pair(TENSORS["inputs/reference"], TENSORS["inputs/student_target"], **draws)
     torch.testing.assert_close(reference, TENSORS["augment/reference"], rtol=0, atol=1e-6)
@@ -99,7 +111,7 @@ def test_augmentation_matches_the_trainer():
     assert 0 < draws["occlusion"].mean() < 1
 
 
-def test_the_fixture_exercises_every_part():
+def test_the_fixture_exercises_every_part() -> None:
     """Masks are neither empty nor full, warps leave the image, and the
     range term has something to pull back: else parity would prove little."""
     for part in ["student_mask", "teacher_mask"]:
@@ -113,7 +125,7 @@ def test_the_fixture_exercises_every_part():
     assert TENSORS["paper/student_mask"].sum() > TENSORS["default/student_mask"].sum()
 
 
-def test_a_prediction_outside_the_image_is_pulled_back():
+def test_a_prediction_outside_the_image_is_pulled_back() -> None:
     """Disparities past the image (warps that read only the border) have
     no photometric or geometry gradient; the range term still moves them
     toward the image, and the paper's loss (range_weight 0) does not."""
@@ -127,12 +139,12 @@ def test_a_prediction_outside_the_image_is_pulled_back():
         if pulls:
             out.total.backward()
             # Gradient descent raises every disparity toward [0, W - 1].
-            assert (disparity.grad < 0).all()
+            assert (disparity.grad < 0).all()  # type: ignore[operator, union-attr]  # backward() set it
         else:
             assert not out.total.requires_grad or torch.autograd.grad(out.total, disparity)[0].abs().max() == 0
 
 
-def test_a_warp_past_the_targets_edge_is_pulled_back():
+def test_a_warp_past_the_targets_edge_is_pulled_back() -> None:
     """Disparities inside [0, W - 1] but too large for their column read
     the clamped border: no photometric gradient, and the range term does
     not see them. The view term lowers them toward the edge."""
@@ -155,11 +167,11 @@ def test_a_warp_past_the_targets_edge_is_pulled_back():
             assert (outside == 0).all()
 
 
-def test_bad_arguments_name_themselves():
+def test_bad_arguments_name_themselves() -> None:
     image = torch.rand(2, 3, 8, 16)
     disparity = torch.rand(2, 1, 8, 16)
     loss = S3Loss()
-    call = dict(
+    call: dict[str, Any] = dict(
         reference=image,
         student_target=image,
         teacher_target=image,
@@ -169,7 +181,7 @@ def test_bad_arguments_name_themselves():
         teacher_sides=["right", "left"],
         ratios=[0.5, 0.5],
     )
-    for change, named in [
+    changes: list[tuple[dict[str, Any], str]] = [
         ({"student_disparity": torch.rand(2, 8, 16)}, "student_disparity"),
         ({"teacher_target": torch.rand(2, 3, 8, 15)}, "teacher_target"),
         ({"student_sides": ["right", "up"]}, "student_sides"),
@@ -177,20 +189,33 @@ def test_bad_arguments_name_themselves():
         ({"ratios": [0.5]}, "ratios"),
         ({"reference": image.to(torch.int64)}, "reference"),
         ({"student_disparity": []}, "student_disparity"),
-    ]:
+    ]
+    for change, named in changes:
         with pytest.raises(ValueError, match=named):
             loss(**{**call, **change})
     with pytest.raises(ValueError, match="reference"):
-        loss(**{**call, "reference": torch.rand(2, 3, 2, 16), "student_target": torch.rand(2, 3, 2, 16),
-                "teacher_target": torch.rand(2, 3, 2, 16), "student_disparity": torch.rand(2, 1, 2, 16),
-                "teacher_disparity": torch.rand(2, 1, 2, 16)})
-    for kwargs, named in [({"tau": 0}, "tau"), ({"ssim_window": 4}, "ssim_window"), ({"alpha": 2}, "alpha"),
-                          ({"geometry": False, "photometric": False, "smoothness": False}, "geometry")]:
+        loss(
+            **{
+                **call,
+                "reference": torch.rand(2, 3, 2, 16),
+                "student_target": torch.rand(2, 3, 2, 16),
+                "teacher_target": torch.rand(2, 3, 2, 16),
+                "student_disparity": torch.rand(2, 1, 2, 16),
+                "teacher_disparity": torch.rand(2, 1, 2, 16),
+            }
+        )
+    settings: list[tuple[dict[str, Any], str]] = [
+        ({"tau": 0}, "tau"),
+        ({"ssim_window": 4}, "ssim_window"),
+        ({"alpha": 2}, "alpha"),
+        ({"geometry": False, "photometric": False, "smoothness": False}, "geometry"),
+    ]
+    for kwargs, named in settings:
         with pytest.raises(ValueError, match=named):
             S3Loss(**kwargs)
 
 
-def test_sequence_weights_and_momentum_follow_the_trainer():
+def test_sequence_weights_and_momentum_follow_the_trainer() -> None:
     # gamma' = 0.9^(15/2): the first of three weighs 0.9^15.
     assert sequence_weights(3, 0.9) == pytest.approx([0.9**15, 0.9**7.5, 1.0])
     assert sequence_weights(3, 0.9, final_only=True) == [0.0, 0.0, 1.0]
@@ -201,7 +226,7 @@ def test_sequence_weights_and_momentum_follow_the_trainer():
     assert cosine_momentum(500, 100, 0.996) == 1.0
 
 
-def test_ema_update_blends_parameters_and_refuses_other_networks():
+def test_ema_update_blends_parameters_and_refuses_other_networks() -> None:
     student, teacher = torch.nn.Linear(3, 2), torch.nn.Linear(3, 2)
     before = teacher.weight.detach().clone()
     ema_update_(teacher, student, 0.75)
@@ -212,7 +237,7 @@ def test_ema_update_blends_parameters_and_refuses_other_networks():
         ema_update_(teacher, student, 1.5)
 
 
-def test_predict_mirrors_left_targets_in_and_out():
+def test_predict_mirrors_left_targets_in_and_out() -> None:
     """A network that returns its input's first channel: a left item's
     prediction is its reference (mirrored twice), and lists are kept."""
     reference = torch.arange(2 * 3 * 2 * 4, dtype=torch.float32).view(2, 3, 2, 4)

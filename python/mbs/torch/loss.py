@@ -1,5 +1,6 @@
-"""The S3 loss on PyTorch tensors (paper eq. 7), term for term the loss of
-``mbs-tool train`` (crates/mbs-train/src/losses):
+"""The S3 loss on PyTorch tensors (paper eq. 7), term for term ``mbs-tool train``'s.
+
+The loss of crates/mbs-train/src/losses:
 
 ``L = g mean(A |d_s - r d_t|) + lambda_p mean(M_s P_s) + lambda_s L_s + lambda_r R + lambda_v V``
 
@@ -42,8 +43,11 @@ the learning rate), for IGEV-Stereo also ``view_weight=0.1`` (README, "S3
 from random weights").
 """
 
+from __future__ import annotations
+
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import List, Optional, Sequence, Union
+from typing import SupportsIndex, Union
 
 import torch
 from torch import nn
@@ -61,26 +65,48 @@ _C2 = 0.03**2
 class S3LossOutput:
     """The loss and its parts; a part whose term is switched off is ``None``.
 
-    ``total`` is differentiable in the student's disparities; the terms are
-    the final prediction's, before their weights; the masks are 0/1 maps
-    ``[B, 1, H, W]`` without gradient; ``student_non_finite`` is the number
-    of the final prediction's pixels that were not finite (a 0-d tensor on
-    its device), left out of every term.
+    The terms are the final prediction's, before their weights; the masks
+    are 0/1 maps ``[B, 1, H, W]`` without gradient.
+
+    Parameters
+    ----------
+    total : torch.Tensor
+        The loss, a 0-d tensor differentiable in the student's disparities.
+    geometry : torch.Tensor, optional
+        ``mean(A |d_s - r d_t|)``.
+    photometric : torch.Tensor, optional
+        ``mean(M_s P_s)`` (or its mask-mean form).
+    smoothness : torch.Tensor, optional
+        ``L_s``, the edge-aware smoothness.
+    range : torch.Tensor, optional
+        ``R``, the mean distance of disparities outside ``[0, W - 1]``.
+    view : torch.Tensor, optional
+        ``V``, the mean distance of warps outside the target.
+    student_mask : torch.Tensor, optional
+        ``M_s``.
+    teacher_mask : torch.Tensor, optional
+        ``M_t``.
+    weight_map : torch.Tensor, optional
+        ``A``.
+    student_non_finite : torch.Tensor, optional
+        The number of the final prediction's pixels that were not finite (a
+        0-d tensor on its device), left out of every term.
     """
 
     total: torch.Tensor
-    geometry: Optional[torch.Tensor] = None
-    photometric: Optional[torch.Tensor] = None
-    smoothness: Optional[torch.Tensor] = None
-    range: Optional[torch.Tensor] = None
-    view: Optional[torch.Tensor] = None
-    student_mask: Optional[torch.Tensor] = None
-    teacher_mask: Optional[torch.Tensor] = None
-    weight_map: Optional[torch.Tensor] = None
-    student_non_finite: Optional[torch.Tensor] = None
+    geometry: torch.Tensor | None = None
+    photometric: torch.Tensor | None = None
+    smoothness: torch.Tensor | None = None
+    range: torch.Tensor | None = None
+    view: torch.Tensor | None = None
+    student_mask: torch.Tensor | None = None
+    teacher_mask: torch.Tensor | None = None
+    weight_map: torch.Tensor | None = None
+    student_non_finite: torch.Tensor | None = None
 
 
 def _window_sums(tensor: torch.Tensor, dim: int, window: int) -> torch.Tensor:
+    """Sum ``tensor`` over windows of ``window`` along ``dim`` (valid windows only)."""
     outputs = tensor.shape[dim] + 1 - window
     zero_shape = list(tensor.shape)
     zero_shape[dim] = 1
@@ -89,22 +115,45 @@ def _window_sums(tensor: torch.Tensor, dim: int, window: int) -> torch.Tensor:
 
 
 def _window_means(tensor: torch.Tensor, window: int) -> torch.Tensor:
+    """Mean of ``tensor`` ``[B, C, H, W]`` over ``window x window`` boxes (valid boxes only)."""
     return _window_sums(_window_sums(tensor, 2, window), 3, window) / float(window * window)
 
 
-def ssim(x: torch.Tensor, y: torch.Tensor, window: int) -> torch.Tensor:
-    """Per-pixel, per-channel SSIM of two ``[B, C, H, W]`` images in
-    ``[0, 1]`` on an odd ``window`` box with reflection padding (half the
-    window less than each side)."""
+def ssim(x: torch.Tensor, y: torch.Tensor, window: SupportsIndex) -> torch.Tensor:
+    """Compute the per-pixel, per-channel SSIM of two images.
+
+    On a box window with reflection padding.
+
+    Parameters
+    ----------
+    x : torch.Tensor
+        Images ``[B, C, H, W]`` in ``[0, 1]``.
+    y : torch.Tensor
+        Images of the same shape on the same device.
+    window : int
+        The box's side: odd, and half of it less than each side of the
+        images.
+
+    Returns
+    -------
+    torch.Tensor
+        ``[B, C, H, W]``.
+
+    Raises
+    ------
+    TypeError
+        An image is not a tensor or ``window`` not an integer.
+    ValueError
+        The images differ in shape or device, or ``window`` does not fit
+        (the message begins with the argument's name).
+    """
     _checks.images("x", x)
     _checks.shaped("y", y, x.shape)
     _checks.on_device("y", y, "x", x)
     window = _checks.integer("window", window, minimum=1)
     _checks.require(window % 2 == 1, "window", window, "an odd window side such as 3 or 7")
     height, width = x.shape[2:]
-    _checks.require(
-        window // 2 < min(height, width), "window", window, f"a window that fits {height}x{width} images"
-    )
+    _checks.require(window // 2 < min(height, width), "window", window, f"a window that fits {height}x{width} images")
     pad = window // 2
     x = torch.nn.functional.pad(x - 0.5, (pad, pad, pad, pad), mode="reflect")
     y = torch.nn.functional.pad(y - 0.5, (pad, pad, pad, pad), mode="reflect")
@@ -118,9 +167,37 @@ def ssim(x: torch.Tensor, y: torch.Tensor, window: int) -> torch.Tensor:
     return numerator / denominator
 
 
-def photometric_map(reference, reconstructed, alpha: float, window: int) -> torch.Tensor:
-    """``alpha clamp((1 - SSIM) / 2, 0, 1) + (1 - alpha) |I_r - I|``,
-    averaged over channels: ``[B, 1, H, W]``, with ``alpha`` in ``[0, 1]``."""
+def photometric_map(
+    reference: torch.Tensor, reconstructed: torch.Tensor, alpha: float, window: SupportsIndex
+) -> torch.Tensor:
+    """Compute the photometric error of a reconstruction, per pixel.
+
+    ``alpha clamp((1 - SSIM) / 2, 0, 1) + (1 - alpha) |I_r - I|``, averaged
+    over channels.
+
+    Parameters
+    ----------
+    reference : torch.Tensor
+        Images ``[B, C, H, W]`` in ``[0, 1]``.
+    reconstructed : torch.Tensor
+        Images of the same shape on the same device (a warped target).
+    alpha : float
+        The SSIM share, in ``[0, 1]``.
+    window : int
+        The SSIM window's side, as :func:`ssim`.
+
+    Returns
+    -------
+    torch.Tensor
+        ``[B, 1, H, W]``.
+
+    Raises
+    ------
+    TypeError
+        As :func:`ssim`, or ``alpha`` is not a number.
+    ValueError
+        As :func:`ssim`, or ``alpha`` is outside ``[0, 1]``.
+    """
     alpha = _checks.number("alpha", alpha, 0.0, 1.0)
     dissimilarity = ((1.0 - ssim(reference, reconstructed, window)) / 2.0).clamp(0.0, 1.0)
     l1 = (reference - reconstructed).abs()
@@ -128,20 +205,58 @@ def photometric_map(reference, reconstructed, alpha: float, window: int) -> torc
 
 
 def sample_columns(disparity: torch.Tensor, signs: torch.Tensor) -> torch.Tensor:
-    """The column each reference pixel samples in its target: ``x - d``
-    (target on the right, sign +1) or ``x + d`` (left, sign -1)."""
+    """Give the column each reference pixel samples in its target.
+
+    ``x - d`` for a target on the right (sign +1), ``x + d`` on the left
+    (sign -1).
+
+    Parameters
+    ----------
+    disparity : torch.Tensor
+        ``[B, 1, H, W]``.
+    signs : torch.Tensor
+        ``[B, 1, 1, 1]``, +1 or -1 per item.
+
+    Returns
+    -------
+    torch.Tensor
+        ``[B, 1, H, W]``: the columns, not clamped.
+    """
     width = disparity.shape[3]
     columns = torch.arange(width, dtype=disparity.dtype, device=disparity.device).view(1, 1, 1, width)
     return columns - disparity * signs
 
 
 def warp_to_reference(target: torch.Tensor, disparity: torch.Tensor, signs: torch.Tensor) -> torch.Tensor:
-    """``target`` ``[B, C, H, W]`` sampled at ``x - sign d`` with linear
-    interpolation along x, clamped to the border; differentiable in
-    ``disparity`` ``[B, 1, H, W]``. ``signs`` ``[B, 1, 1, 1]`` is +1 for a
-    target on the right, -1 on the left. A disparity that is not finite
-    samples column 0 (NaN) or the border (``inf``), without gradient: it
-    never reaches the index."""
+    """Warp target images to the reference grid by disparity.
+
+    The target is sampled at ``x - sign d`` with linear interpolation along
+    x, clamped to the border. A disparity that is not finite samples column
+    0 (NaN) or the border (``inf``), without gradient: it never reaches the
+    index.
+
+    Parameters
+    ----------
+    target : torch.Tensor
+        Images ``[B, C, H, W]``, at least 2 pixels wide.
+    disparity : torch.Tensor
+        ``[B, 1, H, W]`` on the target's device.
+    signs : torch.Tensor
+        ``[B, 1, 1, 1]``: +1 for a target on the right, -1 on the left.
+
+    Returns
+    -------
+    torch.Tensor
+        ``[B, C, H, W]``, differentiable in ``disparity`` and ``target``.
+
+    Raises
+    ------
+    TypeError
+        An argument is not a tensor.
+    ValueError
+        An argument has the wrong shape, dtype or device (the message
+        begins with its name).
+    """
     _checks.images("target", target)
     batch, channels, height, width = target.shape
     _checks.require(width >= 2, "target", f"{height}x{width} pixels", "images at least 2 pixels wide")
@@ -157,14 +272,48 @@ def warp_to_reference(target: torch.Tensor, disparity: torch.Tensor, signs: torc
 
 
 def lands_inside(disparity: torch.Tensor, signs: torch.Tensor) -> torch.Tensor:
-    """1 where a pixel's warp lands inside the target, 0 where it leaves it."""
+    """Mark the pixels whose warp lands inside the target.
+
+    Parameters
+    ----------
+    disparity : torch.Tensor
+        ``[B, 1, H, W]``.
+    signs : torch.Tensor
+        ``[B, 1, 1, 1]``, as :func:`sample_columns`.
+
+    Returns
+    -------
+    torch.Tensor
+        ``[B, 1, H, W]`` in ``disparity``'s dtype: 1 where a pixel's warp
+        lands inside the target, 0 where it leaves it; no gradient.
+    """
     columns = sample_columns(disparity.detach(), signs)
     return ((columns >= 0.0) & (columns <= disparity.shape[3] - 1)).to(disparity.dtype)
 
 
-def validity_mask(photometric, identity, tau: Optional[float], auto_mask: bool) -> torch.Tensor:
-    """1 where the warped error beats ``tau`` and the identity error, for
-    the parts switched on (strict inequalities); no gradient."""
+def validity_mask(
+    photometric: torch.Tensor, identity: torch.Tensor, tau: float | None, auto_mask: bool
+) -> torch.Tensor:
+    """Mask the pixels whose warp explains the target (threshold filtering and auto-masking).
+
+    Parameters
+    ----------
+    photometric : torch.Tensor
+        The warped target's photometric error ``[B, 1, H, W]``.
+    identity : torch.Tensor
+        The unwarped target's, the same shape.
+    tau : float or None
+        The threshold; ``None`` switches threshold filtering off.
+    auto_mask : bool
+        Whether the warped error must beat the identity error.
+
+    Returns
+    -------
+    torch.Tensor
+        ``[B, 1, H, W]``: 1 where the warped error is below ``tau`` and the
+        identity error, for the parts switched on (strict inequalities),
+        else 0; no gradient.
+    """
     photometric = photometric.detach()
     mask = torch.ones_like(photometric)
     if tau is not None:
@@ -174,14 +323,45 @@ def validity_mask(photometric, identity, tau: Optional[float], auto_mask: bool) 
     return mask
 
 
-def weight_map(teacher_mask, student_mask, omega: float) -> torch.Tensor:
-    """``A = M_t (M_s + omega (1 - M_s))``."""
+def weight_map(teacher_mask: torch.Tensor, student_mask: torch.Tensor, omega: float) -> torch.Tensor:
+    """Compute the geometry term's weights ``A = M_t (M_s + omega (1 - M_s))``.
+
+    Parameters
+    ----------
+    teacher_mask : torch.Tensor
+        ``M_t``, 0/1 ``[B, 1, H, W]``.
+    student_mask : torch.Tensor
+        ``M_s``, the same shape.
+    omega : float
+        The weight of pixels outside the student's mask (occlusion-aware
+        enhancement).
+
+    Returns
+    -------
+    torch.Tensor
+        ``A``, ``[B, 1, H, W]``.
+    """
     return teacher_mask * (student_mask * (1.0 - omega) + omega)
 
 
-def match_scale(target, student, weights) -> torch.Tensor:
-    """``target`` rescaled per item so that its weighted mean is the
-    student's (no gradient); an item with no weight keeps its target."""
+def match_scale(target: torch.Tensor, student: torch.Tensor, weights: torch.Tensor) -> torch.Tensor:
+    """Rescale the geometry target per item to the student's weighted mean.
+
+    Parameters
+    ----------
+    target : torch.Tensor
+        The teacher's scaled disparity ``[B, 1, H, W]``.
+    student : torch.Tensor
+        The student's disparity, the same shape (not differentiated).
+    weights : torch.Tensor
+        The pixels' weights, the same shape.
+
+    Returns
+    -------
+    torch.Tensor
+        ``target`` times a per-item factor that makes its weighted mean the
+        student's; an item with no weight keeps its target.
+    """
     student_sum = (weights * student.detach()).sum(dim=(1, 2, 3), keepdim=True)
     target_sum = (weights * target).sum(dim=(1, 2, 3), keepdim=True)
     has_weight = (target_sum.abs() > 1e-6).to(target.dtype)
@@ -189,9 +369,36 @@ def match_scale(target, student, weights) -> torch.Tensor:
     return target * scale
 
 
-def geometry_consistency(student, teacher, ratios, weights, cap, scale_match: bool) -> torch.Tensor:
-    """``mean(weights |d_s - r d_t|)`` with the teacher detached; pixels
-    whose target exceeds ``cap`` weigh 0."""
+def geometry_consistency(
+    student: torch.Tensor,
+    teacher: torch.Tensor,
+    ratios: torch.Tensor,
+    weights: torch.Tensor,
+    cap: float | None,
+    scale_match: bool,
+) -> torch.Tensor:
+    """Compute the geometry term ``mean(weights |d_s - r d_t|)``.
+
+    Parameters
+    ----------
+    student : torch.Tensor
+        The student's disparity ``d_s``, ``[B, 1, H, W]``.
+    teacher : torch.Tensor
+        The teacher's ``d_t``, the same shape (detached).
+    ratios : torch.Tensor
+        The baseline ratios ``r``, ``[B]``.
+    weights : torch.Tensor
+        ``[B, 1, H, W]``, such as :func:`weight_map`'s.
+    cap : float or None
+        Pixels whose target ``r d_t`` exceeds it weigh 0.
+    scale_match : bool
+        Whether the target is rescaled first (:func:`match_scale`).
+
+    Returns
+    -------
+    torch.Tensor
+        A 0-d tensor, differentiable in ``student``.
+    """
     target = teacher.detach() * ratios.view(-1, 1, 1, 1)
     if cap is not None:
         weights = weights * (target <= cap).to(weights.dtype)
@@ -201,26 +408,70 @@ def geometry_consistency(student, teacher, ratios, weights, cap, scale_match: bo
 
 
 def out_of_range(disparity: torch.Tensor) -> torch.Tensor:
-    """``mean(max(0, -d) + max(0, d - (W - 1)))`` in pixels."""
+    """Compute the range term ``mean(max(0, -d) + max(0, d - (W - 1)))``.
+
+    Parameters
+    ----------
+    disparity : torch.Tensor
+        ``[B, 1, H, W]``.
+
+    Returns
+    -------
+    torch.Tensor
+        A 0-d tensor: the mean distance (px) of the disparities outside
+        ``[0, W - 1]``.
+    """
     width = disparity.shape[3]
     return ((-disparity).clamp(min=0.0) + (disparity - (width - 1)).clamp(min=0.0)).mean()
 
 
 def out_of_view(disparity: torch.Tensor, signs: torch.Tensor) -> torch.Tensor:
-    """``mean(max(0, -c) + max(0, c - (W - 1)))`` in pixels, ``c`` the
-    column each pixel samples in its target."""
+    """Compute the view term ``mean(max(0, -c) + max(0, c - (W - 1)))``.
+
+    Parameters
+    ----------
+    disparity : torch.Tensor
+        ``[B, 1, H, W]``.
+    signs : torch.Tensor
+        ``[B, 1, 1, 1]``, as :func:`sample_columns`.
+
+    Returns
+    -------
+    torch.Tensor
+        A 0-d tensor: the mean distance (px) by which the columns ``c``
+        that the pixels sample in their target land outside it.
+    """
     return out_of_range(sample_columns(disparity, signs))
 
 
-def edge_aware_smoothness(disparity, image, normalise: bool, valid=None) -> torch.Tensor:
-    """Mean of ``|d(x+1) - d(x)| exp(-|I(x+1) - I(x)|)`` over horizontal
-    pairs plus the same over vertical pairs (each map divided by its mean
-    first with ``normalise``); with ``valid`` (0/1 ``[B, 1, H, W]``), a pair
-    with an invalid pixel weighs 0."""
+def edge_aware_smoothness(
+    disparity: torch.Tensor, image: torch.Tensor, normalise: bool, valid: torch.Tensor | None = None
+) -> torch.Tensor:
+    """Compute the edge-aware smoothness of a disparity.
+
+    The mean of ``|d(x+1) - d(x)| exp(-|I(x+1) - I(x)|)`` over horizontal
+    pairs plus the same over vertical pairs.
+
+    Parameters
+    ----------
+    disparity : torch.Tensor
+        ``[B, 1, H, W]``.
+    image : torch.Tensor
+        Its reference images ``[B, C, H, W]``.
+    normalise : bool
+        Whether each map is divided by its mean first.
+    valid : torch.Tensor, optional
+        0/1 ``[B, 1, H, W]``: a pair with an invalid pixel weighs 0.
+
+    Returns
+    -------
+    torch.Tensor
+        A 0-d tensor.
+    """
     if normalise:
         disparity = disparity / (disparity.mean(dim=(2, 3), keepdim=True) + 1e-7)
 
-    def term(dim):
+    def term(dim: int) -> torch.Tensor:
         disparity_step = disparity.diff(dim=dim).abs()
         if valid is not None:
             length = valid.shape[dim] - 1
@@ -231,25 +482,86 @@ def edge_aware_smoothness(disparity, image, normalise: bool, valid=None) -> torc
     return term(3) + term(2)
 
 
+#: What the terms of every prediction share (:meth:`S3Loss._shared`): the
+#: student's identity error, and the teacher's mask and detached disparity.
+_Shared = tuple[Union[torch.Tensor, None], Union[tuple[torch.Tensor, torch.Tensor], None]]
+
+
 class S3Loss(nn.Module):
-    """The S3 loss of ``mbs-tool train`` as an ``nn.Module``, with every
-    switch of its ``trainer.loss`` settings (paper Tables 3 and 4).
+    """The S3 loss of ``mbs-tool train`` as an ``nn.Module``.
 
-    Call it with the clean reference and target images ``[B, 3, H, W]`` in
-    ``[0, 1]``, the student's disparity (``[B, 1, H, W]``, on the reference
-    grid, with the gradient) or a list of an iterative student's
-    predictions (weighted by :func:`mbs.torch.sequence_weights`), the
-    teacher's disparity, each item's target side (``"left"`` or
-    ``"right"``) for student and teacher, and the baseline ratios
-    ``r = B_s / B_t``. It returns an :class:`S3LossOutput`.
+    With every switch of its ``trainer.loss`` settings (paper Tables 3 and
+    4), keyword-only. Call it as :meth:`forward` says; it returns an
+    :class:`S3LossOutput`.
 
-    Example::
+    Parameters
+    ----------
+    tau : float, default 0.1
+        The photometric threshold of the validity masks, positive.
+    omega : float, default 2.0
+        The weight of pixels the teacher sees and the student does not, at
+        least 0.
+    lambda_p : float, default 10.0
+        The weight of the photometric term, at least 0.
+    lambda_s_ratio : float, default 0.001
+        ``lambda_s / lambda_p``, the smoothness term's weight over the
+        photometric term's, at least 0.
+    alpha : float, default 0.85
+        The SSIM share of the photometric error, in ``[0, 1]``.
+    ssim_window : int, default 7
+        The SSIM box window's side, odd.
+    geometry, photometric, smoothness : bool, default True
+        Whether each term is on (Table 3); at least one is.
+    threshold_filter : bool, default True
+        Photometric threshold filtering ``P < tau`` in the masks (Table 4).
+    auto_mask : bool, default True
+        Auto-masking ``P < P_identity`` in the masks (Table 4).
+    occlusion_enhancement : bool, default True
+        Weight ``omega`` instead of 1 where only the teacher sees (Table 4).
+    normalise_smoothness : bool, default False
+        Divide each disparity map by its mean in the smoothness term, as
+        monodepth2; off as the paper's eq. 3.
+    max_target_disparity : float, default 0.0
+        The largest target ``r d_t`` (px) the geometry term supervises; 0
+        supervises every pixel.
+    range_weight : float, default 1.0
+        The weight of the range term ``R``; 0 is the paper's loss.
+    view_weight : float, default 0.0
+        The weight of the view term ``V``; 0 is the paper's loss.
+    geometry_scale_match : bool, default False
+        Rescale each item's geometry target to the student's weighted mean
+        (:func:`match_scale`); off is the paper's term.
+    out_of_view_invalid : bool, default True
+        Count pixels whose warp leaves the target as invalid in both masks;
+        off is the paper's loss.
+    photometric_mask_mean : bool, default False
+        Average the photometric term over the student's mask instead of
+        over every pixel.
+    outside_mask_weight : float, default 0.0
+        The photometric weight ``beta`` of pixels outside the student's
+        mask, in ``[0, 1]``; 0 is the paper's ``M_s P_s``.
+    sequence_gamma : float, default 0.9
+        The decay of an iterative student's sequence weights, in ``[0, 1]``
+        (:func:`mbs.torch.sequence_weights`).
+    final_prediction_only : bool, default False
+        Whether only an iterative student's final prediction counts.
 
-        loss_fn = S3Loss()
-        out = loss_fn(reference, student_target, teacher_target,
-                      student_disparity, teacher_disparity,
-                      ["right", "left"], ["right", "left"], [0.5, 0.25])
-        out.total.backward()
+    Raises
+    ------
+    TypeError
+        A setting has the wrong type (a float ``ssim_window``, a string
+        flag).
+    ValueError
+        A setting is out of range, or every term is off (the message begins
+        with the setting's name).
+
+    Examples
+    --------
+    >>> loss_fn = S3Loss()
+    >>> out = loss_fn(reference, student_target, teacher_target,
+    ...               student_disparity, teacher_disparity,
+    ...               ["right", "left"], ["right", "left"], [0.5, 0.25])  # doctest: +SKIP
+    >>> out.total.backward()  # doctest: +SKIP
     """
 
     def __init__(
@@ -260,7 +572,7 @@ class S3Loss(nn.Module):
         lambda_p: float = 10.0,
         lambda_s_ratio: float = 0.001,
         alpha: float = 0.85,
-        ssim_window: int = 7,
+        ssim_window: SupportsIndex = 7,
         geometry: bool = True,
         photometric: bool = True,
         smoothness: bool = True,
@@ -277,7 +589,7 @@ class S3Loss(nn.Module):
         outside_mask_weight: float = 0.0,
         sequence_gamma: float = 0.9,
         final_prediction_only: bool = False,
-    ):
+    ) -> None:
         super().__init__()
         tau = _checks.number("tau", tau, minimum=0.0)
         _checks.require(tau > 0, "tau", tau, "a positive number")
@@ -300,8 +612,8 @@ class S3Loss(nn.Module):
                 ("sequence_gamma", sequence_gamma),
             ]
         )
-        ssim_window = _checks.integer("ssim_window", ssim_window, minimum=1)
-        _checks.require(ssim_window % 2 == 1, "ssim_window", ssim_window, "an odd window side such as 3 or 7")
+        window = _checks.integer("ssim_window", ssim_window, minimum=1)
+        _checks.require(window % 2 == 1, "ssim_window", window, "an odd window side such as 3 or 7")
         for name, value in [
             ("geometry", geometry),
             ("photometric", photometric),
@@ -322,7 +634,7 @@ class S3Loss(nn.Module):
             "all False",
             "at least one loss term on",
         )
-        self.tau, self.omega, self.alpha, self.ssim_window = tau, omega, alpha, ssim_window
+        self.tau, self.omega, self.alpha, self.ssim_window = tau, omega, alpha, window
         self.lambda_p, self.lambda_s = lambda_p, lambda_s_ratio * lambda_p
         self.geometry, self.photometric, self.smoothness = geometry, photometric, smoothness
         self.threshold = tau if threshold_filter else None
@@ -344,16 +656,56 @@ class S3Loss(nn.Module):
         reference: torch.Tensor,
         student_target: torch.Tensor,
         teacher_target: torch.Tensor,
-        student_disparity: Union[torch.Tensor, Sequence[torch.Tensor]],
+        student_disparity: torch.Tensor | list[torch.Tensor] | tuple[torch.Tensor, ...],
         teacher_disparity: torch.Tensor,
         student_sides: Sequence[str],
         teacher_sides: Sequence[str],
-        ratios: Union[Sequence[float], torch.Tensor],
+        ratios: Sequence[float] | torch.Tensor,
         geometry_weight: float = 1.0,
     ) -> S3LossOutput:
+        """Compute the loss of a batch.
+
+        Parameters
+        ----------
+        reference : torch.Tensor
+            The clean reference images ``[B, 3, H, W]`` in ``[0, 1]``.
+        student_target, teacher_target : torch.Tensor
+            The clean target images of student and teacher, the same shape.
+        student_disparity : torch.Tensor or list of torch.Tensor
+            The student's disparity ``[B, 1, H, W]`` on the reference grid,
+            with the gradient; or a list (or tuple) of an iterative
+            student's predictions, first to last, weighted by
+            :func:`mbs.torch.sequence_weights`.
+        teacher_disparity : torch.Tensor
+            The teacher's disparity ``[B, 1, H, W]``; pixels that are not
+            finite carry no target.
+        student_sides, teacher_sides : sequence of str
+            Each item's target side, ``"left"`` or ``"right"``.
+        ratios : sequence of float or torch.Tensor
+            The baseline ratios ``r = B_s / B_t``, one finite positive
+            number per item.
+        geometry_weight : float, default 1.0
+            The geometry term's weight ``g`` at this step
+            (:func:`mbs.torch.geometry_weight`), at least 0.
+
+        Returns
+        -------
+        S3LossOutput
+            The loss and its parts.
+
+        Raises
+        ------
+        TypeError
+            A tensor argument is not a tensor, or sides not a sequence.
+        ValueError
+            An argument has the wrong shape, dtype, device or value (the
+            message begins with its name).
+        """
         predictions = list(student_disparity) if isinstance(student_disparity, (list, tuple)) else [student_disparity]
         _checks.require(len(predictions) > 0, "student_disparity", "an empty list", "a tensor or a non-empty list")
-        batch = _check_shapes(reference, student_target, teacher_target, predictions, teacher_disparity, self.ssim_window)
+        batch = _check_shapes(
+            reference, student_target, teacher_target, predictions, teacher_disparity, self.ssim_window
+        )
         student_signs = side_signs(student_sides, batch, "student_sides", reference)
         teacher_signs = side_signs(teacher_sides, batch, "teacher_sides", reference)
         ratios = _baseline_ratios(ratios, batch, reference)
@@ -372,15 +724,28 @@ class S3Loss(nn.Module):
             out.total = out.total + earlier.total * weight
         return out
 
-    def _photometric(self, reference, target, warp=None):
+    def _photometric(
+        self, reference: torch.Tensor, target: torch.Tensor, warp: tuple[torch.Tensor, torch.Tensor] | None = None
+    ) -> torch.Tensor:
+        """Photometric error of ``target``, warped by ``(disparity, signs)`` if given."""
         if warp is not None:
             target = warp_to_reference(target, *warp)
         return photometric_map(reference, target, self.alpha, self.ssim_window)
 
-    def _in_view(self, mask, disparity, signs):
+    def _in_view(self, mask: torch.Tensor, disparity: torch.Tensor, signs: torch.Tensor) -> torch.Tensor:
+        """``mask`` without the pixels whose warp leaves the target, when ``out_of_view_invalid``."""
         return mask * lands_inside(disparity, signs) if self.out_of_view_invalid else mask
 
-    def _shared(self, reference, student_target, teacher_target, teacher_disparity, teacher_valid, teacher_signs):
+    def _shared(
+        self,
+        reference: torch.Tensor,
+        student_target: torch.Tensor,
+        teacher_target: torch.Tensor,
+        teacher_disparity: torch.Tensor,
+        teacher_valid: torch.Tensor,
+        teacher_signs: torch.Tensor,
+    ) -> _Shared:
+        """What every prediction's terms share: the student's identity error and the teacher's mask."""
         student_identity = None
         if self.photometric or self.geometry:
             student_identity = self._photometric(reference, student_target)
@@ -393,7 +758,17 @@ class S3Loss(nn.Module):
             teacher = (self._in_view(mask, disparity, teacher_signs), disparity)
         return student_identity, teacher
 
-    def _terms(self, reference, student_target, student, signs, ratios, geometry_weight, shared) -> S3LossOutput:
+    def _terms(
+        self,
+        reference: torch.Tensor,
+        student_target: torch.Tensor,
+        student: torch.Tensor,
+        signs: torch.Tensor,
+        ratios: torch.Tensor,
+        geometry_weight: float,
+        shared: _Shared,
+    ) -> S3LossOutput:
+        """The loss and its parts for one prediction of the student."""
         student_identity, teacher = shared
         finite = torch.isfinite(student)
         student = torch.where(finite, student, student.new_zeros(()))
@@ -434,9 +809,18 @@ class S3Loss(nn.Module):
         return out
 
 
-def _check_shapes(reference, student_target, teacher_target, predictions, teacher_disparity, window) -> int:
-    """The batch size, once every tensor is checked: types, shapes (a
-    non-empty batch) and one device."""
+def _check_shapes(
+    reference: torch.Tensor,
+    student_target: torch.Tensor,
+    teacher_target: torch.Tensor,
+    predictions: Sequence[torch.Tensor],
+    teacher_disparity: torch.Tensor,
+    window: int,
+) -> int:
+    """Check every tensor of a call and return the batch size.
+
+    Types, shapes (a non-empty batch) and one device.
+    """
     for name, tensor in [
         ("student_target", student_target),
         ("teacher_target", teacher_target),
@@ -462,10 +846,12 @@ def _check_shapes(reference, student_target, teacher_target, predictions, teache
     return batch
 
 
-def _baseline_ratios(ratios, batch: int, like: torch.Tensor) -> torch.Tensor:
-    """``ratios`` as a ``[B]`` tensor on ``like``'s device, once checked:
-    one finite positive number per item (a device sync when they are on a
-    GPU already)."""
+def _baseline_ratios(ratios: Sequence[float] | torch.Tensor, batch: int, like: torch.Tensor) -> torch.Tensor:
+    """Check the baseline ratios and return them as a ``[B]`` tensor on ``like``'s device.
+
+    One finite positive number per item (a device sync when they are on a
+    GPU already).
+    """
     try:
         values = torch.as_tensor(ratios, dtype=like.dtype)
     except (TypeError, ValueError, RuntimeError):
@@ -477,5 +863,4 @@ def _baseline_ratios(ratios, batch: int, like: torch.Tensor) -> torch.Tensor:
     return values.to(device=like.device)
 
 
-
-__all__: List[str] = ["S3Loss", "S3LossOutput", "photometric_map", "ssim", "warp_to_reference"]
+__all__: list[str] = ["S3Loss", "S3LossOutput", "photometric_map", "ssim", "warp_to_reference"]
