@@ -272,6 +272,16 @@ const CASES: &[Case] = &[
     ),
     case("train {d}/ok.json --out {o} --device cpu,bogus", 2, "bogus"),
     case(
+        "train {d}/ok.json --out {o} --precision f8",
+        2,
+        "unknown precision `f8`; expected f32, bf16 or f16",
+    ),
+    case(
+        "train {d}/ok.json --out {o} --backbone resnet",
+        2,
+        "unknown backbone `resnet`",
+    ),
+    case(
         "predict --left {d}/left.png --right {d}/right.png --out {o} --device cuda",
         1,
         "the built-in matcher runs on the CPU",

@@ -45,6 +45,21 @@ impl Precision {
     }
 }
 
+impl std::str::FromStr for Precision {
+    type Err = TrainError;
+
+    fn from_str(text: &str) -> Result<Self, TrainError> {
+        match text {
+            "f32" => Ok(Self::F32),
+            "bf16" => Ok(Self::Bf16),
+            "f16" => Ok(Self::F16),
+            other => Err(TrainError::Config(format!(
+                "unknown precision `{other}`; expected f32, bf16 or f16"
+            ))),
+        }
+    }
+}
+
 impl fmt::Display for Precision {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {

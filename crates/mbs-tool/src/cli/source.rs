@@ -53,7 +53,7 @@ pub struct StereoSourceArgs {
     )]
     pub weights: Option<PathBuf>,
     /// The network of --weights: compact, raft-stereo or igev.
-    #[arg(long, value_name = "NAME", requires = "weights", value_parser = parse_backbone, help_heading = "Disparity source")]
+    #[arg(long, value_name = "NAME", requires = "weights", value_parser = crate::cli::values::backbone, help_heading = "Disparity source")]
     pub backbone: Option<BackboneKind>,
     /// A network setting for --weights (repeatable), e.g.
     /// `network.raft_stereo.n_downsample=3` or `network.raft_stereo.test_iters=12`.
@@ -91,11 +91,6 @@ pub enum Paths {
     /// All eight directions: more accurate, about 1.6x the time.
     #[value(name = "8")]
     Eight,
-}
-
-/// `--backbone`, as `BackboneKind` spells it.
-fn parse_backbone(text: &str) -> Result<BackboneKind, String> {
-    text.parse().map_err(|e: mbs_nets::NetError| e.to_string())
 }
 
 /// The disparity source the flags chose.

@@ -3,7 +3,9 @@
 //! work starts.
 
 use mbs_core::limits::{MAX_IMAGE_SIDE, MAX_JOBS, MAX_VIEWS};
+use mbs_nets::BackboneKind;
 use mbs_nets::device::DeviceList;
+use mbs_train::precision::Precision;
 
 /// A finite number above zero (focal lengths, baselines, depths, scales).
 pub fn positive(text: &str) -> Result<f64, String> {
@@ -44,6 +46,17 @@ pub fn device(text: &str) -> Result<String, String> {
     text.parse::<mbs_nets::device::DeviceName>()
         .map(|_| text.to_string())
         .map_err(|e| e.to_string())
+}
+
+/// A network, as [`BackboneKind`] spells it.
+pub fn backbone(text: &str) -> Result<BackboneKind, String> {
+    text.parse().map_err(|e: mbs_nets::NetError| e.to_string())
+}
+
+/// A training precision, as [`Precision`] spells it.
+pub fn precision(text: &str) -> Result<Precision, String> {
+    text.parse()
+        .map_err(|e: mbs_train::TrainError| e.to_string())
 }
 
 /// A comma-separated list of [`device`] names (data-parallel training),

@@ -12,10 +12,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::{Context, bail};
 use burn::tensor::Device;
 use clap::Parser;
+use mbs_nets::BackboneKind;
 use mbs_nets::checkpoint::CHECKPOINTS_DIR;
 use mbs_nets::device::DeviceList;
 use mbs_train::checkpoint::Checkpoint;
 use mbs_train::distributed::{Collective, agree, all_succeeded};
+use mbs_train::precision::Precision;
 use mbs_train::run::{End, Quiet, Start, TrainingRun, computing_differences, run_identity};
 use mbs_train::{RunConfig, TrainError};
 
@@ -93,8 +95,8 @@ pub struct Args {
     #[arg(long)]
     pub max_disparity: Option<usize>,
     /// The network trained (network.backbone): compact, raft-stereo or igev.
-    #[arg(long, value_name = "NAME")]
-    pub backbone: Option<String>,
+    #[arg(long, value_name = "NAME", value_parser = crate::cli::values::backbone)]
+    pub backbone: Option<BackboneKind>,
     /// Start a new run from these weights instead of fresh ones (student and
     /// teacher both; the schedule and optimiser start afresh): another run
     /// or checkpoint folder (its teacher), an official checkpoint (.pth or
@@ -124,8 +126,8 @@ pub struct Args {
     /// f32; f16 scales its loss dynamically). A device that cannot compute in
     /// the format is refused at start (most Vulkan drivers lack bf16). The
     /// CPU has both but runs them slower than f32: only GPUs gain.
-    #[arg(long, value_name = "FORMAT")]
-    pub precision: Option<String>,
+    #[arg(long, value_name = "FORMAT", value_parser = crate::cli::values::precision)]
+    pub precision: Option<Precision>,
     /// Discard the checkpoints in --out and start from fresh weights.
     #[arg(long)]
     pub restart: bool,
@@ -167,8 +169,8 @@ impl Args {
             "network.max_disparity",
             self.max_disparity.map(|v| v.to_string()),
         );
-        push("network.backbone", self.backbone.clone());
-        push("trainer.precision", self.precision.clone());
+        push("network.backbone", self.backbone.map(|b| b.to_string()));
+        push("trainer.precision", self.precision.map(|p| p.to_string()));
         push("seed", self.seed.map(|v| v.to_string()));
         push("val_every", self.val_every.map(|v| v.to_string()));
         push(
