@@ -185,16 +185,18 @@ mod tests {
         assert_eq!(all, (0..10).collect::<Vec<_>>());
     }
 
+    /// `--shard auto` from the environment `vars`.
+    fn resolve(vars: &[(&str, &str)]) -> Result<Shard, String> {
+        Shard::from_launcher(|name| {
+            vars.iter()
+                .find(|(key, _)| *key == name)
+                .map(|(_, value)| value.to_string())
+        })
+    }
+
     /// `--shard auto` under each launcher, from a given environment.
     #[test]
     fn auto_reads_each_launcher() {
-        let resolve = |vars: &[(&str, &str)]| {
-            Shard::from_launcher(|name| {
-                vars.iter()
-                    .find(|(key, _)| *key == name)
-                    .map(|(_, value)| value.to_string())
-            })
-        };
         let shard = |index, count| Ok(Shard { index, count });
         // A SLURM array of 16 numbered 1..16, task 5.
         let array = [
@@ -244,69 +246,74 @@ mod tests {
         // Task 5 (of 16, from 1) running rank 2 of 3: 4 * 3 + 2 of 48.
         let both = [array.as_slice(), ompi.as_slice()].concat();
         assert_eq!(resolve(&both), shard(14, 48));
-        // Nothing set, SLURM_NTASKS alone (a batch script), bad values.
-        for (vars, message) in [
-            (&[][..], "no launcher set"),
-            (&[("SLURM_NTASKS", "4")][..], "no launcher set"),
-            (
-                &[("PMI_RANK", "x"), ("PMI_SIZE", "2")][..],
-                "PMI_RANK=\"x\" is not",
-            ),
-            (
-                &[("PMI_RANK", "2"), ("PMI_SIZE", "2")][..],
-                "give shard 2/2",
-            ),
-            // Array tasks outside [MIN, MIN + COUNT * STEP) or off the step.
-            (
-                &[
-                    ("SLURM_ARRAY_TASK_ID", "1"),
-                    ("SLURM_ARRAY_TASK_MIN", "3"),
-                    ("SLURM_ARRAY_TASK_COUNT", "2"),
-                ][..],
-                "SLURM_ARRAY_TASK_ID=1 is not a task of the array",
-            ),
-            (
-                &[
-                    ("SLURM_ARRAY_TASK_ID", "5"),
-                    ("SLURM_ARRAY_TASK_MIN", "3"),
-                    ("SLURM_ARRAY_TASK_COUNT", "2"),
-                ][..],
-                "SLURM_ARRAY_TASK_MIN=3",
-            ),
-            (
-                &[
-                    ("SLURM_ARRAY_TASK_ID", "7"),
-                    ("SLURM_ARRAY_TASK_MIN", "0"),
-                    ("SLURM_ARRAY_TASK_STEP", "2"),
-                    ("SLURM_ARRAY_TASK_COUNT", "8"),
-                ][..],
-                "SLURM_ARRAY_TASK_STEP=2",
-            ),
-            (
-                &[
-                    ("SLURM_ARRAY_TASK_ID", "16"),
-                    ("SLURM_ARRAY_TASK_MIN", "0"),
-                    ("SLURM_ARRAY_TASK_STEP", "2"),
-                    ("SLURM_ARRAY_TASK_COUNT", "8"),
-                ][..],
-                "SLURM_ARRAY_TASK_COUNT=8",
-            ),
-            (
-                &[
-                    ("SLURM_ARRAY_TASK_ID", "0"),
-                    ("SLURM_ARRAY_TASK_STEP", "0"),
-                    ("SLURM_ARRAY_TASK_COUNT", "2"),
-                ][..],
-                "SLURM_ARRAY_TASK_STEP=0 is not a step",
-            ),
-            (
-                &[
-                    ("SLURM_ARRAY_TASK_ID", "0"),
-                    ("SLURM_ARRAY_TASK_COUNT", "0"),
-                ][..],
-                "SLURM_ARRAY_TASK_COUNT=0",
-            ),
-        ] {
+    }
+
+    /// Environments that name no shard, each with what its error says:
+    /// nothing set, SLURM_NTASKS alone (a batch script), bad values.
+    const NO_SHARD: &[(&[(&str, &str)], &str)] = &[
+        (&[], "no launcher set"),
+        (&[("SLURM_NTASKS", "4")], "no launcher set"),
+        (
+            &[("PMI_RANK", "x"), ("PMI_SIZE", "2")],
+            "PMI_RANK=\"x\" is not",
+        ),
+        (&[("PMI_RANK", "2"), ("PMI_SIZE", "2")], "give shard 2/2"),
+        // Array tasks outside [MIN, MIN + COUNT * STEP) or off the step.
+        (
+            &[
+                ("SLURM_ARRAY_TASK_ID", "1"),
+                ("SLURM_ARRAY_TASK_MIN", "3"),
+                ("SLURM_ARRAY_TASK_COUNT", "2"),
+            ],
+            "SLURM_ARRAY_TASK_ID=1 is not a task of the array",
+        ),
+        (
+            &[
+                ("SLURM_ARRAY_TASK_ID", "5"),
+                ("SLURM_ARRAY_TASK_MIN", "3"),
+                ("SLURM_ARRAY_TASK_COUNT", "2"),
+            ],
+            "SLURM_ARRAY_TASK_MIN=3",
+        ),
+        (
+            &[
+                ("SLURM_ARRAY_TASK_ID", "7"),
+                ("SLURM_ARRAY_TASK_MIN", "0"),
+                ("SLURM_ARRAY_TASK_STEP", "2"),
+                ("SLURM_ARRAY_TASK_COUNT", "8"),
+            ],
+            "SLURM_ARRAY_TASK_STEP=2",
+        ),
+        (
+            &[
+                ("SLURM_ARRAY_TASK_ID", "16"),
+                ("SLURM_ARRAY_TASK_MIN", "0"),
+                ("SLURM_ARRAY_TASK_STEP", "2"),
+                ("SLURM_ARRAY_TASK_COUNT", "8"),
+            ],
+            "SLURM_ARRAY_TASK_COUNT=8",
+        ),
+        (
+            &[
+                ("SLURM_ARRAY_TASK_ID", "0"),
+                ("SLURM_ARRAY_TASK_STEP", "0"),
+                ("SLURM_ARRAY_TASK_COUNT", "2"),
+            ],
+            "SLURM_ARRAY_TASK_STEP=0 is not a step",
+        ),
+        (
+            &[
+                ("SLURM_ARRAY_TASK_ID", "0"),
+                ("SLURM_ARRAY_TASK_COUNT", "0"),
+            ],
+            "SLURM_ARRAY_TASK_COUNT=0",
+        ),
+    ];
+
+    /// `--shard auto` with no launcher, or with values that name no shard.
+    #[test]
+    fn auto_refuses_what_names_no_shard() {
+        for (vars, message) in NO_SHARD {
             let error = resolve(vars).unwrap_err();
             assert!(error.contains(message), "{vars:?}: {error}");
         }

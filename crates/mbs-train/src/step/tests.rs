@@ -120,6 +120,55 @@ fn two_item_batch(scenes: &[Vec<Vec<f32>>], device: &Device) -> StepBatch {
     batch(&scenes[..2], &triplets, &rig(), device)
 }
 
+/// Mean |d_s - truth| of the student on the clean pairs of `fixed` (truth
+/// 8 and 16 px, [`two_item_batch`]).
+fn student_error(trainer: &S3Trainer<CostVolumeNet>, fixed: &StepBatch) -> f32 {
+    let d = mbs_nets::test_util::values(mbs_nets::predict(
+        &trainer.student().valid(),
+        fixed.reference.clone(),
+        fixed.student_target.clone(),
+        &fixed.student_sides,
+    ));
+    let half = d.len() / 2;
+    let truth = |i: usize| if i < half { 8.0 } else { 16.0 };
+    d.iter()
+        .enumerate()
+        .map(|(i, v)| (v - truth(i)).abs())
+        .sum::<f32>()
+        / d.len() as f32
+}
+
+/// The losses of `steps` steps on `fixed`, with fresh colour jitter and
+/// occlusion of the student's input every step.
+fn train_augmented(
+    trainer: &mut S3Trainer<CostVolumeNet>,
+    fixed: &StepBatch,
+    steps: usize,
+) -> Vec<f32> {
+    let config = AugmentConfig {
+        occlusion_min_side: 4,
+        occlusion_max_side: 12,
+        ..AugmentConfig::default()
+    };
+    let mut augment_rng = ChaCha8Rng::seed_from_u64(9);
+    (0..steps)
+        .map(|_| {
+            let (augmented_reference, augmented_target) = augment(
+                &config,
+                fixed.reference.clone(),
+                fixed.student_target.clone(),
+                &mut augment_rng,
+            );
+            let step = StepBatch {
+                augmented_reference,
+                augmented_target,
+                ..fixed.clone()
+            };
+            trainer.step(step).expect("step runs").loss
+        })
+        .collect()
+}
+
 #[test]
 fn loss_decreases_over_twenty_steps() {
     let device = Device::flex();
@@ -138,47 +187,10 @@ fn loss_decreases_over_twenty_steps() {
     // One fixed batch (the loss of random triplets varies more than it
     // falls in 20 steps).
     let fixed = two_item_batch(&scenes, &device);
-    // Mean |d_s - truth| of the student on the clean pairs (truth 8 and 16 px).
-    let error = |trainer: &S3Trainer<mbs_nets::CostVolumeNet>| {
-        let d = mbs_nets::test_util::values(mbs_nets::predict(
-            &trainer.student().valid(),
-            fixed.reference.clone(),
-            fixed.student_target.clone(),
-            &fixed.student_sides,
-        ));
-        let half = d.len() / 2;
-        let truth = |i: usize| if i < half { 8.0 } else { 16.0 };
-        d.iter()
-            .enumerate()
-            .map(|(i, v)| (v - truth(i)).abs())
-            .sum::<f32>()
-            / d.len() as f32
-    };
+    let error = |trainer: &S3Trainer<CostVolumeNet>| student_error(trainer, &fixed);
     let error_before = error(&trainer);
-    // Fresh colour jitter and occlusion of the student's input every step.
-    let config = AugmentConfig {
-        occlusion_min_side: 4,
-        occlusion_max_side: 12,
-        ..AugmentConfig::default()
-    };
-    let mut augment_rng = ChaCha8Rng::seed_from_u64(9);
     let start = std::time::Instant::now();
-    let losses: Vec<f32> = (0..20)
-        .map(|_| {
-            let (augmented_reference, augmented_target) = augment(
-                &config,
-                fixed.reference.clone(),
-                fixed.student_target.clone(),
-                &mut augment_rng,
-            );
-            let step = StepBatch {
-                augmented_reference,
-                augmented_target,
-                ..fixed.clone()
-            };
-            trainer.step(step).expect("step runs").loss
-        })
-        .collect();
+    let losses = train_augmented(&mut trainer, &fixed, 20);
     let error_after = error(&trainer);
     println!(
         "20 steps, batch 2, {HEIGHT}x{WIDTH}: {:.0} ms per step; losses {losses:?}; student EPE {error_before} -> {error_after} px",
@@ -387,10 +399,15 @@ fn data_parallel_f16_step_of_twins_matches_the_one_device_step() {
     data_parallel_twins(Precision::F16, 1e-2);
 }
 
-fn data_parallel_twins(precision: Precision, tolerance: f32) {
-    let device = Device::flex();
-    let train_device = device.clone().autodiff();
-    train_device.seed(11);
+/// Every weight of `trainer`'s student, flat.
+fn student_weights(trainer: &S3Trainer<CostVolumeNet>) -> Vec<f32> {
+    let mut reader = mbs_nets::test_util::FlatParams::default();
+    trainer.student().visit(&mut reader);
+    reader.0
+}
+
+/// Two items of one scene with the same triplet on `device`.
+fn twin_batch(device: &Device) -> StepBatch {
     let mut rng = ChaCha8Rng::seed_from_u64(4);
     let scene = scene(&mut rng);
     let triplet = Triplet {
@@ -398,12 +415,14 @@ fn data_parallel_twins(precision: Precision, tolerance: f32) {
         student: 1,
         teacher: 2,
     };
-    let twins = batch(
-        &[scene.clone(), scene],
-        &[triplet, triplet],
-        &rig(),
-        &device,
-    );
+    batch(&[scene.clone(), scene], &[triplet, triplet], &rig(), device)
+}
+
+fn data_parallel_twins(precision: Precision, tolerance: f32) {
+    let device = Device::flex();
+    let train_device = device.clone().autodiff();
+    train_device.seed(11);
+    let twins = twin_batch(&device);
     let net = CostVolumeNetConfig::new()
         .with_features(4)
         .with_hidden(8)
@@ -431,12 +450,7 @@ fn data_parallel_twins(precision: Precision, tolerance: f32) {
         );
         assert_eq!(one.loss_scale, two.loss_scale);
     }
-    let weights = |trainer: &S3Trainer<mbs_nets::CostVolumeNet>| {
-        let mut reader = mbs_nets::test_util::FlatParams::default();
-        trainer.student().visit(&mut reader);
-        reader.0
-    };
-    let (a, b) = (weights(&parallel), weights(&single));
+    let (a, b) = (student_weights(&parallel), student_weights(&single));
     let worst = a
         .iter()
         .zip(&b)
