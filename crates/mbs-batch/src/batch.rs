@@ -258,36 +258,6 @@ impl HostBatch {
     pub fn is_empty(&self) -> bool {
         self.triplets.is_empty()
     }
-
-    /// The batch as `parts` consecutive shares ([`share`]), one for each
-    /// device of a data-parallel step; the skipped images go with the
-    /// first.
-    pub fn split(mut self, parts: usize) -> Vec<HostBatch> {
-        let plane = 3 * self.height * self.width;
-        let len = self.len();
-        let mut skipped = std::mem::take(&mut self.skipped);
-        (0..parts.max(1))
-            .map(|part| {
-                let range = share(len, parts, part);
-                let pixels = range.start * plane..range.end * plane;
-                HostBatch {
-                    step: self.step,
-                    batch_size: self.batch_size,
-                    items: self.items.start + range.start..self.items.start + range.end,
-                    height: self.height,
-                    width: self.width,
-                    reference: self.reference[pixels.clone()].to_vec(),
-                    student_target: self.student_target[pixels.clone()].to_vec(),
-                    teacher_target: self.teacher_target[pixels].to_vec(),
-                    triplets: self.triplets[range.clone()].to_vec(),
-                    ratios: self.ratios[range.clone()].to_vec(),
-                    sample_ids: self.sample_ids[range.clone()].to_vec(),
-                    windows: self.windows[range].to_vec(),
-                    skipped: std::mem::take(&mut skipped),
-                }
-            })
-            .collect()
-    }
 }
 
 #[cfg(test)]
@@ -336,8 +306,7 @@ mod tests {
 
     /// A share holds exactly the items the whole batch holds there, with
     /// only its own items decoded, also when another share's items meet
-    /// unusable images and are drawn again; split on the host, the whole
-    /// batch gives the same shares.
+    /// unusable images and are drawn again.
     #[test]
     fn a_share_decodes_only_its_items_and_they_are_the_whole_batchs() {
         let dir = tempfile::tempdir().unwrap();
@@ -346,27 +315,19 @@ mod tests {
             let whole = load_batch(&samples, 4, (16, 16), 7, 3).unwrap();
             let halves =
                 [0..2, 2..4].map(|items| load_share(&samples, 4, (16, 16), 7, 3, items).unwrap());
-            for (half, split) in halves.iter().zip(whole.clone().split(2)) {
-                // Two of the step's four items decoded, pixels included.
-                assert_eq!(half.len(), 2);
-                assert_eq!(half.reference.len(), 2 * 3 * 16 * 16);
-                assert_eq!(
-                    (
-                        &half.triplets,
-                        &half.sample_ids,
-                        &half.windows,
-                        &half.reference
-                    ),
-                    (
-                        &split.triplets,
-                        &split.sample_ids,
-                        &split.windows,
-                        &split.reference
-                    ),
-                );
-                assert_eq!((half.items.clone(), half.batch_size), (split.items, 4));
+            let plane = 3 * 16 * 16;
+            for (half, items) in halves.iter().zip([0..2, 2..4]) {
+                // Two of the step's four items decoded, pixels included,
+                // and they are the whole batch's items there.
+                assert_eq!((half.len(), half.reference.len()), (2, 2 * plane));
+                assert_eq!(&half.triplets[..], &whole.triplets[items.clone()]);
+                assert_eq!(&half.sample_ids[..], &whole.sample_ids[items.clone()]);
+                assert_eq!(&half.windows[..], &whole.windows[items.clone()]);
+                let pixels = items.start * plane..items.end * plane;
+                assert_eq!(&half.reference[..], &whole.reference[pixels.clone()]);
+                assert_eq!(&half.teacher_target[..], &whole.teacher_target[pixels]);
+                assert_eq!((half.items.clone(), half.batch_size), (items, 4));
             }
-            assert_eq!(halves[0].items, 0..2);
         }
         let samples = samples(dir.path(), &[]);
         let err = load_share(&samples, 4, (16, 16), 7, 3, 3..5).unwrap_err();
