@@ -6,7 +6,9 @@
 /// confirm: the left pixel `x` with disparity `d` lands on right pixel
 /// `x - d`; when the right disparity there (at the floor and at the ceiling
 /// of `x - d`) differs by more than `max_diff` pixels, `d` is dropped.
-/// Pixels whose right partner has no value are kept.
+/// Pixels whose right partner has no value are kept. Inlined into its
+/// caller, so that it is compiled with the caller's target features.
+#[inline(always)]
 pub fn left_right_check(left: &mut [f32], right: &[f32], width: usize, max_diff: f32) {
     for (row_l, row_r) in left.chunks_exact_mut(width).zip(right.chunks_exact(width)) {
         for (x, d) in row_l.iter_mut().enumerate() {

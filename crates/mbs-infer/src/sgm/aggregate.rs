@@ -35,11 +35,13 @@ pub struct BandInput<'a> {
 }
 
 /// Aggregates the costs of the output `rows` and hands each row's summed
-/// costs (`width * D`, `sums[x * D + d]`) to `emit` with its index in the
+/// costs (`width * D`, `sums[x * D + d]`) to `sink` with its index in the
 /// band. With top-down paths only, rows are emitted as they are done and
 /// only one row of sums is kept; with bottom-up paths the band's sums are
-/// kept until the second pass ends.
-pub fn aggregate_band(input: &BandInput, rows: Range<usize>, mut emit: impl FnMut(usize, &[i16])) {
+/// kept until the second pass ends. Inlined into its caller, so that it is
+/// compiled with the caller's target features.
+#[inline(always)]
+pub fn aggregate_band(input: &BandInput, rows: Range<usize>, sink: &mut impl RowSink) {
     let (w, h) = input.size;
     let nd = input.num_disp;
     let row_len = w * nd;
@@ -47,16 +49,8 @@ pub fn aggregate_band(input: &BandInput, rows: Range<usize>, mut emit: impl FnMu
     let mut sums = vec![0i16; kept_rows * row_len];
     let mut cost = vec![0u8; row_len];
     let mut paths = Paths::new(w, nd, input.penalties);
-    let cost_of = |y: usize, cost: &mut [u8]| {
-        cost_row(
-            &input.left[y * w..][..w],
-            &input.right_planes[4 * y * w..][..4 * w],
-            input.invalid_cost,
-            cost,
-        );
-    };
     for y in rows.start.saturating_sub(input.overlap)..rows.end {
-        cost_of(y, &mut cost);
+        input.cost_row(y, &mut cost);
         if y < rows.start {
             paths.vertical::<false, false>(&cost, &mut []);
             continue;
@@ -65,19 +59,18 @@ pub fn aggregate_band(input: &BandInput, rows: Range<usize>, mut emit: impl FnMu
         let out = if input.bottom_up {
             &mut sums[i * row_len..][..row_len]
         } else {
-            sums.fill(0);
             &mut sums[..]
         };
         paths.vertical::<true, true>(&cost, out);
         paths.right_to_left(&cost, out);
         if !input.bottom_up {
-            emit(i, out);
+            sink.row(i, out);
         }
     }
     if input.bottom_up {
         paths.restart();
         for y in (rows.start..(rows.end + input.overlap).min(h)).rev() {
-            cost_of(y, &mut cost);
+            input.cost_row(y, &mut cost);
             if y < rows.end {
                 let out = &mut sums[(y - rows.start) * row_len..][..row_len];
                 paths.vertical::<true, false>(&cost, out);
@@ -86,8 +79,30 @@ pub fn aggregate_band(input: &BandInput, rows: Range<usize>, mut emit: impl FnMu
             }
         }
         for (i, row) in sums.chunks_exact(row_len).enumerate() {
-            emit(i, row);
+            sink.row(i, row);
         }
+    }
+}
+
+/// Where [`aggregate_band`] hands the summed costs of each row. A trait
+/// with an inlined method rather than a closure: a closure would be
+/// compiled on its own, without the target features of the band's caller.
+pub trait RowSink {
+    /// Takes the summed costs of row `i` of the band (`sums[x * D + d]`).
+    fn row(&mut self, i: usize, sums: &[i16]);
+}
+
+impl BandInput<'_> {
+    /// The matching costs of image row `y` into `cost` (`width * D`).
+    #[inline(always)]
+    fn cost_row(&self, y: usize, cost: &mut [u8]) {
+        let w = self.size.0;
+        cost_row(
+            &self.left[y * w..][..w],
+            &self.right_planes[4 * y * w..][..4 * w],
+            self.invalid_cost,
+            cost,
+        );
     }
 }
 
@@ -97,6 +112,22 @@ struct RowPair {
     prev_min: Vec<i16>,
     cur: Vec<i16>,
     cur_min: Vec<i16>,
+}
+
+/// The path costs (padded) and their minimum at column `from` of the
+/// previous row (`prev`, `prev_min`), or the start of a path where there is
+/// none.
+#[inline(always)]
+fn previous<'a>(
+    (prev, prev_min): (&'a [i16], &[i16]),
+    from: Option<usize>,
+    start: &'a [i16],
+    stride: usize,
+) -> (&'a [i16], i16) {
+    match from {
+        Some(p) => (&prev[p * stride..][..stride], prev_min[p]),
+        None => (start, 0),
+    }
 }
 
 /// State of the paths along one pass over the rows.
@@ -144,8 +175,11 @@ impl Paths {
     }
 
     /// Advances the three vertical paths by one row of `cost`, with the
-    /// left-to-right path of the row when `LEFT_TO_RIGHT`, adding them into
-    /// `sums` when `ADD` (one pass over `sums` for all of them).
+    /// left-to-right path of the row when `LEFT_TO_RIGHT`, and when `ADD`
+    /// sums them into `sums` (one pass over `sums` for all of them). The
+    /// top-down pass (`LEFT_TO_RIGHT`) is the first to reach a row: it
+    /// writes `sums`; the bottom-up pass adds to them.
+    #[inline(always)]
     fn vertical<const ADD: bool, const LEFT_TO_RIGHT: bool>(
         &mut self,
         cost: &[u8],
@@ -159,47 +193,45 @@ impl Paths {
         let mut lr_min = 0;
         for x in 0..w {
             let cost = &cost[x * nd..][..nd];
-            for (k, pair) in self.rows.iter_mut().enumerate() {
-                let from = (x + k).checked_sub(1).filter(|&p| p < w && !fresh);
-                let (prev, prev_min) = match from {
-                    Some(p) => (&pair.prev[p * stride..][..stride], pair.prev_min[p]),
-                    None => (&self.start[..], 0),
-                };
-                pair.cur_min[x] = step::<false>(
+            let [a, b, c] = &mut self.rows;
+            let before = |k: usize| (x + k).checked_sub(1).filter(|&p| p < w && !fresh);
+            let start = &self.start[..];
+            let (pa, ma) = previous((&a.prev, &a.prev_min), before(0), start, stride);
+            let (pb, mb) = previous((&b.prev, &b.prev_min), before(1), start, stride);
+            let (pc, mc) = previous((&c.prev, &c.prev_min), before(2), start, stride);
+            let [oa, ob, oc] = [
+                &mut a.cur[x * stride..][..stride],
+                &mut b.cur[x * stride..][..stride],
+                &mut c.cur[x * stride..][..stride],
+            ];
+            let sums = if ADD {
+                &mut sums[x * nd..][..nd]
+            } else {
+                &mut [][..]
+            };
+            let mins = if LEFT_TO_RIGHT {
+                let [la, lb, lc, ll] = steps::<4, ADD, true>(
                     cost,
-                    prev,
-                    prev_min,
+                    [pa, pb, pc, lr_prev],
+                    [ma, mb, mc, lr_min],
                     self.penalties,
-                    &mut pair.cur[x * stride..][..stride],
-                    &mut [],
+                    [oa, ob, oc, lr_cur],
+                    sums,
                 );
-            }
-            if LEFT_TO_RIGHT {
-                lr_min = step::<false>(cost, lr_prev, lr_min, self.penalties, lr_cur, &mut []);
-            }
-            if ADD {
-                let [a, b, c] = &self.rows;
-                let start = x * stride + 1;
-                let (a, b, c) = (
-                    &a.cur[start..][..nd],
-                    &b.cur[start..][..nd],
-                    &c.cur[start..][..nd],
-                );
-                let sums = &mut sums[x * nd..][..nd];
-                if LEFT_TO_RIGHT {
-                    let lr = &lr_cur[1..][..nd];
-                    for (d, s) in sums.iter_mut().enumerate() {
-                        *s += a[d] + b[d] + c[d] + lr[d];
-                    }
-                } else {
-                    for (d, s) in sums.iter_mut().enumerate() {
-                        *s += a[d] + b[d] + c[d];
-                    }
-                }
-            }
-            if LEFT_TO_RIGHT {
+                lr_min = ll;
                 std::mem::swap(lr_prev, lr_cur);
-            }
+                [la, lb, lc]
+            } else {
+                steps::<3, ADD, false>(
+                    cost,
+                    [pa, pb, pc],
+                    [ma, mb, mc],
+                    self.penalties,
+                    [oa, ob, oc],
+                    sums,
+                )
+            };
+            [a.cur_min[x], b.cur_min[x], c.cur_min[x]] = mins;
         }
         for pair in &mut self.rows {
             std::mem::swap(&mut pair.prev, &mut pair.cur);
@@ -210,18 +242,19 @@ impl Paths {
 
     /// Runs the right-to-left path of one row of `cost`, adding it into
     /// `sums`.
+    #[inline(always)]
     fn right_to_left(&mut self, cost: &[u8], sums: &mut [i16]) {
         let nd = self.num_disp;
         let [a, b] = &mut self.scratch;
         a.copy_from_slice(&self.start);
         let mut prev_min = 0;
         for x in (0..self.width).rev() {
-            prev_min = step::<true>(
+            [prev_min] = steps::<1, true, false>(
                 &cost[x * nd..][..nd],
-                a,
-                prev_min,
+                [a],
+                [prev_min],
                 self.penalties,
-                b,
+                [b],
                 &mut sums[x * nd..][..nd],
             );
             std::mem::swap(a, b);
@@ -229,38 +262,47 @@ impl Paths {
     }
 }
 
-/// One step of the path recurrence for all disparities: `prev` and `out`
-/// hold `D + 2` values (padding at both ends), `cost` and `sum` hold `D`.
-/// Returns the minimum of the new path costs.
+/// One step of `N` paths' recurrences at one pixel for all disparities, in
+/// one loop over the disparities (the pixel's costs read once): each
+/// `prev[k]` and `out[k]` hold `D + 2` values (padding at both ends),
+/// `cost` and `sum` hold `D`. When `ADD`, the new path costs are summed into
+/// `sum`: written when `WRITE` (the first pass over a row), else added.
+/// Returns each path's minimum.
 #[inline(always)]
-fn step<const ADD: bool>(
+fn steps<const N: usize, const ADD: bool, const WRITE: bool>(
     cost: &[u8],
-    prev: &[i16],
-    prev_min: i16,
+    prev: [&[i16]; N],
+    prev_min: [i16; N],
     (p1, p2): (i16, i16),
-    out: &mut [i16],
+    out: [&mut [i16]; N],
     sum: &mut [i16],
-) -> i16 {
+) -> [i16; N] {
     let n = cost.len();
-    let (lower, same, upper) = (&prev[..n], &prev[1..n + 1], &prev[2..n + 2]);
-    let out = &mut out[1..n + 1];
-    let jump = prev_min + p2;
-    let mut best = i16::MAX;
-    if ADD {
-        let sum = &mut sum[..n];
-        for d in 0..n {
-            let m = same[d].min(lower[d].min(upper[d]) + p1).min(jump);
-            let v = i16::from(cost[d]) + m - prev_min;
-            out[d] = v;
-            sum[d] += v;
-            best = best.min(v);
+    let lower = prev.map(|p| &p[..n]);
+    let same = prev.map(|p| &p[1..n + 1]);
+    let upper = prev.map(|p| &p[2..n + 2]);
+    let out = out.map(|o| &mut o[1..n + 1]);
+    let jump = prev_min.map(|m| m + p2);
+    let mut best = [i16::MAX; N];
+    let sum = if ADD { &mut sum[..n] } else { sum };
+    for d in 0..n {
+        let c = i16::from(cost[d]);
+        let mut total = 0i16;
+        for k in 0..N {
+            let m = same[k][d]
+                .min(lower[k][d].min(upper[k][d]) + p1)
+                .min(jump[k]);
+            let v = c + m - prev_min[k];
+            out[k][d] = v;
+            best[k] = best[k].min(v);
+            total += v;
         }
-    } else {
-        for d in 0..n {
-            let m = same[d].min(lower[d].min(upper[d]) + p1).min(jump);
-            let v = i16::from(cost[d]) + m - prev_min;
-            out[d] = v;
-            best = best.min(v);
+        if ADD {
+            if WRITE {
+                sum[d] = total;
+            } else {
+                sum[d] += total;
+            }
         }
     }
     best

@@ -22,7 +22,7 @@ use rayon::prelude::*;
 use crate::error::{InferError, Result};
 use crate::matcher::{Disparity, StereoMatcher, check_same_size, luma, predict_mirrored};
 use crate::postprocess::{left_right_check, remove_speckles};
-use aggregate::{BandInput, aggregate_band};
+use aggregate::{BandInput, RowSink, aggregate_band};
 use mbs_image::fill::fill_row_from_background;
 
 /// Which aggregation paths run.
@@ -216,6 +216,7 @@ impl Sgm {
         let band = c.band_rows as usize * w;
         let mut disp_l = vec![f32::INFINITY; w * h];
         let mut disp_r = vec![f32::INFINITY; w * h];
+        let arch = pulp::Arch::new();
         disp_l
             .par_chunks_mut(band)
             .zip(disp_r.par_chunks_mut(band))
@@ -223,16 +224,70 @@ impl Sgm {
             .for_each(|(b, (out_l, out_r))| {
                 let y0 = b * c.band_rows as usize;
                 let rows = y0..y0 + out_l.len() / w;
-                let mut scratch = select::Scratch::default();
-                aggregate_band(&input, rows, |i, sums| {
-                    let (l, r) = (&mut out_l[i * w..][..w], &mut out_r[i * w..][..w]);
-                    select::select_row(sums, c.uniqueness, l, r, &mut scratch);
+                arch.dispatch(MatchBand {
+                    input: &input,
+                    rows,
+                    out_l,
+                    out_r,
+                    config: c,
                 });
-                if let Some(max_diff) = c.lr_max_diff {
-                    left_right_check(out_l, out_r, w, max_diff);
-                }
             });
         Ok(disp_l)
+    }
+}
+
+/// The matching of one band of rows: aggregation, selection and the
+/// left-right check, into the band's rows of both disparity maps.
+///
+/// Run through [`pulp::Arch::dispatch`]: on a processor with AVX2 (x86-64-v3)
+/// the whole band, every function it calls being inlined, is compiled for
+/// it, so the `i16` and byte loops vectorise 16 and 32 lanes wide instead of
+/// the portable build's 8 and 16; elsewhere it runs the portable code. The
+/// arithmetic is the same integer arithmetic either way, so the results are
+/// identical.
+struct MatchBand<'a> {
+    input: &'a BandInput<'a>,
+    rows: std::ops::Range<usize>,
+    out_l: &'a mut [f32],
+    out_r: &'a mut [f32],
+    config: &'a SgmConfig,
+}
+
+impl pulp::WithSimd for MatchBand<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        let w = self.input.size.0;
+        let mut selection = Selection {
+            width: w,
+            uniqueness: self.config.uniqueness,
+            out_l: self.out_l,
+            out_r: self.out_r,
+            scratch: select::Scratch::default(),
+        };
+        aggregate_band(self.input, self.rows, &mut selection);
+        if let Some(max_diff) = self.config.lr_max_diff {
+            left_right_check(selection.out_l, selection.out_r, w, max_diff);
+        }
+    }
+}
+
+/// The disparities of a band's rows, selected as their costs are summed.
+struct Selection<'a> {
+    width: usize,
+    uniqueness: u32,
+    out_l: &'a mut [f32],
+    out_r: &'a mut [f32],
+    scratch: select::Scratch,
+}
+
+impl RowSink for Selection<'_> {
+    #[inline(always)]
+    fn row(&mut self, i: usize, sums: &[i16]) {
+        let w = self.width;
+        let (l, r) = (&mut self.out_l[i * w..][..w], &mut self.out_r[i * w..][..w]);
+        select::select_row(sums, self.uniqueness, l, r, &mut self.scratch);
     }
 }
 

@@ -17,7 +17,9 @@ pub struct Scratch {
 /// uniqueness test fails), `right` integer right-view disparities (`+inf`
 /// where no left pixel maps). `uniqueness` is a percentage: the best cost
 /// must beat every cost more than one disparity away by that margin
-/// (0 disables the test). `scratch` is reused between rows.
+/// (0 disables the test). `scratch` is reused between rows. Inlined into
+/// its caller, so that it is compiled with the caller's target features.
+#[inline(always)]
 pub fn select_row(
     sums: &[i16],
     uniqueness: u32,
@@ -41,7 +43,7 @@ pub fn select_row(
         let s = &s[..n];
         // A vectorised minimum, then the first disparity that reaches it.
         let cost = s.iter().fold(i16::MAX, |m, &c| m.min(c));
-        let d = s.iter().position(|&c| c == cost).unwrap_or(0);
+        let d = first_index_of(s, cost);
         // Right pixel x - k sees cost s[k]; strict `<` keeps the smallest
         // disparity on ties. Branch-free so that it vectorises.
         let start = width - 1 - x;
@@ -71,9 +73,25 @@ pub fn select_row(
     }
 }
 
+/// The first index of `value` in `costs` (0 if absent): looked for 16 at a
+/// time with a branch-free test that vectorises, then within the block that
+/// holds it.
+#[inline(always)]
+fn first_index_of(costs: &[i16], value: i16) -> usize {
+    const BLOCK: usize = 16;
+    let block = costs
+        .chunks(BLOCK)
+        .position(|b| b.iter().fold(false, |found, &c| found | (c == value)))
+        .unwrap_or(0);
+    let base = block * BLOCK;
+    let within = costs[base..].iter().position(|&c| c == value);
+    within.map_or(0, |i| base + i)
+}
+
 /// Offset in `(-0.5, 0.5)` of the minimum of the parabola through the costs
 /// at `d - 1`, `d`, `d + 1`; zero at the ends of the range or on a flat
 /// neighbourhood.
+#[inline(always)]
 fn subpixel_offset(costs: &[i16], d: usize) -> f32 {
     if d == 0 || d + 1 >= costs.len() {
         return 0.0;
