@@ -186,6 +186,16 @@ impl Sgm {
     /// Left disparities after selection and the left-right check but before
     /// speckle removal and filling (`+inf` = rejected).
     fn raw_disparity(&self, left: &RgbImage, right: &RgbImage) -> Result<Vec<f32>> {
+        self.raw_disparity_on(pulp::Arch::new(), left, right)
+    }
+
+    /// [`Sgm::raw_disparity`] with the vector instructions of `arch`.
+    fn raw_disparity_on(
+        &self,
+        arch: pulp::Arch,
+        left: &RgbImage,
+        right: &RgbImage,
+    ) -> Result<Vec<f32>> {
         let c = &self.config;
         let (w, h) = (left.width() as usize, left.height() as usize);
         if w == 0 || h == 0 {
@@ -216,7 +226,6 @@ impl Sgm {
         let band = c.band_rows as usize * w;
         let mut disp_l = vec![f32::INFINITY; w * h];
         let mut disp_r = vec![f32::INFINITY; w * h];
-        let arch = pulp::Arch::new();
         disp_l
             .par_chunks_mut(band)
             .zip(disp_r.par_chunks_mut(band))
@@ -347,5 +356,43 @@ impl Sgm {
             disparity: FloatImage::from_raw(w, h, disp).expect("one value per pixel"),
             valid: MaskImage::from_raw(w, h, valid).expect("one value per pixel"),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_vector_and_portable_builds_match_alike() {
+        // A textured pair shifted by 5 px; 40 disparities (not a multiple
+        // of the vector width) and both path counts.
+        let texture = |x: u32, y: u32| {
+            let v = (x.wrapping_mul(2_654_435_761) ^ y.wrapping_mul(40_503)) >> 7;
+            image::Rgb([v as u8, (v >> 8) as u8, (x * 7 + y * 3) as u8])
+        };
+        let left = RgbImage::from_fn(77, 40, texture);
+        let right = RgbImage::from_fn(77, 40, |x, y| texture(x + 5, y));
+        for paths in [SgmPaths::Five, SgmPaths::Eight] {
+            let sgm = Sgm::new(SgmConfig {
+                max_disparity: 40,
+                paths,
+                band_rows: 16,
+                ..SgmConfig::default()
+            });
+            let vector = sgm
+                .raw_disparity_on(pulp::Arch::new(), &left, &right)
+                .unwrap();
+            let portable = sgm
+                .raw_disparity_on(pulp::Arch::Scalar, &left, &right)
+                .unwrap();
+            assert_eq!(vector, portable, "{paths:?}");
+            let found = vector.iter().filter(|d| (**d - 5.0).abs() < 0.5).count();
+            assert!(
+                found > vector.len() / 2,
+                "{found} of {} at the shift",
+                vector.len()
+            );
+        }
     }
 }
