@@ -8,6 +8,9 @@
 //! background pixels (stopping where the background surface ends). The
 //! filled pixels are then smoothed across rows to remove row-to-row streaks.
 //! Without a disparity guide every run is interpolated between its borders.
+//! The strips entering from the image edges, which no input view saw, take
+//! a vertical average of the border colours that widens with the distance
+//! from the border (module `border_strip`).
 //!
 //! Measured on Tsukuba (col2/col5 from col3/col4, `tests/extrapolation_quality.rs`):
 //! averaging the 2 nearest background pixels beats repeating the border
@@ -19,6 +22,7 @@
 use mbs_core::{FloatImage, MaskImage, RgbImage};
 use rayon::prelude::*;
 
+use super::border_strip::fill_border_strips;
 use super::isotropic::peel;
 use super::{Canvas, InpaintError, Inpainter, check_inputs};
 
@@ -33,6 +37,11 @@ pub struct BackgroundFill {
     /// How many background pixels, from the border outwards, are averaged
     /// into the colour that fills a disocclusion run.
     pub border_pixels: usize,
+    /// The strips entering from the left and right image edges take the
+    /// mean border colour of the rows within `strip_spread * k` rows at `k`
+    /// columns from the border (0: each row's own border colour); see
+    /// the module `border_strip`.
+    pub strip_spread: f32,
 }
 
 impl Default for BackgroundFill {
@@ -41,6 +50,7 @@ impl Default for BackgroundFill {
             same_surface_px: 1.0,
             smoothing_passes: 2,
             border_pixels: 2,
+            strip_spread: 1.0,
         }
     }
 }
@@ -86,6 +96,7 @@ impl Inpainter for BackgroundFill {
             peel(&mut canvas)?;
             out = canvas.into_image();
         }
+        fill_border_strips(&mut out, mask, self.border_pixels, self.strip_spread);
         for _ in 0..self.smoothing_passes {
             smooth_vertically(&mut out, mask);
         }

@@ -10,6 +10,7 @@
 //!   a reference and a fallback where no disparity is known.
 
 mod background;
+mod border_strip;
 mod isotropic;
 
 pub use background::BackgroundFill;
