@@ -70,13 +70,17 @@ def scores(d, gt):
     }
 
 
-def opencv(left, right, ndisp, repeats):
+def make_sgbm(ndisp):
     bs = 5
-    sgbm = cv2.StereoSGBM_create(
+    return cv2.StereoSGBM_create(
         minDisparity=0, numDisparities=ndisp, blockSize=bs,
         P1=8 * 3 * bs * bs, P2=32 * 3 * bs * bs, disp12MaxDiff=1,
         uniquenessRatio=10, speckleWindowSize=100, speckleRange=2,
         mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
+
+
+def opencv(left, right, ndisp, repeats):
+    sgbm = make_sgbm(ndisp)
     times = []
     cpu = time.process_time()
     for _ in range(repeats):
@@ -108,15 +112,43 @@ def sgm(binary, left, right, ndisp, repeats, gt_path, gt_scale):
     return res
 
 
+def medians(binary, cases, rounds):
+    """Median wall time per pair of each matcher over alternating rounds, 1 and 2 threads."""
+    print("| pair | disp | threads | OpenCV median ms | SGM median ms | SGM / OpenCV |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: |")
+    for threads in (1, 2):
+        cv2.setNumThreads(threads)
+        env = dict(os.environ, RAYON_NUM_THREADS=str(threads))
+        for name, lp, rp, l, r, nd, _, _ in cases:
+            sgbm, cv_ms, sgm_ms = make_sgbm(nd), [], []
+            sgbm.compute(l, r)
+            for _ in range(rounds):
+                for _ in range(3):
+                    start = time.perf_counter()
+                    sgbm.compute(l, r)
+                    cv_ms.append(1e3 * (time.perf_counter() - start))
+                out = subprocess.run([str(binary), str(lp), str(rp), str(nd), "3", "5"], check=True,
+                                     capture_output=True, text=True, env=env)
+                sgm_ms.append(json.loads(out.stdout)["time_ms"])
+            cv_med, sgm_med = float(np.median(cv_ms)), float(np.median(sgm_ms))
+            print(f"| {name} | {nd} | {threads} | {cv_med:.1f} | {sgm_med:.1f} | {sgm_med / cv_med:.2f}x |")
+            sys.stdout.flush()
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=10, help="runs per round")
     ap.add_argument("--rounds", type=int, default=5,
                     help="alternating rounds of OpenCV and SGM runs; the fastest run counts")
     ap.add_argument("--no-build", action="store_true", help="use the built binary")
+    ap.add_argument("--medians", type=int, default=0, metavar="ROUNDS",
+                    help="instead: median times over ROUNDS alternating rounds (3 OpenCV calls, then one "
+                         "SGM process of 3 pairs) on 1 and then 2 threads; steadier than the fastest run "
+                         "on a shared machine")
     ap.add_argument("--native", action="store_true",
-                    help="build SGM with RUSTFLAGS='-C target-cpu=native' (in target/native), "
-                         "as OpenCV picks AVX2/AVX-512 kernels at run time")
+                    help="build SGM with RUSTFLAGS='-C target-cpu=native' (in target/native); the "
+                         "default build already runs the matcher's loops on AVX2 where the processor "
+                         "has it, chosen at run time as OpenCV chooses its kernels")
     args = ap.parse_args()
     cv2.setNumThreads(2)
     target = ROOT / "target" / ("native" if args.native else "")
@@ -145,6 +177,9 @@ def main():
         ("Teddy 450x375", DATA / "im2.png", DATA / "im6.png", left, right, 16, None, None),
         ("KITTI-size 1242x375 (tiled Teddy)", tmp / "kl.png", tmp / "kr.png", kl, kr, 128, tmp / "kgt.png", kgt),
     ]
+    if args.medians:
+        medians(binary, cases, args.medians)
+        return
     print("| pair | disp | OpenCV ms | SGM ms | SGM / OpenCV | OpenCV CPU ms | SGM CPU ms | CPU ratio "
           "| OpenCV EPE / Out-2 raw (density) | OpenCV EPE / Out-2 filled | SGM EPE / Out-2 |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
