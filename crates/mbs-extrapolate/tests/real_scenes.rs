@@ -28,13 +28,13 @@ fn default_scores(scene: &Scene, step: usize) -> Vec<ViewScore> {
 
 #[test]
 fn default_extrapolation_of_real_scenes_keeps_its_quality() {
-    // (scene, views, PSNR all, SSIM all) as measured: 29.53, 34.47, 33.95,
-    // 30.26 dB; SSIM 0.935, 0.968, 0.962, 0.949.
+    // (scene, views, PSNR all, SSIM all) as measured: 29.53, 34.58, 34.09,
+    // 30.31 dB; SSIM 0.935, 0.968, 0.962, 0.949.
     let floors = [
         ("Tsukuba", 4, 29.23, 0.930),
-        ("Baby2", 8, 34.17, 0.963),
-        ("Bowling2", 8, 33.65, 0.957),
-        ("Laundry", 8, 29.96, 0.944),
+        ("Baby2", 8, 34.28, 0.963),
+        ("Bowling2", 8, 33.79, 0.957),
+        ("Laundry", 8, 30.01, 0.944),
     ];
     let mut all = Vec::new();
     for (scene, (name, views, psnr, ssim)) in shipped_scenes().iter().zip(floors) {
@@ -53,7 +53,7 @@ fn default_extrapolation_of_real_scenes_keeps_its_quality() {
         all.extend(scores);
     }
     let mean = mean_score(&all).unwrap();
-    assert!(mean.psnr_synthesised > 20.87, "{mean:?}"); // measured 21.17 dB
+    assert!(mean.psnr_synthesised > 21.01, "{mean:?}"); // measured 21.31 dB
 }
 
 #[test]
@@ -66,8 +66,35 @@ fn twice_the_baseline_keeps_its_quality() {
     // Tsukuba, one pair in each 7-view scene.
     assert_eq!(all.len(), 6, "{all:?}");
     let mean = mean_score(&all).unwrap();
-    // Measured 29.07 dB, SSIM 0.932, 18.87 dB over 5.7 % synthesised.
-    assert!(mean.psnr_all > 28.77, "{mean:?}");
+    // Measured 29.25 dB, SSIM 0.932, 19.17 dB over 5.7 % synthesised.
+    assert!(mean.psnr_all > 28.95, "{mean:?}");
     assert!(mean.ssim_all > 0.927, "{mean:?}");
-    assert!(mean.psnr_synthesised > 18.57, "{mean:?}");
+    assert!(mean.psnr_synthesised > 18.87, "{mean:?}");
+}
+
+#[test]
+fn the_widening_border_strip_beats_each_rows_border_colour() {
+    // Two views apart, where the strips the new cameras move into are
+    // widest: the default fill against the same fill with each strip row
+    // holding its own border colour (no spread).
+    let psnr = |fill: BackgroundFill| {
+        let mut all = Vec::new();
+        for scene in &shipped_scenes() {
+            let extrapolator = Extrapolator::new(Dilation::None, Box::new(fill));
+            all.extend(
+                evaluate_scene(scene, &extrapolator, &DisparitySource::builtin(0), 2).unwrap(),
+            );
+        }
+        mean_score(&all).unwrap().psnr_all
+    };
+    let widened = psnr(BackgroundFill::default());
+    let repeated = psnr(BackgroundFill {
+        strip_spread: 0.0,
+        ..BackgroundFill::default()
+    });
+    println!("border strip: widened {widened:.3} dB, each row's colour {repeated:.3} dB");
+    assert!(
+        widened > repeated + 0.1,
+        "widened {widened} dB, repeated {repeated} dB"
+    );
 }
