@@ -79,14 +79,20 @@ def make_sgbm(ndisp):
         mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
 
 
-def opencv(left, right, ndisp, repeats):
-    sgbm = make_sgbm(ndisp)
+def timed(sgbm, left, right, repeats):
+    """`repeats` calls of `sgbm` on the pair: each call's wall time (ms) and the last disparity."""
     times = []
-    cpu = time.process_time()
     for _ in range(repeats):
         t = time.perf_counter()
         d = sgbm.compute(left, right)
         times.append(1e3 * (time.perf_counter() - t))
+    return times, d
+
+
+def opencv(left, right, ndisp, repeats):
+    sgbm = make_sgbm(ndisp)
+    cpu = time.process_time()
+    times, d = timed(sgbm, left, right, repeats)
     cpu_ms = 1e3 * (time.process_time() - cpu) / repeats
     d = d.astype(np.float32) / 16
     d[d < 0] = np.inf
@@ -123,10 +129,7 @@ def medians(binary, cases, rounds):
             sgbm, cv_ms, sgm_ms = make_sgbm(nd), [], []
             sgbm.compute(l, r)
             for _ in range(rounds):
-                for _ in range(3):
-                    start = time.perf_counter()
-                    sgbm.compute(l, r)
-                    cv_ms.append(1e3 * (time.perf_counter() - start))
+                cv_ms += timed(sgbm, l, r, 3)[0]
                 out = subprocess.run([str(binary), str(lp), str(rp), str(nd), "3", "5"], check=True,
                                      capture_output=True, text=True, env=env)
                 sgm_ms.append(json.loads(out.stdout)["time_ms"])

@@ -21,7 +21,12 @@ fn shipped_scenes() -> Vec<Scene> {
 /// The scores of `scene`'s new views with the default settings, pairs
 /// `step` views apart.
 fn default_scores(scene: &Scene, step: usize) -> Vec<ViewScore> {
-    let extrapolator = Extrapolator::new(Dilation::None, Box::new(BackgroundFill::default()));
+    scores_with(BackgroundFill::default(), scene, step)
+}
+
+/// The same with the default matcher and dilation and the inpainter `fill`.
+fn scores_with(fill: BackgroundFill, scene: &Scene, step: usize) -> Vec<ViewScore> {
+    let extrapolator = Extrapolator::new(Dilation::None, Box::new(fill));
     let source = DisparitySource::builtin(0);
     evaluate_scene(scene, &extrapolator, &source, step).unwrap()
 }
@@ -80,10 +85,7 @@ fn the_widening_border_strip_beats_each_rows_border_colour() {
     let psnr = |fill: BackgroundFill| {
         let mut all = Vec::new();
         for scene in &shipped_scenes() {
-            let extrapolator = Extrapolator::new(Dilation::None, Box::new(fill));
-            all.extend(
-                evaluate_scene(scene, &extrapolator, &DisparitySource::builtin(0), 2).unwrap(),
-            );
+            all.extend(scores_with(fill, scene, 2));
         }
         mean_score(&all).unwrap().psnr_all
     };
