@@ -44,7 +44,7 @@ fn main() {
             let flattened = start.elapsed();
             processes.gather(&[]); // start the sums together
             let summing = Instant::now();
-            processes.sum(&mut flat.values);
+            flat.sum_over(&processes);
             sum_ms.push(summing.elapsed().as_secs_f64() * 1e3);
             let back = Instant::now();
             drop(flat.into_grads());

@@ -1,6 +1,8 @@
 //! The processes of an MPI job (`mpirun -np N`, `srun`) as the
 //! [`Collective`] a data-parallel training run is spread over: the
-//! gradient all-reduce is `MPI_Allreduce` over one flat f32 buffer, the
+//! gradient all-reduce is `MPI_Allreduce` over one flat f32 buffer (into a
+//! second buffer kept from the previous step, since rsmpi offers no
+//! `MPI_IN_PLACE`: no copy and no fresh allocation per step), the
 //! ranks' agreement checks gather their bytes with `MPI_Allgatherv`, and
 //! each process learns its rank on its node from `MPI_Comm_split_type`
 //! (shared memory), whatever the launcher.
@@ -8,6 +10,8 @@
 //! The engine is the system's MPI (Open MPI, MPICH, Intel MPI), linked
 //! through rsmpi; building this crate needs its development files and
 //! libclang (Debian: `libopenmpi-dev libclang-dev`).
+
+use std::cell::RefCell;
 
 use mpi::collective::SystemOperation;
 use mpi::datatype::PartitionMut;
@@ -23,6 +27,9 @@ pub struct MpiProcesses {
     _universe: Universe,
     world: SimpleCommunicator,
     local_rank: usize,
+    /// The buffer the next sum is received into: the one the previous sum
+    /// sent (the same length, its pages already mapped).
+    spare: RefCell<Vec<f32>>,
 }
 
 impl MpiProcesses {
@@ -37,6 +44,7 @@ impl MpiProcesses {
             _universe: universe,
             world,
             local_rank,
+            spare: RefCell::new(Vec::new()),
         })
     }
 }
@@ -61,10 +69,15 @@ impl Collective for MpiProcesses {
         self.world.abort(code)
     }
 
-    fn sum(&self, values: &mut [f32]) {
-        let mine = values.to_vec();
+    /// `MPI_Allreduce` of `values` into the spare buffer, which is
+    /// returned; `values` becomes the spare.
+    fn sum(&self, values: Vec<f32>) -> Vec<f32> {
+        let mut sums = self.spare.replace(values);
+        let sent = self.spare.borrow();
+        sums.resize(sent.len(), 0.0);
         self.world
-            .all_reduce_into(&mine[..], values, SystemOperation::sum());
+            .all_reduce_into(&sent[..], &mut sums[..], SystemOperation::sum());
+        sums
     }
 
     fn gather(&self, bytes: &[u8]) -> Vec<Vec<u8>> {

@@ -36,6 +36,6 @@ pub fn read_all<const D: usize>(
 ) -> Result<Vec<f32>, NetError> {
     tensor
         .into_data()
-        .try_to_vec::<f32>()
+        .try_into_vec::<f32>()
         .map_err(|_| NetError::Readback(what))
 }

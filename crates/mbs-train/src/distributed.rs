@@ -32,9 +32,11 @@ pub trait Collective {
     /// Ends every process with exit code `code`: for an error only this
     /// process met while the others wait for it in a collective call.
     fn abort(&self, code: i32) -> !;
-    /// Replaces `values` on every process by their element-wise sum over
-    /// all processes (the buffers have the same length everywhere).
-    fn sum(&self, values: &mut [f32]);
+    /// The element-wise sum over all processes of each one's `values` (the
+    /// buffers have the same length everywhere). Taking the buffer lets an
+    /// engine without an in-place sum keep it as the next call's receive
+    /// buffer instead of copying it.
+    fn sum(&self, values: Vec<f32>) -> Vec<f32>;
     /// Every process's `bytes`, in rank order, on every process.
     fn gather(&self, bytes: &[u8]) -> Vec<Vec<u8>>;
 }
@@ -193,6 +195,11 @@ impl FlatGradients {
         })
     }
 
+    /// Replaces the values by their sum over `collective`'s processes.
+    pub fn sum_over(&mut self, collective: &dyn Collective) {
+        self.values = collective.sum(std::mem::take(&mut self.values));
+    }
+
     /// The gradients back on their device, as the optimiser takes them.
     pub fn into_grads(self) -> GradientsParams {
         let total = self.values.len();
@@ -280,15 +287,16 @@ mod tests {
         fn abort(&self, code: i32) -> ! {
             panic!("rank {} aborted with {code}", self.rank)
         }
-        fn sum(&self, values: &mut [f32]) {
+        fn sum(&self, values: Vec<f32>) -> Vec<f32> {
             let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
             let all = self.gather(&bytes);
-            for (i, value) in values.iter_mut().enumerate() {
-                *value = all
-                    .iter()
-                    .map(|b| f32::from_le_bytes(b[4 * i..4 * i + 4].try_into().expect("4")))
-                    .sum();
-            }
+            (0..values.len())
+                .map(|i| {
+                    all.iter()
+                        .map(|b| f32::from_le_bytes(b[4 * i..4 * i + 4].try_into().expect("4")))
+                        .sum()
+                })
+                .collect()
         }
         fn gather(&self, bytes: &[u8]) -> Vec<Vec<u8>> {
             let (barrier, slots) = &*self.shared;
@@ -401,7 +409,7 @@ mod tests {
             let mut flat =
                 FlatGradients::gather(&layer, &grads_of_rank(rank.rank())).expect("flat");
             assert_eq!(flat.values.len(), 8);
-            rank.sum(&mut flat.values);
+            flat.sum_over(rank);
             let grads = flat.into_grads();
             let weight = grads.get::<2>(layer.weight.id).expect("weight");
             assert_eq!(weight.dims(), [3, 2]);

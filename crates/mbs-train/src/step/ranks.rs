@@ -58,7 +58,7 @@ impl<B: Backbone> S3Trainer<B> {
                 flat.values.len()
             )));
         }
-        collective.sum(&mut flat.values);
+        flat.sum_over(collective);
         let shares: Vec<_> = shares.into_iter().map(|(v, w, _)| (v, w)).collect();
         self.apply(flat.into_grads(), LossValues::weighted_sum(&shares))
     }
