@@ -64,8 +64,16 @@ fn inputs(data: &Path) {
     .unwrap();
     std::fs::create_dir_all(data.join("preds")).unwrap();
     write_pfm_grey(&data.join("preds/s0.pfm"), &gt, Endian::Little).unwrap();
+    for (name, m) in manifests() {
+        std::fs::write(data.join(name), m.to_string()).unwrap();
+    }
+}
+
+/// The manifests of [`inputs`] by file name: a good one of two samples and
+/// one per class of bad manifest.
+fn manifests() -> [(&'static str, Value); 10] {
     let views = ["left.png", "right.png"];
-    let manifests = [
+    [
         (
             "ok.json",
             manifest(json!([sample("s0", views), sample("s1", views)]), 480.0),
@@ -111,10 +119,7 @@ fn inputs(data: &Path) {
             m["samples"][0]["depth"] = json!("../outside/depth_0.png");
             m
         }),
-    ];
-    for (name, m) in manifests {
-        std::fs::write(data.join(name), m.to_string()).unwrap();
-    }
+    ]
 }
 
 /// One row of the table: arguments (`{d}` = the input folder, `{o}` = the
@@ -413,40 +418,51 @@ fn two_runs_into_one_folder_both_succeed_with_the_outputs_of_one() {
 #[cfg(unix)]
 #[test]
 fn special_files_as_outputs_and_array_tasks_outside_their_array_are_refused() {
-    use mbs_test_support::special::{identity, special_files};
     let dir = tempfile::tempdir().unwrap();
     let set = dir.path().join("set");
-    let synth = |out: &Path| {
-        let mut command = mbs_tool();
-        command.args([
-            "synth",
-            "--frames",
-            "2",
-            "--towns",
-            "Town01",
-            "--weathers",
-            "ClearNoon",
-        ]);
-        command.args([
-            "--width",
-            "32",
-            "--height",
-            "16",
-            "--focal",
-            "16",
-            "--no-checksums",
-        ]);
-        command.arg("--out").arg(out);
-        command
-    };
-    let output = synth(&set).output().unwrap();
+    let output = tiny_synth(&set).output().unwrap();
     assert!(output.status.success(), "{}", text(&output));
-    let special = special_files(dir.path(), "json");
+    scan_refuses_special_files_as_outputs(dir.path(), &set);
+    array_tasks_outside_their_array_are_refused(dir.path());
+}
+
+/// `synth` of a tiny two-frame set into `out`.
+#[cfg(unix)]
+fn tiny_synth(out: &Path) -> std::process::Command {
+    let mut command = mbs_tool();
+    command.args([
+        "synth",
+        "--frames",
+        "2",
+        "--towns",
+        "Town01",
+        "--weathers",
+        "ClearNoon",
+    ]);
+    command.args([
+        "--width",
+        "32",
+        "--height",
+        "16",
+        "--focal",
+        "16",
+        "--no-checksums",
+    ]);
+    command.arg("--out").arg(out);
+    command
+}
+
+/// `scan SET --out` onto each special file made in `dir` is refused,
+/// naming it, and leaves it as it was; no temporary file is left in `dir`.
+#[cfg(unix)]
+fn scan_refuses_special_files_as_outputs(dir: &Path, set: &Path) {
+    use mbs_test_support::special::{identity, special_files};
+    let special = special_files(dir, "json");
     for file in &special {
         let before = identity(&file.path);
         let output = mbs_tool()
             .arg("scan")
-            .arg(&set)
+            .arg(set)
             .arg("--out")
             .arg(&file.path)
             .output()
@@ -456,20 +472,26 @@ fn special_files_as_outputs_and_array_tasks_outside_their_array_are_refused() {
         assert!(file.is_refused_in(&report), "{report}");
         assert_eq!(identity(&file.path), before, "{report}");
     }
-    let partials: Vec<PathBuf> = tree(dir.path())
+    let partials: Vec<PathBuf> = tree(dir)
         .into_iter()
         .map(|(p, _)| p)
         .filter(|p| p.to_string_lossy().ends_with(".partial"))
         .collect();
     assert!(partials.is_empty(), "{partials:?}");
+}
 
+/// `synth --shard auto` in a SLURM array task whose id lies outside its
+/// array (it would run another task's shard) is a usage error naming the
+/// variable that rules it out, before anything is written under `dir`.
+#[cfg(unix)]
+fn array_tasks_outside_their_array_are_refused(dir: &Path) {
     for (id, min, step, count, named) in [
         ("1", "3", "1", "2", "SLURM_ARRAY_TASK_MIN=3"),
         ("5", "3", "1", "2", "SLURM_ARRAY_TASK_COUNT=2"),
         ("3", "0", "2", "4", "SLURM_ARRAY_TASK_STEP=2"),
     ] {
-        let out = dir.path().join(format!("shard-{id}"));
-        let output = synth(&out)
+        let out = dir.join(format!("shard-{id}"));
+        let output = tiny_synth(&out)
             .args(["--shard", "auto"])
             .env("SLURM_ARRAY_TASK_ID", id)
             .env("SLURM_ARRAY_TASK_MIN", min)

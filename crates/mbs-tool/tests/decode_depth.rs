@@ -4,6 +4,7 @@
 
 mod common;
 
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use common::{run, text, write_carla_frames};
@@ -215,47 +216,68 @@ fn shard_auto_under_mpirun_and_srun_equals_the_unsharded_run() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
     write_carla_frames(&data, 6, 32, 24);
-    let data_s = data.display().to_string();
-    let decode = |out: &str| {
-        let mut args = vec!["decode-depth", &data_s, "--all-pairs", "--out"];
-        args.push(out);
-        args.iter().map(|a| a.to_string()).collect::<Vec<_>>()
-    };
-    let out = |name: &str| dir.path().join(name).display().to_string();
-    let launchers = [
-        "OMPI_COMM_WORLD_RANK",
-        "OMPI_COMM_WORLD_SIZE",
-        "PMI_RANK",
-        "PMI_SIZE",
-        "SLURM_PROCID",
-        "SLURM_STEP_NUM_TASKS",
-        "SLURM_ARRAY_TASK_ID",
-        "SLURM_ARRAY_TASK_COUNT",
-    ];
     let unsharded = common::mbs_tool()
-        .args(decode(&out("whole")))
+        .args(decode_all_pairs(&data, &dir.path().join("whole")))
         .output()
         .unwrap();
     assert!(unsharded.status.success(), "{}", text(&unsharded));
     let whole = tree(&dir.path().join("whole"));
     assert!(whole.len() >= 6 * 5, "{} files", whole.len());
 
-    let output = common::mpirun(3, &dir.path().join("ompi"))
+    mpirun_ranks_write_the_unsharded_files(dir.path(), &data, &whole);
+    srun_tasks_write_the_unsharded_files(dir.path(), &data, &whole);
+    one_srun_task_alone_writes_its_third(dir.path(), &data, &whole);
+    without_a_launcher_auto_is_a_usage_error(dir.path(), &data);
+}
+
+/// The environment variables by which a launcher (Open MPI, MPICH's PMI,
+/// SLURM) tells a process its shard.
+const LAUNCHERS: [&str; 8] = [
+    "OMPI_COMM_WORLD_RANK",
+    "OMPI_COMM_WORLD_SIZE",
+    "PMI_RANK",
+    "PMI_SIZE",
+    "SLURM_PROCID",
+    "SLURM_STEP_NUM_TASKS",
+    "SLURM_ARRAY_TASK_ID",
+    "SLURM_ARRAY_TASK_COUNT",
+];
+
+/// The arguments of `decode-depth DATA --all-pairs --out OUT`.
+fn decode_all_pairs(data: &Path, out: &Path) -> Vec<String> {
+    let (data, out) = (data.display().to_string(), out.display().to_string());
+    vec![
+        "decode-depth".into(),
+        data,
+        "--all-pairs".into(),
+        "--out".into(),
+        out,
+    ]
+}
+
+/// `--shard auto` on 3 ranks of `mpirun` into `dir/mpirun`: each rank
+/// decodes its 2 of the 6 frames of `data`, and together they write the
+/// unsharded run's files, `whole`.
+fn mpirun_ranks_write_the_unsharded_files(dir: &Path, data: &Path, whole: &[(PathBuf, Vec<u8>)]) {
+    let output = common::mpirun(3, &dir.join("ompi"))
         .arg(env!("CARGO_BIN_EXE_mbs-tool"))
-        .args(decode(&out("mpirun")))
+        .args(decode_all_pairs(data, &dir.join("mpirun")))
         .args(["--shard", "auto"])
         .output()
         .expect("mpirun runs (tools/test.sh installs Open MPI)");
     assert!(output.status.success(), "{}", text(&output));
-    // Each rank decoded its 2 of the 6 frames.
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(stderr.matches(": 2 done, 0 skipped").count(), 3, "{stderr}");
-    assert_eq!(tree(&dir.path().join("mpirun")), whole);
+    assert_eq!(tree(&dir.join("mpirun")), whole);
+}
 
+/// `--shard auto` as 3 tasks of an `srun` step (SLURM's variables) into
+/// `dir/srun`: together they write the unsharded run's files, `whole`.
+fn srun_tasks_write_the_unsharded_files(dir: &Path, data: &Path, whole: &[(PathBuf, Vec<u8>)]) {
     let tasks: Vec<_> = (0..3)
         .map(|task| {
             common::mbs_tool()
-                .args(decode(&out("srun")))
+                .args(decode_all_pairs(data, &dir.join("srun")))
                 .args(["--shard", "auto"])
                 .env("SLURM_PROCID", task.to_string())
                 .env("SLURM_STEP_NUM_TASKS", "3")
@@ -267,24 +289,32 @@ fn shard_auto_under_mpirun_and_srun_equals_the_unsharded_run() {
         let output = task.wait_with_output().unwrap();
         assert!(output.status.success(), "{}", text(&output));
     }
-    assert_eq!(tree(&dir.path().join("srun")), whole);
-    // One task alone writes its third.
+    assert_eq!(tree(&dir.join("srun")), whole);
+}
+
+/// One `srun` task of 3 alone writes its third of the unsharded run's
+/// files, `whole`.
+fn one_srun_task_alone_writes_its_third(dir: &Path, data: &Path, whole: &[(PathBuf, Vec<u8>)]) {
     let output = common::mbs_tool()
-        .args(decode(&out("one")))
+        .args(decode_all_pairs(data, &dir.join("one")))
         .args(["--shard", "auto"])
         .env("SLURM_PROCID", "1")
         .env("SLURM_STEP_NUM_TASKS", "3")
         .output()
         .unwrap();
     assert!(output.status.success(), "{}", text(&output));
-    assert_eq!(tree(&dir.path().join("one")).len() * 3, whole.len());
+    assert_eq!(tree(&dir.join("one")).len() * 3, whole.len());
+}
 
+/// Without a launcher's variables, `--shard auto` is a usage error and
+/// nothing is written.
+fn without_a_launcher_auto_is_a_usage_error(dir: &Path, data: &Path) {
     let mut alone = common::mbs_tool();
-    for name in launchers {
+    for name in LAUNCHERS {
         alone.env_remove(name);
     }
     let output = alone
-        .args(decode(&out("alone")))
+        .args(decode_all_pairs(data, &dir.join("alone")))
         .args(["--shard", "auto"])
         .output()
         .unwrap();
@@ -294,5 +324,5 @@ fn shard_auto_under_mpirun_and_srun_equals_the_unsharded_run() {
         "{}",
         text(&output)
     );
-    assert!(!dir.path().join("alone").exists());
+    assert!(!dir.join("alone").exists());
 }

@@ -2,6 +2,8 @@
 //! Tsukuba, whose five equally spaced views let the synthesised col2 and
 //! col5 (from the pair col3, col4) be compared with the real ones.
 
+#![allow(clippy::unwrap_used)] // test code: a panic is the failure report
+
 mod common;
 
 use std::path::{Path, PathBuf};
@@ -71,7 +73,22 @@ fn extrapolates_a_real_pair_against_the_real_outer_views_and_resumes() {
         "{}",
         text(&output)
     );
+    outer_views_match_the_real_ones(&out);
+    masks_hold_the_disocclusions_and_the_entering_borders(&out);
+    used_disparities_are_the_filled_ground_truth_and_its_right_view(&out);
 
+    // A second run finds everything done.
+    let again = run(&args);
+    assert!(
+        String::from_utf8_lossy(&again.stderr).contains("0 done, 1 skipped, 0 failed"),
+        "{}",
+        text(&again)
+    );
+}
+
+/// The views extrapolated into `out`, image_1 and image_4, match the real
+/// col2 and col5 as measured.
+fn outer_views_match_the_real_ones(out: &Path) {
     let image_1 = read_rgb(&out.join("image_1.png")).unwrap();
     let image_4 = read_rgb(&out.join("image_4.png")).unwrap();
     let p1 = psnr(&image_1, &read_rgb(&view(2)).unwrap(), None).unwrap();
@@ -79,8 +96,11 @@ fn extrapolates_a_real_pair_against_the_real_outer_views_and_resumes() {
     println!("image_1 vs col2: {p1:.2} dB, image_4 vs col5: {p4:.2} dB");
     // Measured: 30.34 and 29.14 dB (mean 29.74, as in mbs-infer's quality test).
     assert!(p1 > 30.2 && p4 > 29.0, "{p1} {p4}");
+}
 
-    // Masks: the disocclusions and the entering border, a few % of the view.
+/// The masks in `out` hold the disocclusions and the entering border, a
+/// few % of the view.
+fn masks_hold_the_disocclusions_and_the_entering_borders(out: &Path) {
     let mask_1 = read_mask(&out.join("mask_1.png")).unwrap();
     let share = set_pixels(&mask_1) as f64 / (384.0 * 288.0);
     assert!((0.02..0.10).contains(&share), "{share}");
@@ -93,9 +113,11 @@ fn extrapolates_a_real_pair_against_the_real_outer_views_and_resumes() {
         mask_4.get_pixel(383, 150).0[0] == 255,
         "entering border (right)"
     );
+}
 
-    // The disparities used: the ground truth, its unknown border filled, and
-    // the right view's derived from it.
+/// The disparities used, written into `out`: the ground truth, its
+/// unknown border filled, and the right view's derived from it.
+fn used_disparities_are_the_filled_ground_truth_and_its_right_view(out: &Path) {
     let used_2 = read_pfm_grey(&out.join("disparity_2.pfm")).unwrap();
     assert_eq!(
         used_2.get_pixel(200, 150),
@@ -104,14 +126,6 @@ fn extrapolates_a_real_pair_against_the_real_outer_views_and_resumes() {
     assert!(used_2.iter().all(|d| d.is_finite()));
     let used_3 = read_pfm_grey(&out.join("disparity_3.pfm")).unwrap();
     assert!(used_3.iter().all(|d| (5.0..=14.0).contains(d)));
-
-    // A second run finds everything done.
-    let again = run(&args);
-    assert!(
-        String::from_utf8_lossy(&again.stderr).contains("0 done, 1 skipped, 0 failed"),
-        "{}",
-        text(&again)
-    );
 }
 
 #[test]
@@ -248,29 +262,40 @@ fn errors_name_the_problem() {
         "--out",
         s(&out),
     ];
-    // A missing view is a usage error before any work: nothing is written.
-    let missing = dir.path().join("missing.png");
+    a_missing_view_is_a_usage_error(dir.path(), &v4, &out);
+    a_disparity_source_that_cannot_be_opened_is_refused(dir.path(), &pair, &out);
+    a_view_that_cannot_be_read_fails_its_frame(dir.path(), &v4, &out);
+    a_disparity_of_another_size_is_refused(dir.path(), &pair);
+    a_folder_off_kittis_layout_is_named(dir.path());
+}
+
+/// A missing view (the left one, with `right`) is a usage error before
+/// any work, named once: nothing is written into `out`.
+fn a_missing_view_is_a_usage_error(dir: &Path, right: &Path, out: &Path) {
+    let missing = dir.join("missing.png");
     let output = run(&[
         "extrapolate",
         "--left",
         s(&missing),
         "--right",
-        s(&v4),
+        s(right),
         "--out",
-        s(&out),
+        s(out),
     ]);
     assert!(!output.status.success());
     let message = text(&output);
     assert!(message.contains("missing.png: no such file"), "{message}");
     assert_eq!(message.matches("missing.png").count(), 1, "{message}");
     assert!(!out.exists());
+}
 
-    // A disparity source that cannot be opened is refused before anything
-    // is written: a training setting given to a network, and weights that
-    // are not there.
-    let weights = dir.path().join("no-such-weights.safetensors");
+/// A disparity source that cannot be opened is refused before anything is
+/// written into `out`: a training setting given to a network, and weights
+/// that are not there (`pair`: the command without a source).
+fn a_disparity_source_that_cannot_be_opened_is_refused(dir: &Path, pair: &[&str], out: &Path) {
+    let weights = dir.join("no-such-weights.safetensors");
     let network = ["--backbone", "compact", "--weights", s(&weights)];
-    let output = run(&[&pair[..], &network, &["--set", "trainer.lr.max_lr=1"]].concat());
+    let output = run(&[pair, &network, &["--set", "trainer.lr.max_lr=1"]].concat());
     assert!(!output.status.success());
     assert!(
         text(&output).contains("only network.KEY=VALUE settings apply to a network"),
@@ -278,7 +303,7 @@ fn errors_name_the_problem() {
         text(&output)
     );
     assert!(!out.exists());
-    let output = run(&[&pair[..], &network].concat());
+    let output = run(&[pair, &network].concat());
     assert!(!output.status.success());
     assert!(
         text(&output).contains("no-such-weights.safetensors"),
@@ -286,34 +311,44 @@ fn errors_name_the_problem() {
         text(&output)
     );
     assert!(!out.exists());
+}
 
-    // A view that cannot be read fails its frame; no empty manifest is left.
-    let broken = dir.path().join("broken.png");
+/// A view that cannot be read (the left one, with `right`) fails its
+/// frame; no empty manifest is left in `out`.
+fn a_view_that_cannot_be_read_fails_its_frame(dir: &Path, right: &Path, out: &Path) {
+    let broken = dir.join("broken.png");
     std::fs::write(&broken, b"not a png").unwrap();
     let output = run(&[
         "extrapolate",
         "--left",
         s(&broken),
         "--right",
-        s(&v4),
+        s(right),
         "--out",
-        s(&out),
+        s(out),
     ]);
     assert!(!output.status.success());
     assert!(text(&output).contains("1 failed"), "{}", text(&output));
     assert!(!out.join("manifest.json").exists());
+}
 
-    let small = dir.path().join("small.pfm");
+/// A disparity whose size is not the views' (given to the command `pair`)
+/// is refused, naming both sizes.
+fn a_disparity_of_another_size_is_refused(dir: &Path, pair: &[&str]) {
+    let small = dir.join("small.pfm");
     write_pfm_grey(&small, &FloatImage::new(10, 5), Endian::Little).unwrap();
-    let output = run(&[&pair[..], &["--right-disparity", s(&small)]].concat());
+    let output = run(&[pair, &["--right-disparity", s(&small)]].concat());
     assert!(!output.status.success());
     assert!(
         text(&output).contains("small.pfm: disparity is (10, 5) but the views are (384, 288)"),
         "{}",
         text(&output)
     );
+}
 
-    let output = run(&["extrapolate", "--kitti", s(dir.path())]);
+/// A folder (`dir`) off KITTI's layout is named with the folders expected.
+fn a_folder_off_kittis_layout_is_named(dir: &Path) {
+    let output = run(&["extrapolate", "--kitti", s(dir)]);
     assert!(
         text(&output).contains(
             "not a KITTI folder (expected image_2 and image_3, or colored_0 and colored_1)"

@@ -56,43 +56,48 @@ fn synthetic_oracle_reproduces_the_rendered_outer_views() {
     assert!(synth.status.success(), "{}", text(&synth));
     for frame in ["000000", "000001"] {
         let sample = data.join("Town01/ClearNoon").join(frame);
-        let out = dir.path().join(frame);
-        // Cameras 1 and 2 with their exact disparities -> cameras 0 and 3.
-        let output = run(&[
-            "extrapolate",
-            "--left",
-            s(&sample.join("rgb_1.png")),
-            "--right",
-            s(&sample.join("rgb_2.png")),
-            "--left-disparity",
-            s(&sample.join("gt/disp_1.pfm")),
-            "--right-disparity",
-            s(&sample.join("gt/disp_2.pfm")),
-            "--out",
-            s(&out),
-        ]);
-        assert!(output.status.success(), "{}", text(&output));
-        for (new, rendered, mask) in [
-            ("image_1.png", "rgb_0.png", "mask_1.png"),
-            ("image_4.png", "rgb_3.png", "mask_4.png"),
-        ] {
-            let ours = read_rgb(&out.join(new)).unwrap();
-            let truth = read_rgb(&sample.join(rendered)).unwrap();
-            let holes = read_mask(&out.join(mask)).unwrap();
-            let kept = psnr(&ours, &truth, Some(&inverted(&holes))).unwrap();
-            let filled = psnr(&ours, &truth, Some(&holes)).unwrap();
-            let share = holes.as_raw().iter().filter(|m| **m != 0).count() as f64
-                / holes.as_raw().len() as f64;
-            println!(
-                "synthetic {frame} {new}: PSNR {kept:.2} dB on warped pixels, {filled:.2} dB on {:.1} % inpainted",
-                100.0 * share
-            );
-            assert!(
-                kept >= 30.0,
-                "{frame} {new}: {kept:.2} dB on non-hole pixels"
-            );
-            assert!(filled > 12.0, "{frame} {new}: {filled:.2} dB on holes");
-        }
+        oracle_reproduces_the_outer_views(&sample, &dir.path().join(frame), frame);
+    }
+}
+
+/// Extrapolates cameras 1 and 2 of the synthetic `sample` (named `frame`)
+/// with their exact disparities into `out`: the new cameras 0 and 3 match
+/// the rendered ones on the warped pixels, and roughly in the holes.
+fn oracle_reproduces_the_outer_views(sample: &Path, out: &Path, frame: &str) {
+    let output = run(&[
+        "extrapolate",
+        "--left",
+        s(&sample.join("rgb_1.png")),
+        "--right",
+        s(&sample.join("rgb_2.png")),
+        "--left-disparity",
+        s(&sample.join("gt/disp_1.pfm")),
+        "--right-disparity",
+        s(&sample.join("gt/disp_2.pfm")),
+        "--out",
+        s(out),
+    ]);
+    assert!(output.status.success(), "{}", text(&output));
+    for (new, rendered, mask) in [
+        ("image_1.png", "rgb_0.png", "mask_1.png"),
+        ("image_4.png", "rgb_3.png", "mask_4.png"),
+    ] {
+        let ours = read_rgb(&out.join(new)).unwrap();
+        let truth = read_rgb(&sample.join(rendered)).unwrap();
+        let holes = read_mask(&out.join(mask)).unwrap();
+        let kept = psnr(&ours, &truth, Some(&inverted(&holes))).unwrap();
+        let filled = psnr(&ours, &truth, Some(&holes)).unwrap();
+        let share =
+            holes.as_raw().iter().filter(|m| **m != 0).count() as f64 / holes.as_raw().len() as f64;
+        println!(
+            "synthetic {frame} {new}: PSNR {kept:.2} dB on warped pixels, {filled:.2} dB on {:.1} % inpainted",
+            100.0 * share
+        );
+        assert!(
+            kept >= 30.0,
+            "{frame} {new}: {kept:.2} dB on non-hole pixels"
+        );
+        assert!(filled > 12.0, "{frame} {new}: {filled:.2} dB on holes");
     }
 }
 
@@ -142,9 +147,45 @@ fn built_in_matcher_extrapolates_real_tsukuba_views() {
 fn kitti_batch_reports_bad_frames_continues_and_writes_a_valid_manifest() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path().join("training");
+    let disp_dir = dir.path().join("disp");
+    kitti_folder_with_broken_frames(&root, &disp_dir);
+    let out = dir.path().join("out");
+    let output = run(&[
+        "extrapolate",
+        "--kitti",
+        s(&root),
+        "--left-disparity-dir",
+        s(&disp_dir),
+        "--out",
+        s(&out),
+    ]);
+    assert!(
+        !output.status.success(),
+        "broken frames give a non-zero exit"
+    );
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("1 done, 0 skipped, 4 failed"), "{stderr}");
+    assert!(stderr.contains("not a rectified pair"), "{stderr}");
+    assert!(stderr.contains("000002_10.png"), "{stderr}");
+    assert!(
+        stderr.contains("000003_10.pfm: 1 NaN or negative disparities"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("000004_10.pfm: disparity is (100, 50)"),
+        "{stderr}"
+    );
+    assert!(out.join("image_4/000000_10.png").is_file());
+    the_manifest_lists_the_finished_frame_and_validates(&out);
+}
+
+/// Tsukuba's col3 and col4 as five KITTI frames under `root`, with left
+/// disparities in `disp_dir`: frame 0 whole, frame 1 smaller on the right
+/// (not a rectified pair), frame 2 without its right view, frame 3 with a
+/// NaN disparity and frame 4 with a disparity of another size.
+fn kitti_folder_with_broken_frames(root: &Path, disp_dir: &Path) {
     let left = read_rgb(&tsukuba(3)).unwrap();
     let right = read_rgb(&tsukuba(4)).unwrap();
-    let disp_dir = dir.path().join("disp");
     let constant = FloatImage::from_pixel(384, 288, image::Luma([6.0]));
     for frame in [
         "000000_10",
@@ -177,34 +218,12 @@ fn kitti_batch_reports_bad_frames_continues_and_writes_a_valid_manifest() {
         &image::RgbImage::new(380, 288),
     )
     .unwrap();
-    let out = dir.path().join("out");
-    let output = run(&[
-        "extrapolate",
-        "--kitti",
-        s(&root),
-        "--left-disparity-dir",
-        s(&disp_dir),
-        "--out",
-        s(&out),
-    ]);
-    assert!(
-        !output.status.success(),
-        "broken frames give a non-zero exit"
-    );
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(stderr.contains("1 done, 0 skipped, 4 failed"), "{stderr}");
-    assert!(stderr.contains("not a rectified pair"), "{stderr}");
-    assert!(stderr.contains("000002_10.png"), "{stderr}");
-    assert!(
-        stderr.contains("000003_10.pfm: 1 NaN or negative disparities"),
-        "{stderr}"
-    );
-    assert!(
-        stderr.contains("000004_10.pfm: disparity is (100, 50)"),
-        "{stderr}"
-    );
-    assert!(out.join("image_4/000000_10.png").is_file());
+}
 
+/// The manifest in `out` lists only the finished frame, passes `validate
+/// --deep`, and the folder stands alone: the input views are linked into
+/// it.
+fn the_manifest_lists_the_finished_frame_and_validates(out: &Path) {
     let manifest = out.join("manifest.json");
     let doc: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();

@@ -3,11 +3,14 @@
 //! as each benchmark's folder (KITTI 2015, Middlebury 2014, ETH3D,
 //! DrivingStereo, SceneFlow).
 
+#![allow(clippy::unwrap_used)] // test code: a panic is the failure report
+
 mod common;
 
 use std::path::{Path, PathBuf};
 
 use common::{run, text};
+use mbs_core::FloatImage;
 use mbs_core::formats::{pfm, png16, read_disparity};
 use serde_json::Value;
 
@@ -31,6 +34,17 @@ fn close(v: &Value, expected: f64, tolerance: f64) -> bool {
 fn single_pair_to_pfm_then_eval_with_gt_scale() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("pred");
+    predict_writes_the_pair_and_its_colours(&out);
+    let prediction = out.join("im2.pfm");
+    let report = eval_with_gt_scale_scores_as_the_library(&prediction);
+    eval_table_names_the_sets_and_the_pooled_line(&prediction);
+    eval_of_the_pair_itself_scores_the_same(&report);
+    gt_alone_says_what_it_scores();
+}
+
+/// `predict --color` of Teddy into `out` writes a disparity without holes
+/// and its colour image, each at the pair's size.
+fn predict_writes_the_pair_and_its_colours(out: &Path) {
     let s = |p: &Path| p.to_str().unwrap().to_string();
     let args = [
         "predict".to_string(),
@@ -41,7 +55,7 @@ fn single_pair_to_pfm_then_eval_with_gt_scale() {
         "--max-disparity".into(),
         "64".into(),
         "--out".into(),
-        s(&out),
+        s(out),
         "--color".into(),
     ];
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
@@ -52,8 +66,11 @@ fn single_pair_to_pfm_then_eval_with_gt_scale() {
     assert!(disparity.iter().all(|d| d.is_finite()), "holes are filled");
     let color = image::open(out.join("im2_color.png")).unwrap();
     assert_eq!((color.width(), color.height()), (450, 375));
+}
 
-    let prediction = out.join("im2.pfm");
+/// `eval --gt --gt-scale 4` of `prediction` scores what the library test
+/// measures, pooled over the one image; returns the report.
+fn eval_with_gt_scale_scores_as_the_library(prediction: &Path) -> Value {
     let report = json_of(&run(&[
         "eval",
         prediction.to_str().unwrap(),
@@ -70,8 +87,12 @@ fn single_pair_to_pfm_then_eval_with_gt_scale() {
     assert!(close(&all["density"], 100.0, 1e-9), "{report:#}");
     assert!(report["pooled"].get("NOC").is_none(), "no mask, no NOC");
     assert_eq!(report["images"].as_array().map(Vec::len), Some(1));
+    report
+}
 
-    // The table names the sets and the pooled line.
+/// The table `eval` prints for `prediction` names the sets and the pooled
+/// line.
+fn eval_table_names_the_sets_and_the_pooled_line(prediction: &Path) {
     let table = run(&[
         "eval",
         prediction.to_str().unwrap(),
@@ -82,8 +103,11 @@ fn single_pair_to_pfm_then_eval_with_gt_scale() {
     ]);
     let stdout = String::from_utf8_lossy(&table.stdout);
     assert!(stdout.contains("pooled") && stdout.contains("Out-2") && stdout.contains("7.95%"));
+}
 
-    // The pair itself, predicted by the same matcher inside eval, scores the same.
+/// The pair itself, predicted by the same matcher inside eval, scores as
+/// its prediction file did in `report`.
+fn eval_of_the_pair_itself_scores_the_same(report: &Value) {
     let direct = json_of(&run(&[
         "eval",
         "--left",
@@ -99,7 +123,10 @@ fn single_pair_to_pfm_then_eval_with_gt_scale() {
         "--json",
     ]));
     assert_eq!(direct["pooled"], report["pooled"], "{direct:#}");
-    // --gt without a prediction file or a pair says what it scores.
+}
+
+/// `--gt` without a prediction file or a pair says what it scores.
+fn gt_alone_says_what_it_scores() {
     let lone = run(&["eval", "--gt", teddy("disp2.png").to_str().unwrap()]);
     assert!(!lone.status.success());
     assert!(
@@ -521,15 +548,38 @@ fn benchmark_layouts_score_as_computed_independently() {
     let pred = dir.path().join("pred");
     predict_folder("--sceneflow", &scene_flow, &pred);
     let predicted = pred.join("TEST_A_0000_0006.pfm");
-    let (pixels, epe, out3) = teddy_scores(&predicted, 3.0);
-    // The same prediction as a DrivingStereo frame's, scored there.
+    let scores = teddy_scores(&predicted, 3.0);
+    eval_scores_sceneflow_and_drivingstereo_layouts(&pred, &scene_flow, &driving, scores);
+    let per_image = dir.path().join("scores.json");
+    let table =
+        benchmark_scores_all_but_a_failed_frame([&middlebury, &driving, &scene_flow], &per_image);
+    let (_, epe, out3) = scores;
+    let (_, _, out1) = teddy_scores(&predicted, 1.0);
+    benchmark_scores_each_with_its_metric(&table, epe, out3, out1);
+    per_image_scores_name_the_frames(&per_image);
+    benchmark_prints_the_papers_row(&scene_flow, out1);
+    a_folder_off_its_layout_stops_benchmark(&middlebury, dir.path());
+    predict_without_pairs_names_every_way_to_give_them(&pred);
+}
+
+/// `eval --thresholds 3` of the SceneFlow prediction in `pred` scores
+/// `(pixels, epe, out3)` in SceneFlow's layout, and so does the same
+/// prediction as the DrivingStereo frame's (the broken frame's ground truth
+/// removed), without NOC: neither has occlusion masks.
+fn eval_scores_sceneflow_and_drivingstereo_layouts(
+    pred: &Path,
+    scene_flow: &Path,
+    driving: &Path,
+    (pixels, epe, out3): (u64, f64, f64),
+) {
+    let predicted = pred.join("TEST_A_0000_0006.pfm");
     std::fs::copy(&predicted, pred.join(format!("{DRIVING_STEREO_FRAME}.pfm"))).unwrap();
     std::fs::remove_file(driving.join("disparity-map-half-size/broken.png")).unwrap();
     for flag in ["--sceneflow", "--drivingstereo"] {
         let root = if flag == "--sceneflow" {
-            &scene_flow
+            scene_flow
         } else {
-            &driving
+            driving
         };
         let report = json_of(&run(&[
             "eval",
@@ -546,14 +596,22 @@ fn benchmark_layouts_score_as_computed_independently() {
         assert!(close(&all["out3"], out3, 1e-6), "{flag}: {report:#}");
         assert!(report["pooled"].get("NOC").is_none(), "{flag}: {report:#}");
     }
+}
 
+/// `benchmark --json` of the Middlebury, DrivingStereo (its broken frame's
+/// ground truth back) and SceneFlow folders, with per-image scores into
+/// `per_image`: the DrivingStereo frame without a right view fails, the
+/// rest is scored. Returns the table.
+fn benchmark_scores_all_but_a_failed_frame(
+    [middlebury, driving, scene_flow]: [&Path; 3],
+    per_image: &Path,
+) -> Value {
     let driving_gt = read_disparity(&teddy("disp2.png"), Some(4.0)).unwrap();
     png16::write_kitti_disparity(
         &driving.join("disparity-map-half-size/broken.png"),
         &driving_gt,
     )
     .unwrap();
-    let per_image = dir.path().join("scores.json");
     let output = run(&[
         "benchmark",
         "--middlebury",
@@ -568,15 +626,20 @@ fn benchmark_layouts_score_as_computed_independently() {
         per_image.to_str().unwrap(),
         "--json",
     ]);
-    // The DrivingStereo frame without a right view fails; the rest is scored.
     assert_eq!(output.status.code(), Some(1), "{}", text(&output));
     assert!(
         text(&output).contains("1 images failed") && text(&output).contains("broken"),
         "{}",
         text(&output)
     );
-    let table: Value =
-        serde_json::from_slice(&output.stdout).expect("benchmark --json prints JSON");
+    serde_json::from_slice(&output.stdout).expect("benchmark --json prints JSON")
+}
+
+/// Each of the `table`'s columns scores with its benchmark's metric:
+/// Middlebury Out-2 with OCC above NOC, DrivingStereo one image (and one
+/// failed) at Out-3 `out3` without OCC, SceneFlow Out-1 `out1` and EPE
+/// `epe`.
+fn benchmark_scores_each_with_its_metric(table: &Value, epe: f64, out3: f64, out1: f64) {
     let columns = table["benchmarks"]
         .as_array()
         .expect("a list of benchmarks");
@@ -586,7 +649,6 @@ fn benchmark_layouts_score_as_computed_independently() {
             .find(|c| c["benchmark"] == label)
             .unwrap_or_else(|| panic!("no column {label}: {table:#}"))
     };
-    let (_, _, out1) = teddy_scores(&predicted, 1.0);
     let scores = column("Middlebury trainingQ");
     assert_eq!(scores["metric"], "out2", "{table:#}");
     assert!(scores["occ"].as_f64() > scores["noc"].as_f64(), "{table:#}");
@@ -601,15 +663,22 @@ fn benchmark_layouts_score_as_computed_independently() {
     assert_eq!(scores["metric"], "out1", "{table:#}");
     assert!(close(&scores["all"], out1, 1e-6), "{table:#}");
     assert!(close(&scores["epe"], epe, 1e-6), "{table:#}");
+}
+
+/// The `--per-image` file names each benchmark's frames.
+fn per_image_scores_name_the_frames(per_image: &Path) {
     let scores: Value =
-        serde_json::from_str(&std::fs::read_to_string(&per_image).expect("--per-image is written"))
+        serde_json::from_str(&std::fs::read_to_string(per_image).expect("--per-image is written"))
             .expect("--per-image is JSON");
     assert_eq!(
         scores["SceneFlow flyingthings3d"]["images"][0]["name"],
         "TEST_A_0000_0006"
     );
+}
 
-    // The text table and the paper's row.
+/// `benchmark` without `--json` prints the text table and the paper's
+/// row, with SceneFlow's Out-1 `out1`.
+fn benchmark_prints_the_papers_row(scene_flow: &Path, out1: f64) {
     let output = run(&[
         "benchmark",
         "--sceneflow",
@@ -624,14 +693,17 @@ fn benchmark_layouts_score_as_computed_independently() {
             && stdout.contains(&format!("| - | {out1:.2} |")),
         "{stdout}"
     );
+}
 
-    // A folder off its layout stops the command before anything is scored.
+/// A folder off its layout (`middlebury` as SceneFlow's) stops `benchmark`
+/// before anything is scored.
+fn a_folder_off_its_layout_stops_benchmark(middlebury: &Path, dir: &Path) {
     let output = run(&[
         "benchmark",
         "--sceneflow",
         middlebury.to_str().unwrap(),
         "--drivingstereo",
-        dir.path().join("DrivingStereo/rainy").to_str().unwrap(),
+        dir.join("DrivingStereo/rainy").to_str().unwrap(),
     ]);
     assert_eq!(output.status.code(), Some(1), "{}", text(&output));
     assert!(
@@ -640,7 +712,10 @@ fn benchmark_layouts_score_as_computed_independently() {
         text(&output)
     );
     assert!(output.stdout.is_empty(), "{}", text(&output));
-    // predict without pairs names every way to give them.
+}
+
+/// `predict` without pairs names every way to give them.
+fn predict_without_pairs_names_every_way_to_give_them(pred: &Path) {
     let output = run(&["predict", "--out", pred.to_str().unwrap()]);
     assert_eq!(output.status.code(), Some(1), "{}", text(&output));
     assert!(
@@ -667,21 +742,38 @@ fn submission_folders_hold_each_servers_files() {
     predict_folder("--middlebury", &middlebury, &pred);
     let predicted = read_disparity(&pred.join("Teddy.pfm"), None).unwrap();
 
-    let submit = |flag: &str, root: &Path, out: &Path, extra: &[&str]| {
-        let mut argv = vec![
-            "submit",
-            flag,
-            root.to_str().unwrap(),
-            "--max-disparity",
-            "64",
-            "--out",
-            out.to_str().unwrap(),
-        ];
-        argv.extend_from_slice(extra);
-        run(&argv)
-    };
-    let out = dir.path().join("sub-mb");
-    let output = submit("--middlebury", &middlebury, &out, &["--name", "MBS"]);
+    middlebury_submission_is_timed_zipped_and_resumed(&middlebury, dir.path(), &predicted);
+    eth3d_submission_holds_the_runtime(&eth3d, dir.path(), &predicted);
+    kitti_submission_holds_16_bit_disparities(&kitti, dir.path(), &predicted);
+    a_middlebury_name_the_scripts_cannot_read_is_refused(&middlebury, dir.path());
+}
+
+/// `submit FLAG ROOT` with the built-in matcher over 64 disparities into
+/// `out`, then `extra`.
+fn submit(flag: &str, root: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    let mut argv = vec![
+        "submit",
+        flag,
+        root.to_str().unwrap(),
+        "--max-disparity",
+        "64",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    argv.extend_from_slice(extra);
+    run(&argv)
+}
+
+/// The Middlebury submission (in `dir/sub-mb`) holds `predict`'s map,
+/// `predicted`, and a positive time under the method's name, is zipped
+/// for upload, and a second run finds the pair done.
+fn middlebury_submission_is_timed_zipped_and_resumed(
+    middlebury: &Path,
+    dir: &Path,
+    predicted: &FloatImage,
+) {
+    let out = dir.join("sub-mb");
+    let output = submit("--middlebury", middlebury, &out, &["--name", "MBS"]);
     assert!(output.status.success(), "{}", text(&output));
     let scene = out.join("testH/Teddy");
     let written = pfm::read_pfm_grey(&scene.join("disp0MBS.pfm")).unwrap();
@@ -704,35 +796,46 @@ fn submission_folders_hold_each_servers_files() {
             .any(|w| w == b"testH/Teddy/disp0MBS.pfm"),
         "the archive names the scene's files"
     );
-    // A second run finds the pair done.
-    let again = submit("--middlebury", &middlebury, &out, &["--name", "MBS"]);
+    let again = submit("--middlebury", middlebury, &out, &["--name", "MBS"]);
     assert!(
         again.status.success() && text(&again).contains("0 done, 1 skipped"),
         "{}",
         text(&again)
     );
+}
 
-    let out = dir.path().join("sub-eth3d");
-    let output = submit("--eth3d", &eth3d, &out, &[]);
+/// The ETH3D submission (in `dir/sub-eth3d`) holds the runtime and
+/// `predict`'s map, `predicted`, and is zipped.
+fn eth3d_submission_holds_the_runtime(eth3d: &Path, dir: &Path, predicted: &FloatImage) {
+    let out = dir.join("sub-eth3d");
+    let output = submit("--eth3d", eth3d, &out, &[]);
     assert!(output.status.success(), "{}", text(&output));
     let runtime = std::fs::read_to_string(out.join("low_res_two_view/teddy.txt")).unwrap();
     assert!(runtime.starts_with("runtime "), "{runtime}");
     let written = pfm::read_pfm_grey(&out.join("low_res_two_view/teddy.pfm")).unwrap();
     assert_eq!(written.as_raw(), predicted.as_raw());
     assert!(out.join("eth3d_submission.zip").is_file());
+}
 
-    let out = dir.path().join("sub-kitti");
-    let output = submit("--kitti", &kitti, &out, &[]);
+/// The KITTI submission (in `dir/sub-kitti`) holds `predict`'s map,
+/// `predicted`, as KITTI's 16-bit PNG codes, and is zipped.
+fn kitti_submission_holds_16_bit_disparities(kitti: &Path, dir: &Path, predicted: &FloatImage) {
+    let out = dir.join("sub-kitti");
+    let output = submit("--kitti", kitti, &out, &[]);
     assert!(output.status.success(), "{}", text(&output));
     let codes = png16::read_gray16(&out.join("disp_0/000000_10.png")).unwrap();
-    let expected = png16::encode_scaled(&predicted, 256.0);
+    let expected = png16::encode_scaled(predicted, 256.0);
     assert_eq!(codes.as_raw(), expected.as_raw());
     assert!(out.join("kitti_submission.zip").is_file());
+}
 
+/// A Middlebury method name the server's scripts could not read back is
+/// refused before anything is written.
+fn a_middlebury_name_the_scripts_cannot_read_is_refused(middlebury: &Path, dir: &Path) {
     let output = submit(
         "--middlebury",
-        &middlebury,
-        &dir.path().join("sub-bad"),
+        middlebury,
+        &dir.join("sub-bad"),
         &["--name", "my method"],
     );
     assert_eq!(output.status.code(), Some(1), "{}", text(&output));
@@ -741,5 +844,5 @@ fn submission_folders_hold_each_servers_files() {
         "{}",
         text(&output)
     );
-    assert!(!dir.path().join("sub-bad").exists());
+    assert!(!dir.join("sub-bad").exists());
 }

@@ -6,33 +6,16 @@
 
 mod common;
 
+use std::path::Path;
+
 use common::{run, text};
 
 #[test]
 fn built_in_matcher_on_synthetic_scenes_scores_below_5_percent_out3_noc() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
-    let s = |p: &std::path::Path| p.to_str().unwrap().to_string();
-    let output = run(&[
-        "synth",
-        "--out",
-        &s(&data),
-        "--views",
-        "3",
-        "--towns",
-        "Town01",
-        "--weathers",
-        "ClearNoon,CloudyNoon",
-        "--frames",
-        "2",
-        "--width",
-        "320",
-        "--height",
-        "192",
-        "--focal",
-        "160",
-    ]);
-    assert!(output.status.success(), "{}", text(&output));
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    synthesise_three_view_scenes(&data);
     let manifest = data.join("manifest.json");
     let pred = dir.path().join("pred");
     // Pair 0:2 is two baselines; its ground truth is 2x the one-step file.
@@ -70,4 +53,29 @@ fn built_in_matcher_on_synthetic_scenes_scores_below_5_percent_out3_noc() {
         out3_all >= out3_noc,
         "occluded pixels are harder: ALL {out3_all} vs NOC {out3_noc}"
     );
+}
+
+/// `synth` of two 320x192 frames of three views in Town01 under two
+/// weathers into `data`.
+fn synthesise_three_view_scenes(data: &Path) {
+    let output = run(&[
+        "synth",
+        "--out",
+        data.to_str().unwrap(),
+        "--views",
+        "3",
+        "--towns",
+        "Town01",
+        "--weathers",
+        "ClearNoon,CloudyNoon",
+        "--frames",
+        "2",
+        "--width",
+        "320",
+        "--height",
+        "192",
+        "--focal",
+        "160",
+    ]);
+    assert!(output.status.success(), "{}", text(&output));
 }

@@ -5,11 +5,12 @@
 
 mod common;
 
-use std::path::Path;
-use std::process::Stdio;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Stdio};
 use std::time::{Duration, Instant};
 
 use common::{SMALL, lines, mbs_tool, run, synth, text};
+use mbs_core::FloatImage;
 use mbs_test_support::events::{EventValue, as_tensorboard_shows, read_events};
 use mbs_test_support::files::complete_lines;
 use serde_json::Value;
@@ -33,14 +34,57 @@ fn small_run(dir: &Path, out: &Path, [steps, val_every]: [&str; 2], extra: &[&st
     args
 }
 
+/// The size of a visual sheet: reference | teacher | student | GT | weight
+/// map, 128x64 each under their captions, the disparity colour bar and the
+/// weight map's key below.
+const SHEET_SIZE: (u32, u32) = (664, 187);
+
+/// A finished small training run and what the commands that read it share.
+struct Trained<'a> {
+    /// The test's temporary folder, which holds the run and the set.
+    dir: &'a Path,
+    /// The run's output folder.
+    out: PathBuf,
+    /// `out` as an argument.
+    out_s: String,
+    /// The synthetic set's manifest.
+    manifest: String,
+}
+
 #[test]
 fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
     let owned = small_run(dir.path(), &out, ["6", "3"], &[]);
     let args: Vec<&str> = owned.iter().map(String::as_str).collect();
-    let (manifest, out_s) = (owned[1].clone(), owned[3].clone());
-    let output = run(&args);
+    let trained = Trained {
+        dir: dir.path(),
+        out,
+        out_s: owned[3].clone(),
+        manifest: owned[1].clone(),
+    };
+    let (train, val) = trains_and_logs(&args, &trained.out);
+    tensorboard_shows_the_logs_and_the_sheets(&trained.out, &train);
+    draws_sheets_and_checkpoints(&trained.out);
+    a_finished_run_is_not_trained_again(&args, &trained.out);
+    let validated_epe = val[2]["ALL"]["epe"].as_f64().unwrap();
+    eval_scores_the_teacher_as_validated(&trained, validated_epe);
+    let map = predict_writes_a_disparity_per_sample(&trained);
+    let exported = export_writes_the_teacher(&trained);
+    export_never_writes_over_the_checkpoint(&trained);
+    export_refuses_special_files(&trained);
+    let exported_s = exported.display().to_string();
+    predict_with_the_export_gives_the_same_map(&trained, &exported_s, &map);
+    extrapolate_takes_the_same_sources(&trained, &exported_s, &map);
+    train_init_starts_from_the_teacher(&trained, &exported_s, validated_epe);
+    weights_of_another_network_are_refused(&trained, &exported_s);
+    weights_holding_a_nan_are_refused(&trained, &exported);
+}
+
+/// Trains with `args` and checks the settings, the training and validation
+/// logs and the plots; returns the two logs.
+fn trains_and_logs(args: &[&str], out: &Path) -> (Vec<Value>, Vec<Value>) {
+    let output = run(args);
     assert!(output.status.success(), "{}", text(&output));
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(stderr.contains("step 6: validation on"), "{stderr}");
@@ -78,16 +122,17 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     for region in ["ALL", "NOC", "OCC"] {
         assert!(val[2][region]["out3"].as_f64().is_some(), "{region}");
     }
-    // Reference | teacher | student | GT | weight map, 128x64 each under
-    // their captions, the disparity colour bar and the weight map's key
-    // below.
-    let sheet_size = (664, 187);
     for plot in ["loss.png", "val.png"] {
         let image = image::open(out.join(plot)).unwrap();
         let size = (mbs_viz::chart::WIDTH, mbs_viz::chart::HEIGHT);
         assert_eq!((image.width(), image.height()), size, "{plot}");
     }
-    // TensorBoard: the same numbers as the JSONL logs, and the sheets.
+    (train, val)
+}
+
+/// TensorBoard's one event file holds the same numbers as the JSONL log
+/// `train`, the validations, and the sheets.
+fn tensorboard_shows_the_logs_and_the_sheets(out: &Path, train: &[Value]) {
     let event_files: Vec<_> = std::fs::read_dir(out.join("tensorboard"))
         .unwrap()
         .map(|e| e.unwrap().path())
@@ -105,7 +150,7 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     };
     let losses = scalar("train/loss");
     assert_eq!(losses.len(), train.len());
-    for ((step, value), line) in losses.iter().zip(&train) {
+    for ((step, value), line) in losses.iter().zip(train) {
         assert_eq!(*step, line["step"].as_u64().unwrap());
         let logged = line["loss"].as_f64().unwrap() as f32;
         assert!((value - logged).abs() <= 1e-6 * logged.abs().max(1.0));
@@ -122,34 +167,42 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     assert_eq!(out3, vec![0, 3, 6]);
     let images = events
         .iter()
-        .filter(|e| matches!(&e.value, EventValue::Image(_, size, _) if *size == sheet_size))
+        .filter(|e| matches!(&e.value, EventValue::Image(_, size, _) if *size == SHEET_SIZE))
         .count();
     assert!(images >= 3, "{images} sheet images");
+}
+
+/// The last step's sheets are drawn and its checkpoint saved.
+fn draws_sheets_and_checkpoints(out: &Path) {
     let sheets: Vec<_> = std::fs::read_dir(out.join("visuals/step-0000006"))
         .unwrap()
         .map(|e| e.unwrap().path())
         .collect();
     assert!(!sheets.is_empty());
     let sheet = image::open(&sheets[0]).unwrap();
-    assert_eq!((sheet.width(), sheet.height()), sheet_size);
+    assert_eq!((sheet.width(), sheet.height()), SHEET_SIZE);
     assert!(out.join("checkpoints/step-0000006/teacher.bpk").is_file());
+}
 
-    // A finished run is not trained again.
-    let again = run(&args);
+/// The same command again finds the run complete, and logs nothing, so it
+/// adds no event file.
+fn a_finished_run_is_not_trained_again(args: &[&str], out: &Path) {
+    let again = run(args);
     assert!(again.status.success(), "{}", text(&again));
     assert!(String::from_utf8_lossy(&again.stderr).contains("is complete"));
-    // It logs nothing, so it adds no event file.
     let event_files_after = std::fs::read_dir(out.join("tensorboard")).unwrap().count();
     assert_eq!(event_files_after, 1);
+}
 
-    // eval --checkpoint scores the teacher on the held-out split, and gives
-    // the same EPE as the last validation of pair 0:1.
+/// `eval --checkpoint` scores the teacher on the held-out split, and gives
+/// the same EPE as the last validation of pair 0:1, `validated_epe`.
+fn eval_scores_the_teacher_as_validated(trained: &Trained, validated_epe: f64) {
     let eval = run(&[
         "eval",
         "--checkpoint",
-        &out_s,
+        &trained.out_s,
         "--manifest",
-        &manifest,
+        &trained.manifest,
         "--pair",
         "0:1",
         "--split",
@@ -159,22 +212,24 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     assert!(eval.status.success(), "{}", text(&eval));
     let report: Value = serde_json::from_slice(&eval.stdout).unwrap();
     let pooled_epe = report["pooled"]["ALL"]["epe"].as_f64().unwrap();
-    let validated_epe = val[2]["ALL"]["epe"].as_f64().unwrap();
     assert!(
         (pooled_epe - validated_epe).abs() < 1e-3,
         "eval {pooled_epe} vs validation {validated_epe}"
     );
+}
 
-    // predict --checkpoint writes a disparity per sample.
-    let pred = dir.path().join("pred");
+/// `predict --checkpoint` writes a finite disparity in range per sample;
+/// returns the held-out sample's map.
+fn predict_writes_a_disparity_per_sample(trained: &Trained) -> FloatImage {
+    let pred = trained.dir.join("pred");
     let output = run(&[
         "predict",
         "--manifest",
-        &manifest,
+        &trained.manifest,
         "--pair",
         "1:0",
         "--checkpoint",
-        &out_s,
+        &trained.out_s,
         "--out",
         &pred.display().to_string(),
     ]);
@@ -186,21 +241,32 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
         map.iter()
             .all(|d| d.is_finite() && (0.0..=32.0).contains(d))
     );
+    map
+}
 
-    // export writes the teacher; predict --weights with it gives the same map.
-    let exported = dir.path().join("teacher.safetensors");
-    let exported_s = exported.display().to_string();
-    let output = run(&["export", &out_s, "--out", &exported_s]);
+/// `export` writes the teacher with the usual permissions; returns its path.
+fn export_writes_the_teacher(trained: &Trained) -> PathBuf {
+    let exported = trained.dir.join("teacher.safetensors");
+    let output = run(&[
+        "export",
+        &trained.out_s,
+        "--out",
+        &exported.display().to_string(),
+    ]);
     assert!(output.status.success(), "{}", text(&output));
     assert_usual_permissions(&exported);
+    exported
+}
 
-    // export never writes over the checkpoint it reads: a name of another
-    // extension becomes a .safetensors name beside it, and a link to a
-    // checkpoint file (the same file under another name) is refused.
-    let checkpoint = mbs_nets::checkpoint::TrainedNetworks::open(&out).unwrap();
+/// `export` never writes over the checkpoint it reads: a name of another
+/// extension becomes a .safetensors name beside it, and a link to a
+/// checkpoint file (the same file under another name) is refused.
+fn export_never_writes_over_the_checkpoint(trained: &Trained) {
+    let out_s = &trained.out_s;
+    let checkpoint = mbs_nets::checkpoint::TrainedNetworks::open(&trained.out).unwrap();
     let teacher_file = checkpoint.dir.join("teacher.bpk");
     let teacher_bytes = std::fs::read(&teacher_file).unwrap();
-    let output = run(&["export", &out_s, "--out", teacher_file.to_str().unwrap()]);
+    let output = run(&["export", out_s, "--out", teacher_file.to_str().unwrap()]);
     assert!(output.status.success(), "{}", text(&output));
     assert!(
         text(&output).contains("is not a .safetensors name; writing"),
@@ -209,9 +275,9 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     );
     assert_eq!(std::fs::read(&teacher_file).unwrap(), teacher_bytes);
     assert_usual_permissions(&checkpoint.dir.join("teacher.safetensors"));
-    let linked = dir.path().join("linked.safetensors");
+    let linked = trained.dir.join("linked.safetensors");
     std::fs::hard_link(checkpoint.dir.join("state.json"), &linked).unwrap();
-    let output = run(&["export", &out_s, "--out", linked.to_str().unwrap()]);
+    let output = run(&["export", out_s, "--out", linked.to_str().unwrap()]);
     assert_eq!(output.status.code(), Some(1), "{}", text(&output));
     assert!(
         text(&output).contains("would overwrite the checkpoint it exports")
@@ -220,11 +286,14 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
         text(&output)
     );
     assert_eq!(std::fs::read(&teacher_file).unwrap(), teacher_bytes);
-    // Nor over a file that is not a regular file (issue 43): a device, a
-    // FIFO, a socket or a folder, under its own name or as the
-    // .safetensors name export would add, is refused and left as it was,
-    // and no file appears beside it.
-    let specials = dir.path().join("specials");
+}
+
+/// `export` does not write over a file that is not a regular file either
+/// (issue 43): a device, a FIFO, a socket or a folder, under its own name
+/// or as the .safetensors name export would add, is refused and left as it
+/// was, and no file appears beside it.
+fn export_refuses_special_files(trained: &Trained) {
+    let specials = trained.dir.join("specials");
     std::fs::create_dir(&specials).unwrap();
     let listing = || {
         let mut names: Vec<_> = std::fs::read_dir(&specials)
@@ -248,7 +317,7 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
                 vec![&file.path]
             };
             for name in names {
-                let output = run(&["export", &out_s, "--out", name.to_str().unwrap()]);
+                let output = run(&["export", &trained.out_s, "--out", name.to_str().unwrap()]);
                 let report = text(&output);
                 assert_eq!(output.status.code(), Some(1), "{report}");
                 assert!(file.is_refused_in(&report), "{report}");
@@ -257,20 +326,34 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
         }
         assert_eq!(listing(), before, "export made a file beside a special one");
     }
-    let pred_weights = dir.path().join("pred-weights");
-    let weights_source = [
+}
+
+/// The arguments that give `predict` or `extrapolate` the compact network
+/// of the small runs with the weights file `weights`.
+fn weights_source(weights: &str) -> [&str; 8] {
+    [
         "--backbone",
         "compact",
         "--weights",
-        &exported_s,
+        weights,
         "--set",
         "network.max_disparity=32",
         "--set",
         "network.compact.features=8",
-    ];
+    ]
+}
+
+/// `predict --weights` with the exported teacher gives the checkpoint's
+/// map, `map`.
+fn predict_with_the_export_gives_the_same_map(
+    trained: &Trained,
+    exported_s: &str,
+    map: &FloatImage,
+) {
+    let pred_weights = trained.dir.join("pred-weights");
     let pred_weights_s = pred_weights.display().to_string();
-    let mut args = vec!["predict", "--manifest", &manifest, "--pair", "1:0"];
-    args.extend(weights_source);
+    let mut args = vec!["predict", "--manifest", &trained.manifest, "--pair", "1:0"];
+    args.extend(weights_source(exported_s));
     args.extend(["--out", &pred_weights_s]);
     let output = run(&args);
     assert!(output.status.success(), "{}", text(&output));
@@ -278,19 +361,23 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
         mbs_core::formats::pfm::read_pfm_grey(&pred_weights.join("Town10/ClearNoon/000000.pfm"))
             .unwrap();
     assert_eq!(same.as_raw(), map.as_raw());
+}
 
-    // extrapolate takes the same sources: with the run's teacher, and with
-    // the exported weights, the right view's disparity is predict's map.
+/// `extrapolate` takes the same sources: with the run's teacher, and with
+/// the exported weights, the right view's disparity is predict's `map`.
+fn extrapolate_takes_the_same_sources(trained: &Trained, exported_s: &str, map: &FloatImage) {
     let view = |k: usize| {
-        dir.path()
+        trained
+            .dir
             .join(format!("data/Town10/ClearNoon/000000/rgb_{k}.png"))
             .display()
             .to_string()
     };
     let (left, right) = (view(0), view(1));
-    let sources: [&[&str]; 2] = [&["--checkpoint", &out_s], &weights_source];
+    let weights = weights_source(exported_s);
+    let sources: [&[&str]; 2] = [&["--checkpoint", &trained.out_s], &weights];
     for (i, source) in sources.iter().enumerate() {
-        let extrapolated = dir.path().join(format!("extrapolated-{i}"));
+        let extrapolated = trained.dir.join(format!("extrapolated-{i}"));
         let mut args = vec![
             "extrapolate",
             "--left",
@@ -307,14 +394,24 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
             mbs_core::formats::pfm::read_pfm_grey(&extrapolated.join("disparity_3.pfm")).unwrap();
         assert_eq!(right_disparity.as_raw(), map.as_raw(), "{source:?}");
     }
+}
 
-    // train --init (the run, or its export) starts a new run from the
-    // teacher: its step-0 validation is the first run's last one.
-    for (name, init) in [("ft-run", &out_s), ("ft-file", &exported_s)] {
-        let ft = dir.path().join(name);
+/// `train --init` (the run, or its export) starts a new run from the
+/// teacher: its step-0 validation is the first run's last one,
+/// `validated_epe`.
+fn train_init_starts_from_the_teacher(trained: &Trained, exported_s: &str, validated_epe: f64) {
+    for (name, init) in [("ft-run", trained.out_s.as_str()), ("ft-file", exported_s)] {
+        let ft = trained.dir.join(name);
         let ft_s = ft.display().to_string();
         let mut args = vec![
-            "train", &manifest, "--out", &ft_s, "--init", init, "--steps", "2",
+            "train",
+            &trained.manifest,
+            "--out",
+            &ft_s,
+            "--init",
+            init,
+            "--steps",
+            "2",
         ];
         args.extend(SMALL);
         let output = run(&args);
@@ -332,15 +429,19 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
             "{name}: {epe} vs {validated_epe}"
         );
     }
-    // Weights of another network are refused, naming the file and the keys.
-    let mismatch = dir.path().join("mismatch");
+}
+
+/// Weights of another network are refused by `train --init`, naming the
+/// file and the keys.
+fn weights_of_another_network_are_refused(trained: &Trained, exported_s: &str) {
+    let mismatch = trained.dir.join("mismatch");
     let mut args = vec![
         "train",
-        &manifest,
+        &trained.manifest,
         "--out",
         mismatch.to_str().unwrap(),
         "--init",
-        &exported_s,
+        exported_s,
         "--backbone",
         "raft-stereo",
         "--steps",
@@ -355,26 +456,27 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
         "{stderr}"
     );
     assert!(stderr.contains("keys missing: cnet."), "{stderr}");
+}
 
-    // Weights holding a NaN are refused, naming the tensor, by every
-    // command that reads them; nothing is predicted or trained.
-    let poisoned = dir.path().join("poisoned.safetensors");
-    let mut dict = mbs_nets::official::StateDict::read(&exported).unwrap();
+/// Weights holding a NaN (the `exported` teacher with one value changed)
+/// are refused, naming the tensor, by every command that reads them;
+/// nothing is predicted or trained.
+fn weights_holding_a_nan_are_refused(trained: &Trained, exported: &Path) {
+    let poisoned = trained.dir.join("poisoned.safetensors");
+    let mut dict = mbs_nets::official::StateDict::read(exported).unwrap();
     let (key, tensor) = dict.tensors.iter_mut().nth(3).unwrap();
     let key = key.clone();
     tensor.values[0] = f32::NAN;
     dict.write_safetensors(&poisoned, &[]).unwrap();
     let poisoned_s = poisoned.display().to_string();
-    let pred_poisoned = dir.path().join("pred-poisoned");
-    let mut args = vec!["predict", "--manifest", &manifest, "--pair", "1:0"];
-    args.extend(weights_source);
-    let at = args.iter().position(|a| *a == exported_s).unwrap();
-    args[at] = &poisoned_s;
+    let pred_poisoned = trained.dir.join("pred-poisoned");
+    let mut args = vec!["predict", "--manifest", &trained.manifest, "--pair", "1:0"];
+    args.extend(weights_source(&poisoned_s));
     args.extend(["--out", pred_poisoned.to_str().unwrap()]);
-    let refused_init = dir.path().join("poisoned-run");
+    let refused_init = trained.dir.join("poisoned-run");
     let mut init_args = vec![
         "train",
-        &manifest,
+        &trained.manifest,
         "--out",
         refused_init.to_str().unwrap(),
         "--init",
@@ -425,24 +527,40 @@ fn ctrl_c_saves_a_checkpoint_and_the_same_command_resumes() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
     let args = small_run(dir.path(), &out, ["400", "1000"], &["--set", "log_every=1"]);
-    let out_s = &args[3];
-    let child = mbs_tool()
-        .args(&args)
+    let state_file = ctrl_c_saves_a_checkpoint(&args, &out);
+    let stopped = checkpoint_with_an_older_default(&state_file);
+    changed_settings_are_refused(&args);
+    let lines_before = the_same_command_resumes(&args, &out, stopped);
+    tensorboard_shows_each_step_once(&args, &out, lines_before);
+}
+
+/// Starts the training command `args` with its stderr sent to `stderr`.
+fn spawn_training(args: &[String], stderr: Stdio) -> Child {
+    mbs_tool()
+        .args(args)
         .stdout(Stdio::null())
-        .stderr(Stdio::piped())
+        .stderr(stderr)
         .spawn()
-        .unwrap();
-    // Wait for a few logged steps, then interrupt as Ctrl-C does.
+        .unwrap()
+}
+
+/// Waits until the log of the run in `out` holds `count` complete lines
+/// (while a run writes its log, only its complete lines are read), failing
+/// with `message` after two minutes.
+fn wait_for_logged_lines(out: &Path, count: usize, message: &str) {
     let start = Instant::now();
-    // While a run writes its log, only its complete lines are read.
-    let logged = || complete_lines(&out.join("train.jsonl")).len();
-    while logged() < 3 {
-        assert!(
-            start.elapsed() < Duration::from_secs(120),
-            "no training progress"
-        );
+    while complete_lines(&out.join("train.jsonl")).len() < count {
+        assert!(start.elapsed() < Duration::from_secs(120), "{message}");
         std::thread::sleep(Duration::from_millis(50));
     }
+}
+
+/// Runs `args`, waits for a few logged steps, then interrupts it as Ctrl-C
+/// does: it fails, saying it saved a checkpoint; returns that checkpoint's
+/// state file.
+fn ctrl_c_saves_a_checkpoint(args: &[String], out: &Path) -> PathBuf {
+    let child = spawn_training(args, Stdio::piped());
+    wait_for_logged_lines(out, 3, "no training progress");
     let kill = std::process::Command::new("kill")
         .args(["-INT", &child.id().to_string()])
         .status()
@@ -452,21 +570,30 @@ fn ctrl_c_saves_a_checkpoint_and_the_same_command_resumes() {
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(!output.status.success(), "{stderr}");
     assert!(stderr.contains("a checkpoint is saved"), "{stderr}");
-    let state_file = std::fs::read_dir(out.join("checkpoints"))
+    std::fs::read_dir(out.join("checkpoints"))
         .unwrap()
         .map(|e| e.unwrap().path())
         .find(|p| !p.to_string_lossy().ends_with(".partial"))
         .unwrap()
-        .join("state.json");
+        .join("state.json")
+}
+
+/// Checks the step the checkpoint at `state_file` stopped at and returns
+/// it, then rewrites the checkpoint as if it came from a version whose
+/// default omega was 3.
+fn checkpoint_with_an_older_default(state_file: &Path) -> u64 {
     let mut state: Value =
-        serde_json::from_str(&std::fs::read_to_string(&state_file).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(state_file).unwrap()).unwrap();
     let stopped = state["steps"].as_u64().unwrap();
     assert!((3..400).contains(&stopped), "{stopped}");
-    // As if the checkpoint came from a version whose default omega was 3:
-    // the same command resumes it with its own value, and one that sets
-    // today's value is refused.
     state["config"]["trainer"]["loss"]["omega"] = 3.0.into();
-    std::fs::write(&state_file, state.to_string()).unwrap();
+    std::fs::write(state_file, state.to_string()).unwrap();
+    stopped
+}
+
+/// The command `args` that also sets today's omega is refused, and so is
+/// one with fewer total steps: the schedule would change.
+fn changed_settings_are_refused(args: &[String]) {
     let mut explicit: Vec<&str> = args.iter().map(String::as_str).collect();
     explicit.extend(["--set", "trainer.loss.omega=2"]);
     let refused = run(&explicit);
@@ -476,9 +603,6 @@ fn ctrl_c_saves_a_checkpoint_and_the_same_command_resumes() {
         "{}",
         text(&refused)
     );
-
-    // The same command resumes at that step (here with fewer total steps
-    // refused: the schedule would change).
     let mut shorter: Vec<&str> = args.iter().map(String::as_str).collect();
     shorter[5] = "300";
     let refused = run(&shorter);
@@ -488,23 +612,18 @@ fn ctrl_c_saves_a_checkpoint_and_the_same_command_resumes() {
         "{}",
         text(&refused)
     );
-    let mut resumed = mbs_tool()
-        .args(&args)
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while logged() <= stopped as usize + 1 {
-        assert!(
-            start.elapsed() < Duration::from_secs(120),
-            "no progress after resuming"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    }
+}
+
+/// The same command `args` resumes at the step it `stopped` at, with the
+/// checkpoint's own omega, and logs the steps after it; it is killed (-9)
+/// past its checkpoint. Returns how many lines the log then holds.
+fn the_same_command_resumes(args: &[String], out: &Path, stopped: u64) -> usize {
+    let mut resumed = spawn_training(args, Stdio::piped());
+    wait_for_logged_lines(out, stopped as usize + 2, "no progress after resuming");
     resumed.kill().unwrap();
     let output = resumed.wait_with_output().unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);
+    let out_s = &args[3];
     assert!(
         stderr.contains(&format!("resuming {out_s} at step {stopped} of 400")),
         "{stderr}"
@@ -524,21 +643,16 @@ fn ctrl_c_saves_a_checkpoint_and_the_same_command_resumes() {
         steps[..stopped as usize + 1],
         (1..=stopped + 1).collect::<Vec<_>>()[..]
     );
+    steps.len()
+}
 
-    // That session was killed (-9) past its checkpoint; a third session
-    // logs those steps again, and TensorBoard, which drops what earlier
-    // files logged from a session's start on, shows each step once.
-    let mut third = mbs_tool()
-        .args(&args)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while logged() <= steps.len() + 2 {
-        assert!(start.elapsed() < Duration::from_secs(120), "no progress");
-        std::thread::sleep(Duration::from_millis(50));
-    }
+/// A third session of `args` logs again the steps the killed one logged
+/// past its checkpoint (the log held `lines_before` lines), and
+/// TensorBoard, which drops what earlier files logged from a session's
+/// start on, shows each step once.
+fn tensorboard_shows_each_step_once(args: &[String], out: &Path, lines_before: usize) {
+    let mut third = spawn_training(args, Stdio::null());
+    wait_for_logged_lines(out, lines_before + 3, "no progress");
     third.kill().unwrap();
     third.wait().unwrap();
     let mut files: Vec<_> = std::fs::read_dir(out.join("tensorboard"))

@@ -272,23 +272,32 @@ fn a_killed_rank_ends_every_rank_sigusr1_stops_them_and_the_same_command_resumes
     let out = dir.path().join("killed");
     // Long enough that SIGUSR1 (below) lands before the end.
     let steps = 150;
+    a_killed_rank_ends_every_rank(&manifest, &out, steps);
+    let newest = newest_checkpoint(&out, steps);
+    let last_logged = sigusr1_stops_every_rank_at_a_checkpoint(&manifest, &out, steps, newest);
+    the_same_command_resumes_and_logs_each_step_once(&manifest, &out, steps, last_logged);
+}
+
+/// Trains `steps` into `out` on 2 ranks and kills one (-9) once the step-4
+/// checkpoint is written: the job ends within [`KILL_BOUND`], reports the
+/// failure, and leaves no rank.
+fn a_killed_rank_ends_every_rank(manifest: &str, out: &Path, steps: usize) {
     let mut job = common::mpirun(2, &out.with_extension("ompi"))
         .arg(env!("CARGO_BIN_EXE_mbs-tool"))
-        .args(train_args(&manifest, &out, steps))
+        .args(train_args(manifest, out, steps))
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .expect("mpirun starts (tools/test.sh installs Open MPI)");
     let start = Instant::now();
-    let checkpoints = out.join("checkpoints");
-    while !checkpoints.join("step-0000004").exists() {
+    while !out.join("checkpoints/step-0000004").exists() {
         assert!(
             start.elapsed() < Duration::from_secs(120),
             "no checkpoint after 2 minutes"
         );
         std::thread::sleep(Duration::from_millis(20));
     }
-    let ranks: Vec<u32> = processes_writing(&out)
+    let ranks: Vec<u32> = processes_writing(out)
         .into_iter()
         .filter(|pid| *pid != job.id())
         .collect();
@@ -303,11 +312,13 @@ fn a_killed_rank_ends_every_rank_sigusr1_stops_them_and_the_same_command_resumes
     let ended_in = killed_at.elapsed();
     println!("every rank ended {ended_in:?} after one was killed");
     assert!(!status.success(), "the job reports the failure");
-    assert!(processes_writing(&out).is_empty(), "no rank is left");
+    assert!(processes_writing(out).is_empty(), "no rank is left");
+}
 
-    // The newest checkpoint is whole: the same command resumes from it
-    // and finishes.
-    let saved: Vec<usize> = std::fs::read_dir(&checkpoints)
+/// The step of the newest checkpoint of the run in `out`, saved before the
+/// end (`steps`).
+fn newest_checkpoint(out: &Path, steps: usize) -> usize {
+    let saved: Vec<usize> = std::fs::read_dir(out.join("checkpoints"))
         .expect("checkpoints")
         .filter_map(|e| {
             let name = e.ok()?.file_name().to_string_lossy().to_string();
@@ -316,26 +327,35 @@ fn a_killed_rank_ends_every_rank_sigusr1_stops_them_and_the_same_command_resumes
         .collect();
     let newest = *saved.iter().max().expect("a checkpoint");
     assert!(newest < steps, "killed before the end: {saved:?}");
+    newest
+}
 
-    // SIGUSR1 to mpirun, which forwards it to every rank at once: every
-    // rank stops at the same step, rank 0 saves a checkpoint there, the job
-    // fails. (Ctrl-C reaches the ranks as SIGTERM only after mpirun's
-    // `odls_base_sigkill_timeout`, 1 s, and SIGKILL a second later: the
-    // checkpoint then depends on how loaded the machine is.)
+/// Resumes the run in `out` (its `newest` checkpoint is whole) on 2 ranks
+/// and sends SIGUSR1 to mpirun, which forwards it to every rank at once:
+/// every rank stops at the same step, rank 0 saves a checkpoint there, the
+/// job fails. Returns that step. (Ctrl-C reaches the ranks as SIGTERM only
+/// after mpirun's `odls_base_sigkill_timeout`, 1 s, and SIGKILL a second
+/// later: the checkpoint then depends on how loaded the machine is.)
+fn sigusr1_stops_every_rank_at_a_checkpoint(
+    manifest: &str,
+    out: &Path,
+    steps: usize,
+    newest: usize,
+) -> u64 {
     // The killed run may have logged steps past its newest checkpoint:
     // only a step past those was logged by the resumed ranks, whose
     // handlers are then installed (SIGUSR1 before that ends a process).
-    let logged_before = losses(&out).last().map_or(0, |(step, _)| *step);
+    let logged_before = losses(out).last().map_or(0, |(step, _)| *step);
     let resumed_from = logged_before.max(newest as u64 + 1);
     let mut job = common::mpirun(2, &out.with_extension("ompi"))
         .arg(env!("CARGO_BIN_EXE_mbs-tool"))
-        .args(train_args(&manifest, &out, steps))
+        .args(train_args(manifest, out, steps))
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
         .expect("mpirun starts");
     let resumed_at = Instant::now();
-    while losses(&out)
+    while losses(out)
         .last()
         .is_none_or(|(step, _)| *step <= resumed_from)
     {
@@ -352,22 +372,34 @@ fn a_killed_rank_ends_every_rank_sigusr1_stops_them_and_the_same_command_resumes
     assert!(signalled.success());
     let status = exit_within(&mut job, "after SIGUSR1");
     assert!(!status.success());
-    assert!(processes_writing(&out).is_empty(), "no rank is left");
-    let (last_logged, _) = *losses(&out).last().expect("logged");
+    assert!(processes_writing(out).is_empty(), "no rank is left");
+    let (last_logged, _) = *losses(out).last().expect("logged");
     assert!(last_logged < steps as u64, "stopped before the end");
     assert!(
-        checkpoints.join(format!("step-{last_logged:07}")).exists(),
+        out.join(format!("checkpoints/step-{last_logged:07}"))
+            .exists(),
         "a checkpoint at the step the ranks stopped at ({last_logged})"
     );
+    last_logged
+}
 
-    let output = train(2, &manifest, &out, steps);
+/// The same command resumes the run in `out` at the step the ranks
+/// stopped at, `last_logged`, and finishes, each of its `steps` logged
+/// once.
+fn the_same_command_resumes_and_logs_each_step_once(
+    manifest: &str,
+    out: &Path,
+    steps: usize,
+    last_logged: u64,
+) {
+    let output = train(2, manifest, out, steps);
     let stderr = String::from_utf8_lossy(&output.stderr);
     let resumed = format!(
         "resuming {} at step {last_logged} of {steps} on 2 processes",
         out.display()
     );
     assert!(stderr.contains(&resumed), "{stderr}");
-    let logged: Vec<u64> = losses(&out).iter().map(|(step, _)| *step).collect();
+    let logged: Vec<u64> = losses(out).iter().map(|(step, _)| *step).collect();
     assert_eq!(
         logged,
         (1..=steps as u64).collect::<Vec<_>>(),

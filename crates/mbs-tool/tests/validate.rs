@@ -73,8 +73,33 @@ fn every_kind_of_corruption_is_reported_for_its_sample() {
     let root = dir.path();
     synth(root, "5");
     let manifest_path = root.join("manifest.json");
+    let ids = corrupt_one_sample_per_kind(root, &manifest_path);
+    for deep in [false, true] {
+        each_corruption_is_reported_for_its_sample(&manifest_path, &ids, deep);
+    }
+    the_line_report_names_the_sample_and_the_file(&manifest_path, &ids);
+}
+
+/// What [`corrupt_one_sample_per_kind`] does to each sample (by index):
+/// the kind of problem `validate` reports for it and how the reported path
+/// ends. Sample 5 shares sample 4's id; sample 9 is untouched.
+const CORRUPTIONS: [(usize, &str, &str); 8] = [
+    (0, "missing_file", "rgb_3.png"),
+    (1, "truncated", "rgb_1.png"),
+    (2, "wrong_size", "rgb_2.png"),
+    (3, "wrong_pixel_type", "depth_0.png"),
+    (4, "duplicate_id", ""),
+    (6, "schema", "/samples/6/split"),
+    (7, "view_count", ""),
+    (8, "checksum_mismatch", "rgb_0.png"),
+];
+
+/// Corrupts the ten samples of the set in `root` (manifest at
+/// `manifest_path`) one kind each, as [`CORRUPTIONS`] lists; returns the
+/// samples' ids.
+fn corrupt_one_sample_per_kind(root: &Path, manifest_path: &Path) -> Vec<String> {
     let mut manifest: Value =
-        serde_json::from_str(&std::fs::read_to_string(&manifest_path).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(manifest_path).unwrap()).unwrap();
     let ids: Vec<String> = manifest["samples"]
         .as_array()
         .unwrap()
@@ -108,47 +133,43 @@ fn every_kind_of_corruption_is_reported_for_its_sample() {
     img.get_pixel_mut(3, 3).0[0] ^= 0xff;
     rgb::write_rgb_png(&view, &img).unwrap();
     std::fs::write(
-        &manifest_path,
+        manifest_path,
         serde_json::to_string_pretty(&manifest).unwrap(),
     )
     .unwrap();
+    ids
+}
 
-    for deep in [false, true] {
-        let (ok, report) = validate_json(&manifest_path, deep);
-        assert!(!ok, "a corrupt dataset must fail");
-        let problems = report["problems"].as_array().unwrap();
-        let found = |sample: &str, kind: &str, path_end: &str| {
-            problems.iter().any(|p| {
-                p["sample"] == sample
-                    && p["kind"] == kind
-                    && p["path"].as_str().unwrap_or("").ends_with(path_end)
-            })
-        };
-        let expectations = [
-            (0, "missing_file", "rgb_3.png"),
-            (1, "truncated", "rgb_1.png"),
-            (2, "wrong_size", "rgb_2.png"),
-            (3, "wrong_pixel_type", "depth_0.png"),
-            (4, "duplicate_id", ""),
-            (6, "schema", "/samples/6/split"),
-            (7, "view_count", ""),
-            (8, "checksum_mismatch", "rgb_0.png"),
-        ];
-        for (i, kind, path) in expectations {
-            assert!(
-                found(&ids[i], kind, path),
-                "deep={deep}: no {kind} for {} in {problems:#?}",
-                ids[i]
-            );
-        }
-        // Nothing is reported for the untouched sample 9.
+/// `validate --json` (`--deep` if `deep`) of the corrupt set fails and
+/// reports each of [`CORRUPTIONS`] for its sample, and nothing for the
+/// untouched sample 9.
+fn each_corruption_is_reported_for_its_sample(manifest_path: &Path, ids: &[String], deep: bool) {
+    let (ok, report) = validate_json(manifest_path, deep);
+    assert!(!ok, "a corrupt dataset must fail");
+    let problems = report["problems"].as_array().unwrap();
+    let found = |sample: &str, kind: &str, path_end: &str| {
+        problems.iter().any(|p| {
+            p["sample"] == sample
+                && p["kind"] == kind
+                && p["path"].as_str().unwrap_or("").ends_with(path_end)
+        })
+    };
+    for (i, kind, path) in CORRUPTIONS {
         assert!(
-            !problems.iter().any(|p| p["sample"] == ids[9].as_str()),
-            "{problems:#?}"
+            found(&ids[i], kind, path),
+            "deep={deep}: no {kind} for {} in {problems:#?}",
+            ids[i]
         );
     }
+    assert!(
+        !problems.iter().any(|p| p["sample"] == ids[9].as_str()),
+        "{problems:#?}"
+    );
+}
 
-    // The line report names the sample and the file, and the exit code is non-zero.
+/// The line report names the sample and the file, and the exit code is
+/// non-zero.
+fn the_line_report_names_the_sample_and_the_file(manifest_path: &Path, ids: &[String]) {
     let output = run(&["validate", manifest_path.to_str().unwrap()]);
     assert!(!output.status.success());
     let stdout = String::from_utf8_lossy(&output.stdout);

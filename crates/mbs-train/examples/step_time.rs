@@ -89,7 +89,26 @@ struct Args {
 impl Args {
     /// Parses `--name value` pairs (and the `--breakdown` switch).
     fn parse(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
-        let mut out = Args {
+        let mut out = Args::defaults();
+        while let Some(flag) = args.next() {
+            out.set(&flag, &mut args)?;
+        }
+        for (name, value) in [
+            ("--batch", out.batch),
+            ("--height", out.height),
+            ("--width", out.width),
+            ("--steps", out.steps),
+        ] {
+            if value == 0 {
+                return Err(format!("{name} must be at least 1"));
+            }
+        }
+        Ok(out)
+    }
+
+    /// The settings without flags, as [`USAGE`] lists them.
+    fn defaults() -> Self {
+        Args {
             backbone: BackboneKind::Compact,
             raft: RaftStereoConfig::new(),
             igev: IgevStereoConfig::new(),
@@ -105,81 +124,113 @@ impl Args {
             breakdown: false,
             precision: Precision::F32,
             device: "cpu".into(),
-        };
-        while let Some(flag) = args.next() {
-            if flag == "--help" || flag == "-h" {
-                return Err(USAGE.into());
-            }
-            if flag == "--breakdown" {
-                out.breakdown = true;
-                continue;
-            }
-            if flag == "--precision" {
-                let value = args.next().ok_or("--precision needs a value")?;
-                out.precision = serde_json::from_value(serde_json::Value::String(value.clone()))
-                    .map_err(|_| format!("--precision expects f32, bf16 or f16, got '{value}'"))?;
-                continue;
-            }
-            if flag == "--device" {
-                out.device = args.next().ok_or("--device needs a value")?;
-                continue;
-            }
-            if flag == "--backbone" {
-                let value = args.next().ok_or("--backbone needs a value")?;
-                out.backbone = value.parse().map_err(|e| format!("{e}"))?;
-                continue;
-            }
-            let shared = match flag.as_str() {
-                "--hidden-dim" => Some((&mut out.raft.hidden_dim, &mut out.igev.hidden_dim)),
-                "--gru-levels" => Some((&mut out.raft.gru_levels, &mut out.igev.gru_levels)),
-                "--train-iters" => Some((&mut out.raft.train_iters, &mut out.igev.train_iters)),
-                "--test-iters" => Some((&mut out.raft.test_iters, &mut out.igev.test_iters)),
-                _ => None,
-            };
-            if let Some((raft, igev)) = shared {
-                let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
-                *raft = value
-                    .parse()
-                    .map_err(|_| format!("{flag} expects an integer >= 0, got '{value}'"))?;
-                *igev = *raft;
-                continue;
-            }
-            let slot: &mut usize = match flag.as_str() {
-                "--batch" => &mut out.batch,
-                "--height" => &mut out.height,
-                "--width" => &mut out.width,
-                "--max-disparity" => &mut out.max_disparity,
-                "--steps" => &mut out.steps,
-                "--warmup" => &mut out.warmup,
-                "--features" => &mut out.features,
-                "--hidden" => &mut out.hidden,
-                "--n-downsample" => &mut out.raft.n_downsample,
-                "--seed" => {
-                    let value = args.next().ok_or("--seed needs a value")?;
-                    out.seed = value
-                        .parse()
-                        .map_err(|_| format!("--seed expects an integer >= 0, got '{value}'"))?;
-                    continue;
-                }
-                other => return Err(format!("unknown argument '{other}'\n{USAGE}")),
-            };
-            let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
-            *slot = value
-                .parse()
-                .map_err(|_| format!("{flag} expects an integer >= 0, got '{value}'"))?;
         }
-        for (name, value) in [
-            ("--batch", out.batch),
-            ("--height", out.height),
-            ("--width", out.width),
-            ("--steps", out.steps),
-        ] {
-            if value == 0 {
-                return Err(format!("{name} must be at least 1"));
-            }
-        }
-        Ok(out)
     }
+
+    /// Applies `flag`, taking its value from `args` where it has one;
+    /// `--help` gives [`USAGE`] as the error.
+    fn set(&mut self, flag: &str, args: &mut impl Iterator<Item = String>) -> Result<(), String> {
+        match flag {
+            "--help" | "-h" => return Err(USAGE.into()),
+            "--breakdown" => self.breakdown = true,
+            "--precision" => {
+                let value = value_of(flag, args)?;
+                self.precision = serde_json::from_value(serde_json::Value::String(value.clone()))
+                    .map_err(|_| {
+                    format!("--precision expects f32, bf16 or f16, got '{value}'")
+                })?;
+            }
+            "--device" => self.device = value_of(flag, args)?,
+            "--backbone" => {
+                self.backbone = value_of(flag, args)?.parse().map_err(|e| format!("{e}"))?;
+            }
+            "--seed" => self.seed = integer_of(flag, args)?,
+            _ => {
+                if let Some((raft, igev)) = self.official_slots(flag) {
+                    *raft = integer_of(flag, args)?;
+                    *igev = *raft;
+                } else {
+                    let slot = self.slot(flag)?;
+                    *slot = integer_of(flag, args)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The RAFT-Stereo and IGEV-Stereo settings that `flag` sets in both
+    /// networks, if it is one of those flags.
+    fn official_slots(&mut self, flag: &str) -> Option<(&mut usize, &mut usize)> {
+        match flag {
+            "--hidden-dim" => Some((&mut self.raft.hidden_dim, &mut self.igev.hidden_dim)),
+            "--gru-levels" => Some((&mut self.raft.gru_levels, &mut self.igev.gru_levels)),
+            "--train-iters" => Some((&mut self.raft.train_iters, &mut self.igev.train_iters)),
+            "--test-iters" => Some((&mut self.raft.test_iters, &mut self.igev.test_iters)),
+            _ => None,
+        }
+    }
+
+    /// The integer setting that `flag` sets, or an error naming an unknown
+    /// flag.
+    fn slot(&mut self, flag: &str) -> Result<&mut usize, String> {
+        Ok(match flag {
+            "--batch" => &mut self.batch,
+            "--height" => &mut self.height,
+            "--width" => &mut self.width,
+            "--max-disparity" => &mut self.max_disparity,
+            "--steps" => &mut self.steps,
+            "--warmup" => &mut self.warmup,
+            "--features" => &mut self.features,
+            "--hidden" => &mut self.hidden,
+            "--n-downsample" => &mut self.raft.n_downsample,
+            other => return Err(format!("unknown argument '{other}'\n{USAGE}")),
+        })
+    }
+
+    /// Refuses the settings `--breakdown` cannot take apart: it times f32
+    /// steps of the compact network on the CPU only.
+    fn check_breakdown(&self) -> Result<(), BoxError> {
+        if self.breakdown && self.backbone != BackboneKind::Compact {
+            return Err("--breakdown times the compact network only".into());
+        }
+        if self.breakdown && self.device != "cpu" {
+            return Err("--breakdown times CPU steps only".into());
+        }
+        if self.breakdown && self.precision != Precision::F32 {
+            return Err("--breakdown times f32 steps only".into());
+        }
+        Ok(())
+    }
+
+    /// The network the settings describe.
+    fn network(&self) -> NetworkConfig {
+        NetworkConfig::new()
+            .with_backbone(self.backbone)
+            .with_max_disparity(self.max_disparity)
+            .with_compact(
+                CostVolumeNetConfig::new()
+                    .with_features(self.features)
+                    .with_hidden(self.hidden),
+            )
+            .with_raft_stereo(self.raft.clone())
+            .with_igev(self.igev.clone())
+    }
+}
+
+/// The value after `flag`, taken from `args`.
+fn value_of(flag: &str, args: &mut impl Iterator<Item = String>) -> Result<String, String> {
+    args.next().ok_or_else(|| format!("{flag} needs a value"))
+}
+
+/// The integer after `flag`, taken from `args`.
+fn integer_of<T: std::str::FromStr>(
+    flag: &str,
+    args: &mut impl Iterator<Item = String>,
+) -> Result<T, String> {
+    let value = value_of(flag, args)?;
+    value
+        .parse()
+        .map_err(|_| format!("{flag} expects an integer >= 0, got '{value}'"))
 }
 
 /// Peak resident set size (`VmHWM`) in MiB, on Linux.
@@ -224,6 +275,15 @@ fn millis(start: Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3
 }
 
+/// The phases [`breakdown`] times, in the order a step runs them.
+const PHASES: [&str; 5] = [
+    "teacher_forward",
+    "student_forward",
+    "loss",
+    "backward",
+    "clip_adam_ema",
+];
+
 /// The step taken apart into its phases, as `S3Trainer::step` runs them;
 /// returns the mean milliseconds of each phase over `steps` steps.
 fn breakdown(
@@ -237,49 +297,11 @@ fn breakdown(
     let loss = S3Loss::new(config.loss.clone())?;
     let schedule = config.lr.init()?;
     let mut optimizer: ModuleOptimizer = config.optimizer.init();
-    let names = [
-        "teacher_forward",
-        "student_forward",
-        "loss",
-        "backward",
-        "clip_adam_ema",
-    ];
     let mut totals = [0.0f64; 5];
     for step in 0..steps {
-        let batch = batch.clone();
+        let total = timed_loss(&teacher, &student, &loss, batch.clone(), &mut totals)?;
         let start = Instant::now();
-        let teacher_disparity = predict(
-            &teacher,
-            batch.reference.clone(),
-            batch.teacher_target.clone(),
-            &batch.teacher_sides,
-        );
-        totals[0] += millis(start);
-        let start = Instant::now();
-        let student_disparity = predict(
-            &student,
-            batch.augmented_reference,
-            batch.augmented_target,
-            &batch.student_sides,
-        );
-        totals[1] += millis(start);
-        let start = Instant::now();
-        let out = loss.compute(LossInputs {
-            geometry_weight: 1.0,
-            reference: batch.reference,
-            student_target: batch.student_target,
-            teacher_target: batch.teacher_target,
-            student_disparity,
-            teacher_disparity,
-            student_sides: batch.student_sides,
-            teacher_sides: batch.teacher_sides,
-            ratios: batch.ratios,
-        })?;
-        // The step reads the loss back; so does this.
-        out.total.clone().into_data();
-        totals[2] += millis(start);
-        let start = Instant::now();
-        let mut grads = GradientsParams::from_grads(out.total.backward(), &student);
+        let mut grads = GradientsParams::from_grads(total.backward(), &student);
         totals[3] += millis(start);
         let start = Instant::now();
         clip_global_norm(&student, &mut grads, config.grad_clip_norm)?;
@@ -287,38 +309,67 @@ fn breakdown(
         teacher = ema_update(teacher, &student.valid(), config.ema_base)?;
         totals[4] += millis(start);
     }
-    Ok(names
+    Ok(PHASES
         .into_iter()
         .zip(totals)
         .map(|(name, total)| (name, total / steps as f64))
         .collect())
 }
 
+/// The first three phases of a step on `batch` (teacher forward, student
+/// forward, loss), each one's milliseconds added to its entry of
+/// `totals`; returns the loss's total.
+fn timed_loss(
+    teacher: &StereoNetwork,
+    student: &StereoNetwork,
+    loss: &S3Loss,
+    batch: StepBatch,
+    totals: &mut [f64; 5],
+) -> Result<Tensor<1>, BoxError> {
+    let start = Instant::now();
+    let teacher_disparity = predict(
+        teacher,
+        batch.reference.clone(),
+        batch.teacher_target.clone(),
+        &batch.teacher_sides,
+    );
+    totals[0] += millis(start);
+    let start = Instant::now();
+    let student_disparity = predict(
+        student,
+        batch.augmented_reference,
+        batch.augmented_target,
+        &batch.student_sides,
+    );
+    totals[1] += millis(start);
+    let start = Instant::now();
+    let out = loss.compute(LossInputs {
+        geometry_weight: 1.0,
+        reference: batch.reference,
+        student_target: batch.student_target,
+        teacher_target: batch.teacher_target,
+        student_disparity,
+        teacher_disparity,
+        student_sides: batch.student_sides,
+        teacher_sides: batch.teacher_sides,
+        ratios: batch.ratios,
+    })?;
+    // The step reads the loss back; so does this.
+    out.total.clone().into_data();
+    totals[2] += millis(start);
+    Ok(out.total)
+}
+
+/// Takes the warm-up steps, the timed ones and (with `--breakdown`) the
+/// ones taken apart; returns the JSON line to print.
 fn run(args: &Args) -> Result<String, BoxError> {
     let device = mbs_nets::device::open_device(&args.device)?;
     let train_device = device.clone().autodiff();
     // Seeds the weights and the random images.
     train_device.seed(args.seed);
     device.seed(args.seed);
-    if args.breakdown && args.backbone != BackboneKind::Compact {
-        return Err("--breakdown times the compact network only".into());
-    }
-    if args.breakdown && args.device != "cpu" {
-        return Err("--breakdown times CPU steps only".into());
-    }
-    if args.breakdown && args.precision != Precision::F32 {
-        return Err("--breakdown times f32 steps only".into());
-    }
-    let network = NetworkConfig::new()
-        .with_backbone(args.backbone)
-        .with_max_disparity(args.max_disparity)
-        .with_compact(
-            CostVolumeNetConfig::new()
-                .with_features(args.features)
-                .with_hidden(args.hidden),
-        )
-        .with_raft_stereo(args.raft.clone())
-        .with_igev(args.igev.clone());
+    args.check_breakdown()?;
+    let network = args.network();
     let total_steps = args.warmup + 2 * args.steps;
     let config = TrainerConfig::new(LossConfig::new(), OneCycleConfig::new(2e-4, total_steps))
         .with_precision(args.precision);
@@ -339,6 +390,18 @@ fn run(args: &Args) -> Result<String, BoxError> {
     } else {
         None
     };
+    json_line(args, ms_per_step, loss, parts)
+}
+
+/// The JSON line [`run`] prints: the settings, `ms_per_step`, the peak
+/// memory, the thread count, the last `loss` (`null` when not finite) and
+/// the breakdown's `parts`, if taken.
+fn json_line(
+    args: &Args,
+    ms_per_step: f64,
+    loss: f32,
+    parts: Option<Vec<(&'static str, f64)>>,
+) -> Result<String, BoxError> {
     let threads = std::env::var("RAYON_NUM_THREADS").unwrap_or_else(|_| "default".into());
     let rss = peak_rss_mib().map_or("null".to_string(), |mib| format!("{mib:.1}"));
     let loss = if loss.is_finite() {

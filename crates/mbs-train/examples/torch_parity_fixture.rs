@@ -28,7 +28,7 @@ use mbs_core::geometry::Side;
 use mbs_nets::test_util::{tensor4, values};
 use mbs_train::augment::{AugmentConfig, apply};
 use mbs_train::step::sequence_weights;
-use mbs_train::{LossConfig, LossInputs, S3Loss};
+use mbs_train::{LossConfig, LossInputs, LossOutput, S3Loss};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use safetensors::tensor::{Dtype, TensorView};
@@ -113,6 +113,9 @@ struct Case {
     predictions: usize,
 }
 
+/// The cases: each of [`configurations`] at geometry weight 1 with one
+/// prediction, then the default loss at half the geometry weight and over
+/// a sequence of three predictions.
 fn cases() -> Vec<Case> {
     let case = |name, config, geometry_weight, predictions| Case {
         name,
@@ -120,57 +123,54 @@ fn cases() -> Vec<Case> {
         geometry_weight,
         predictions,
     };
+    let mut cases: Vec<Case> = configurations()
+        .into_iter()
+        .map(|(name, config)| case(name, config, 1.0, 1))
+        .collect();
+    cases.push(case("half_geometry", LossConfig::new(), 0.5, 1));
+    cases.push(case("sequence", LossConfig::new(), 1.0, 3));
+    cases
+}
+
+/// The loss configurations compared, by case name: the default, the
+/// paper's, each part switched off and each other setting changed.
+fn configurations() -> Vec<(&'static str, LossConfig)> {
     let base = LossConfig::new;
     vec![
-        case("default", base(), 1.0, 1),
-        case(
+        ("default", base()),
+        (
             "paper",
             base()
                 .with_range_weight(0.0)
                 .with_out_of_view_invalid(false),
-            1.0,
-            1,
         ),
-        case("no_geometry", base().with_geometry(false), 1.0, 1),
-        case("no_photometric", base().with_photometric(false), 1.0, 1),
-        case("no_smoothness", base().with_smoothness(false), 1.0, 1),
-        case("no_threshold", base().with_threshold_filter(false), 1.0, 1),
-        case("no_auto_mask", base().with_auto_mask(false), 1.0, 1),
-        case(
+        ("no_geometry", base().with_geometry(false)),
+        ("no_photometric", base().with_photometric(false)),
+        ("no_smoothness", base().with_smoothness(false)),
+        ("no_threshold", base().with_threshold_filter(false)),
+        ("no_auto_mask", base().with_auto_mask(false)),
+        (
             "no_occlusion_enhancement",
             base().with_occlusion_enhancement(false),
-            1.0,
-            1,
         ),
-        case(
+        (
             "normalised_smoothness",
             base().with_normalise_smoothness(true),
-            1.0,
-            1,
         ),
-        case("capped", base().with_max_target_disparity(2.0), 1.0, 1),
-        case(
-            "scale_match",
-            base().with_geometry_scale_match(true),
-            1.0,
-            1,
-        ),
-        case(
+        ("capped", base().with_max_target_disparity(2.0)),
+        ("scale_match", base().with_geometry_scale_match(true)),
+        (
             "photometric_mask_mean",
             base().with_photometric_mask_mean(true),
-            1.0,
-            1,
         ),
-        case(
+        (
             "outside_mask_weight",
             base()
                 .with_outside_mask_weight(0.1)
                 .with_photometric_mask_mean(true),
-            1.0,
-            1,
         ),
-        case("view", base().with_view_weight(0.5), 1.0, 1),
-        case(
+        ("view", base().with_view_weight(0.5)),
+        (
             "other_weights",
             base()
                 .with_ssim_window(3)
@@ -180,11 +180,7 @@ fn cases() -> Vec<Case> {
                 .with_lambda_p(5.0)
                 .with_lambda_s_ratio(0.01)
                 .with_range_weight(0.5),
-            1.0,
-            1,
         ),
-        case("half_geometry", base(), 0.5, 1),
-        case("sequence", base(), 1.0, 3),
     ]
 }
 
@@ -222,40 +218,53 @@ impl Fixture {
     }
 }
 
+/// An input of every case: its name, values and shape.
+type Input = (&'static str, Vec<f32>, [usize; 4]);
+
+/// Shape of the images.
+const IMAGE_SHAPE: [usize; 4] = [BATCH, 3, HEIGHT, WIDTH];
+/// Shape of the disparities and the occlusion map.
+const MAP_SHAPE: [usize; 4] = [BATCH, 1, HEIGHT, WIDTH];
+
+/// The images and disparities every case reads: reference, targets,
+/// teacher disparity, then the student's predictions (the last ones are
+/// a case's).
+fn inputs() -> [Input; 7] {
+    let teacher_scale = RATIOS.map(|r| 1.0 / r);
+    [
+        ("reference", image([0.0; BATCH]), IMAGE_SHAPE),
+        ("student_target", image([1.0; BATCH]), IMAGE_SHAPE),
+        ("teacher_target", image(teacher_scale), IMAGE_SHAPE),
+        (
+            "teacher_disparity",
+            prediction(teacher_scale, 0.15, true),
+            MAP_SHAPE,
+        ),
+        (
+            "student_disparity_0",
+            prediction([0.8; BATCH], 0.6, false),
+            MAP_SHAPE,
+        ),
+        (
+            "student_disparity_1",
+            prediction([0.9; BATCH], 0.5, true),
+            MAP_SHAPE,
+        ),
+        (
+            "student_disparity_2",
+            prediction([1.0; BATCH], 0.4, true),
+            MAP_SHAPE,
+        ),
+    ]
+}
+
 fn main() -> Result<(), Box<dyn Error>> {
     let path: PathBuf = std::env::args()
         .nth(1)
         .ok_or("usage: s3_loss_fixture OUT.safetensors")?
         .into();
     let device = Device::flex().autodiff();
-    let image_shape = [BATCH, 3, HEIGHT, WIDTH];
-    let map_shape = [BATCH, 1, HEIGHT, WIDTH];
-    let teacher_scale = RATIOS.map(|r| 1.0 / r);
-    let inputs = [
-        ("reference", image([0.0; BATCH]), image_shape),
-        ("student_target", image([1.0; BATCH]), image_shape),
-        ("teacher_target", image(teacher_scale), image_shape),
-        (
-            "teacher_disparity",
-            prediction(teacher_scale, 0.15, true),
-            map_shape,
-        ),
-        (
-            "student_disparity_0",
-            prediction([0.8; BATCH], 0.6, false),
-            map_shape,
-        ),
-        (
-            "student_disparity_1",
-            prediction([0.9; BATCH], 0.5, true),
-            map_shape,
-        ),
-        (
-            "student_disparity_2",
-            prediction([1.0; BATCH], 0.4, true),
-            map_shape,
-        ),
-    ];
+    let inputs = inputs();
     let mut fixture = Fixture::default();
     for (name, data, shape) in &inputs {
         fixture.add(format!("inputs/{name}"), shape, data);
@@ -266,69 +275,97 @@ fn main() -> Result<(), Box<dyn Error>> {
         &[BATCH],
         &SIDES.map(|side| if side == Side::Right { 1.0 } else { -1.0 }),
     );
-    let tensor = |index: usize| {
-        let (_, data, shape) = &inputs[index];
-        tensor4(data, *shape, &device)
-    };
     let mut described = Vec::new();
     for case in cases() {
-        let predictions: Vec<Tensor<4>> = (0..case.predictions)
-            .map(|i| tensor(inputs.len() - case.predictions + i).require_grad())
-            .collect();
-        let weights = sequence_weights(predictions.len(), SEQUENCE_GAMMA, false);
-        let (last, earlier) = predictions.split_last().ok_or("a case has no prediction")?;
-        let loss = S3Loss::new(case.config.clone())?;
-        let out = loss.compute_sequence(
-            LossInputs {
-                reference: tensor(0),
-                student_target: tensor(1),
-                teacher_target: tensor(2),
-                student_disparity: last.clone(),
-                teacher_disparity: tensor(3),
-                student_sides: SIDES.to_vec(),
-                teacher_sides: SIDES.to_vec(),
-                ratios: RATIOS.to_vec(),
-                geometry_weight: case.geometry_weight,
-            },
-            earlier.iter().cloned().zip(weights).collect(),
-        )?;
-        let name = case.name;
-        let gradients = out.total.backward();
-        for (i, prediction) in predictions.iter().enumerate() {
-            let grad = prediction.grad(&gradients).ok_or("no gradient")?;
-            fixture.add_tensor(format!("{name}/grad_{i}"), grad);
-        }
-        let terms = out
-            .terms
-            .iter()
-            .map(|(term, value)| (term.name(), value.cloned()));
-        let scalars = std::iter::once(("total", Some(out.total))).chain(terms);
-        for (part, value) in scalars {
-            if let Some(value) = value {
-                fixture.add_tensor(format!("{name}/{part}"), value.detach().without_autodiff());
-            }
-        }
-        let maps = [
-            ("student_mask", out.student_mask),
-            ("teacher_mask", out.teacher_mask),
-            ("weight_map", out.weight_map),
-        ];
-        for (part, map) in maps {
-            if let Some(map) = map {
-                fixture.add_tensor(format!("{name}/{part}"), map.detach().without_autodiff());
-            }
-        }
-        described.push(serde_json::json!({
-            "name": name,
-            "config": serde_json::to_value(&case.config)?,
-            "geometry_weight": case.geometry_weight,
-            "predictions": case.predictions,
-            "sequence_gamma": SEQUENCE_GAMMA,
-        }));
+        described.push(add_case(&mut fixture, &case, &inputs, &device)?);
     }
     fixture
         .metadata
         .insert("cases".into(), serde_json::to_string(&described)?);
+    add_augmentation(&mut fixture, &inputs);
+    fixture.write(&path)?;
+    println!("{} cases -> {}", described.len(), path.display());
+    Ok(())
+}
+
+/// Computes `case`'s loss on `inputs` and adds the gradient of its total in
+/// each student prediction, its terms and its maps to `fixture`; returns
+/// the case's description for the metadata.
+fn add_case(
+    fixture: &mut Fixture,
+    case: &Case,
+    inputs: &[Input],
+    device: &Device,
+) -> Result<serde_json::Value, Box<dyn Error>> {
+    let tensor = |index: usize| {
+        let (_, data, shape) = &inputs[index];
+        tensor4(data, *shape, device)
+    };
+    let predictions: Vec<Tensor<4>> = (0..case.predictions)
+        .map(|i| tensor(inputs.len() - case.predictions + i).require_grad())
+        .collect();
+    let weights = sequence_weights(predictions.len(), SEQUENCE_GAMMA, false);
+    let (last, earlier) = predictions.split_last().ok_or("a case has no prediction")?;
+    let loss = S3Loss::new(case.config.clone())?;
+    let out = loss.compute_sequence(
+        LossInputs {
+            reference: tensor(0),
+            student_target: tensor(1),
+            teacher_target: tensor(2),
+            student_disparity: last.clone(),
+            teacher_disparity: tensor(3),
+            student_sides: SIDES.to_vec(),
+            teacher_sides: SIDES.to_vec(),
+            ratios: RATIOS.to_vec(),
+            geometry_weight: case.geometry_weight,
+        },
+        earlier.iter().cloned().zip(weights).collect(),
+    )?;
+    let name = case.name;
+    let gradients = out.total.backward();
+    for (i, prediction) in predictions.iter().enumerate() {
+        let grad = prediction.grad(&gradients).ok_or("no gradient")?;
+        fixture.add_tensor(format!("{name}/grad_{i}"), grad);
+    }
+    add_outputs(fixture, name, out);
+    Ok(serde_json::json!({
+        "name": name,
+        "config": serde_json::to_value(&case.config)?,
+        "geometry_weight": case.geometry_weight,
+        "predictions": case.predictions,
+        "sequence_gamma": SEQUENCE_GAMMA,
+    }))
+}
+
+/// Adds the total, each term that is on and each map there is of the
+/// case `name`'s loss output `out` to `fixture`.
+fn add_outputs(fixture: &mut Fixture, name: &str, out: LossOutput) {
+    let terms = out
+        .terms
+        .iter()
+        .map(|(term, value)| (term.name(), value.cloned()));
+    let scalars = std::iter::once(("total", Some(out.total))).chain(terms);
+    for (part, value) in scalars {
+        if let Some(value) = value {
+            fixture.add_tensor(format!("{name}/{part}"), value.detach().without_autodiff());
+        }
+    }
+    let maps = [
+        ("student_mask", out.student_mask),
+        ("teacher_mask", out.teacher_mask),
+        ("weight_map", out.weight_map),
+    ];
+    for (part, map) in maps {
+        if let Some(map) = map {
+            fixture.add_tensor(format!("{name}/{part}"), map.detach().without_autodiff());
+        }
+    }
+}
+
+/// Adds one batch's augmentation draws (seed 7, an occlusion in every
+/// item) and the pair they augment, `inputs`' reference and student
+/// target, to `fixture`.
+fn add_augmentation(fixture: &mut Fixture, inputs: &[Input]) {
     let plain = Device::flex();
     let augment = AugmentConfig {
         occlusion_probability: 1.0,
@@ -339,16 +376,13 @@ fn main() -> Result<(), Box<dyn Error>> {
     let draws = augment.draw(BATCH, HEIGHT, WIDTH, &mut ChaCha8Rng::seed_from_u64(7));
     let (reference, target) = apply(
         &draws,
-        tensor4(&inputs[0].1, image_shape, &plain),
-        tensor4(&inputs[1].1, image_shape, &plain),
+        tensor4(&inputs[0].1, IMAGE_SHAPE, &plain),
+        tensor4(&inputs[1].1, IMAGE_SHAPE, &plain),
     );
     fixture.add("augment/brightness".into(), &[BATCH], &draws.brightness);
     fixture.add("augment/contrast".into(), &[BATCH], &draws.contrast);
     fixture.add("augment/saturation".into(), &[BATCH], &draws.saturation);
-    fixture.add("augment/occlusion".into(), &map_shape, &draws.occlusion);
+    fixture.add("augment/occlusion".into(), &MAP_SHAPE, &draws.occlusion);
     fixture.add_tensor("augment/reference".into(), reference);
     fixture.add_tensor("augment/target".into(), target);
-    fixture.write(&path)?;
-    println!("{} cases -> {}", described.len(), path.display());
-    Ok(())
 }

@@ -32,31 +32,7 @@ fn small_raft_stereo_learns_where_the_papers_loss_collapses() {
     let dir = tempfile::tempdir().unwrap();
     let manifest = common::synthesise_like_the_cli(&dir.path().join("data"));
     let steps = 120;
-    let mut overrides: Vec<String> = vec![
-        "network.backbone=raft-stereo".into(),
-        "network.max_disparity=48".into(),
-        "network.raft_stereo.hidden_dim=24".into(),
-        "network.raft_stereo.gru_levels=2".into(),
-        "network.raft_stereo.n_downsample=3".into(),
-        "network.raft_stereo.train_iters=3".into(),
-        "network.raft_stereo.test_iters=6".into(),
-        format!("trainer.lr.total_steps={steps}"),
-        "trainer.lr.max_lr=0.0002".into(),
-        "trainer.ema_base=0.9".into(),
-        "data.batch_size=2".into(),
-        "data.crop_height=64".into(),
-        "data.crop_width=160".into(),
-        "augment.occlusion_min_side=10".into(),
-        "augment.occlusion_max_side=30".into(),
-        format!("val_every={steps}"),
-        format!("checkpoint_every={steps}"),
-        "log_every=20".into(),
-        "seed=21".into(),
-    ];
-    if let Ok(extra) = std::env::var("RAFT_TEST_SET") {
-        overrides.extend(extra.split(';').map(str::to_owned));
-    }
-    let config = RunConfig::layered(None, &overrides).unwrap();
+    let config = RunConfig::layered(None, &small_raft_stereo(steps)).unwrap();
     let out = dir.path().join("run");
     let (mut run, _) = TrainingRun::open(&manifest, &out, config).unwrap();
     let device = burn::tensor::Device::flex();
@@ -90,4 +66,35 @@ fn small_raft_stereo_learns_where_the_papers_loss_collapses() {
     assert!(last["student_mask"].as_f64().unwrap() > 0.1, "{last}");
     assert!(last["outside"].as_f64().unwrap() < 0.2, "{last}");
     assert!(log.iter().all(|line| line.get("warning").is_none()));
+}
+
+/// The settings of a small RAFT-Stereo run of `steps` (validated and saved
+/// at the end) with the defaults' loss, then `RAFT_TEST_SET`'s
+/// `;`-separated overrides when set.
+fn small_raft_stereo(steps: usize) -> Vec<String> {
+    let mut overrides: Vec<String> = vec![
+        "network.backbone=raft-stereo".into(),
+        "network.max_disparity=48".into(),
+        "network.raft_stereo.hidden_dim=24".into(),
+        "network.raft_stereo.gru_levels=2".into(),
+        "network.raft_stereo.n_downsample=3".into(),
+        "network.raft_stereo.train_iters=3".into(),
+        "network.raft_stereo.test_iters=6".into(),
+        format!("trainer.lr.total_steps={steps}"),
+        "trainer.lr.max_lr=0.0002".into(),
+        "trainer.ema_base=0.9".into(),
+        "data.batch_size=2".into(),
+        "data.crop_height=64".into(),
+        "data.crop_width=160".into(),
+        "augment.occlusion_min_side=10".into(),
+        "augment.occlusion_max_side=30".into(),
+        format!("val_every={steps}"),
+        format!("checkpoint_every={steps}"),
+        "log_every=20".into(),
+        "seed=21".into(),
+    ];
+    if let Ok(extra) = std::env::var("RAFT_TEST_SET") {
+        overrides.extend(extra.split(';').map(str::to_owned));
+    }
+    overrides
 }

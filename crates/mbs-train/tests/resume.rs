@@ -67,19 +67,35 @@ fn field(lines: &[Value], key: &str) -> Vec<f64> {
 fn a_stopped_and_resumed_run_matches_an_uninterrupted_one() {
     let dir = tempfile::tempdir().unwrap();
     let manifest = common::synthesise(&dir.path().join("data"), 1, 128, 64);
-    let never = AtomicBool::new(false);
-
     let straight = dir.path().join("straight");
-    let (mut run, start) = TrainingRun::open(&manifest, &straight, config(&[])).unwrap();
-    assert_eq!(start, Start::Fresh);
+    runs_to_the_end(&manifest, &straight, Start::Fresh);
+    let resumed = dir.path().join("resumed");
+    a_stopped_run_is_checkpointed(&manifest, &resumed);
+    a_change_of_the_computation_is_refused_by_name(&manifest, &resumed);
+    runs_to_the_end(&manifest, &resumed, Start::Resumed(3));
+    training_logs_match(&straight, &resumed);
+    validation_logs_match(&straight, &resumed);
+}
+
+/// Opens the run in `out` on `manifest`, which must start as `expected`
+/// (a resumed one with its steps taken), and trains it to the end.
+fn runs_to_the_end(manifest: &Path, out: &Path, expected: Start) {
+    let (mut run, start) = TrainingRun::open(manifest, out, config(&[])).unwrap();
+    assert_eq!(start, expected);
+    if let Start::Resumed(steps) = expected {
+        assert_eq!(run.steps_taken(), steps);
+    }
     assert!(matches!(
-        run.run(&mut Quiet, &never).unwrap(),
+        run.run(&mut Quiet, &AtomicBool::new(false)).unwrap(),
         End::Finished { .. }
     ));
+}
 
-    let resumed = dir.path().join("resumed");
+/// A run in `out` stopped after step 3, as Ctrl-C would, saves a whole
+/// checkpoint there.
+fn a_stopped_run_is_checkpointed(manifest: &Path, out: &Path) {
     let stop = AtomicBool::new(false);
-    let (mut run, _) = TrainingRun::open(&manifest, &resumed, config(&[])).unwrap();
+    let (mut run, _) = TrainingRun::open(manifest, out, config(&[])).unwrap();
     let end = run
         .run(
             &mut StopAfter {
@@ -90,14 +106,18 @@ fn a_stopped_and_resumed_run_matches_an_uninterrupted_one() {
         )
         .unwrap();
     assert_eq!(end, End::Stopped(3));
-    let checkpoint = Checkpoint::latest(&resumed).unwrap().unwrap();
+    let checkpoint = Checkpoint::latest(out).unwrap().unwrap();
     assert_eq!(checkpoint.state.steps, 3);
     assert_eq!(checkpoint.state.rng.next_step, 3);
     for file in ["student.bpk", "teacher.bpk", "optimizer.bpk", "state.json"] {
         assert!(checkpoint.dir.join(file).is_file(), "{file}");
     }
-    // A settings change that alters the computation is refused by name.
-    let refused = TrainingRun::open(&manifest, &resumed, config(&["trainer.loss.omega=3"]))
+}
+
+/// A settings change that alters the computation of the checkpointed run
+/// in `out` is refused by name.
+fn a_change_of_the_computation_is_refused_by_name(manifest: &Path, out: &Path) {
+    let refused = TrainingRun::open(manifest, out, config(&["trainer.loss.omega=3"]))
         .err()
         .unwrap()
         .to_string();
@@ -105,15 +125,11 @@ fn a_stopped_and_resumed_run_matches_an_uninterrupted_one() {
         refused.contains("trainer.loss.omega: 2.0 -> 3.0"),
         "{refused}"
     );
+}
 
-    let (mut run, start) = TrainingRun::open(&manifest, &resumed, config(&[])).unwrap();
-    assert_eq!(start, Start::Resumed(3));
-    assert_eq!(run.steps_taken(), 3);
-    assert!(matches!(
-        run.run(&mut Quiet, &never).unwrap(),
-        End::Finished { .. }
-    ));
-
+/// The `straight` and `resumed` runs logged the same steps with the same
+/// figures, and how long each step waited for data.
+fn training_logs_match(straight: &Path, resumed: &Path) {
     let (a, b) = (
         log(&straight.join("train.jsonl")),
         log(&resumed.join("train.jsonl")),
@@ -146,6 +162,11 @@ fn a_stopped_and_resumed_run_matches_an_uninterrupted_one() {
             );
         }
     }
+}
+
+/// The `straight` and `resumed` runs validated at the same steps with the
+/// same EPE.
+fn validation_logs_match(straight: &Path, resumed: &Path) {
     let (a, b) = (
         log(&straight.join("val.jsonl")),
         log(&resumed.join("val.jsonl")),
