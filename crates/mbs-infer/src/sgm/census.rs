@@ -34,25 +34,69 @@ pub fn census(gray: &[u8], width: usize, win_w: usize, win_h: usize) -> Vec<u32>
         }
     }
     let offsets = samples(win_w, win_h);
+    let arch = pulp::Arch::new();
     let mut out = vec![0u32; width * height];
-    out.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
-        let centre = &padded[(y + ry) * pw + rx..][..width];
-        // Eight comparisons per byte, in 16-lane u8 loops; byte `g` of a
+    out.par_chunks_mut(width)
+        .enumerate()
+        .for_each_init(Vec::new, |planes, (y, row)| {
+            arch.dispatch(CensusRow {
+                padded: &padded,
+                offsets: &offsets,
+                top_left: y * pw,
+                pw,
+                centre: (ry * pw + rx),
+                planes,
+                row,
+            });
+        });
+    out
+}
+
+/// The signatures of one row, run through [`pulp::Arch::dispatch`] so that
+/// its byte loops are compiled for AVX2 where the processor has it (32
+/// lanes instead of 16); the results are the same either way.
+struct CensusRow<'a> {
+    /// The edge-replicated image, `pw` pixels a row.
+    padded: &'a [u8],
+    offsets: &'a [(usize, usize)],
+    /// Where the row's window starts in `padded`.
+    top_left: usize,
+    pw: usize,
+    /// The centre's offset from the window's start.
+    centre: usize,
+    /// Scratch: one byte plane of the row per signature byte.
+    planes: &'a mut Vec<u8>,
+    row: &'a mut [u32],
+}
+
+impl pulp::WithSimd for CensusRow<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        let width = self.row.len();
+        let centre = &self.padded[self.top_left + self.centre..][..width];
+        // Eight comparisons per byte, in byte loops; byte `g` of a
         // signature holds offsets `8g..8g+8`.
-        let mut planes = vec![0u8; 4 * width];
-        for (group, plane) in offsets.chunks(8).zip(planes.chunks_exact_mut(width)) {
+        self.planes.clear();
+        self.planes.resize(4 * width, 0);
+        for (group, plane) in self
+            .offsets
+            .chunks(8)
+            .zip(self.planes.chunks_exact_mut(width))
+        {
             for &(dy, dx) in group {
-                let neighbour = &padded[(y + dy) * pw + dx..][..width];
+                let neighbour = &self.padded[self.top_left + dy * self.pw + dx..][..width];
                 for ((b, &n), &c) in plane.iter_mut().zip(neighbour).zip(centre) {
                     *b = (*b << 1) | u8::from(n < c);
                 }
             }
         }
-        for (x, o) in row.iter_mut().enumerate() {
-            *o = u32::from_le_bytes(std::array::from_fn(|g| planes[g * width + x]));
+        let [p0, p1, p2, p3] = [0, 1, 2, 3].map(|g| &self.planes[g * width..][..width]);
+        for (x, o) in self.row.iter_mut().enumerate() {
+            *o = u32::from_le_bytes([p0[x], p1[x], p2[x], p3[x]]);
         }
-    });
-    out
+    }
 }
 
 /// The right-view signatures as byte planes, each row reversed:
@@ -88,14 +132,19 @@ pub fn cost_row(left: &[u32], right_planes: &[u8], invalid: u8, out: &mut [u8]) 
         let n = num_disp.min(x + 1);
         let start = width - 1 - x;
         let (matched, beyond) = costs.split_at_mut(n);
-        matched.fill(0);
-        for (g, lb) in l.to_le_bytes().into_iter().enumerate() {
-            let right = &right_planes[g * width + start..][..n];
+        let [first, rest @ ..] = l.to_le_bytes();
+        // A byte's bit count vectorises at every x86-64 level: a nibble
+        // table lookup with AVX2 (and SSSE3), shifts and adds on the
+        // baseline; counting per byte also spares the packing of 32-bit
+        // counts into bytes. The first byte's counts are stored, the
+        // others' added.
+        let right = &right_planes[start..][..n];
+        for (c, &rb) in matched.iter_mut().zip(right) {
+            *c = (first ^ rb).count_ones() as u8;
+        }
+        for (g, lb) in rest.into_iter().enumerate() {
+            let right = &right_planes[(g + 1) * width + start..][..n];
             for (c, &rb) in matched.iter_mut().zip(right) {
-                // A byte's bit count vectorises at every x86-64 level: a
-                // nibble table lookup with AVX2 (and SSSE3), shifts and
-                // adds on the baseline; counting per byte also spares the
-                // packing of 32-bit counts into bytes.
                 *c += (lb ^ rb).count_ones() as u8;
             }
         }
