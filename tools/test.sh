@@ -13,15 +13,26 @@ export ORT_DYLIB_PATH
 # never skip, without them.
 bash tools/tests/setup-system.sh
 bash tools/setup-system.sh
+# The Python tests' packages from PyPI (python/pyproject.toml's `test`
+# extra; PyTorch and its CUDA libraries are about 4 GB of wheels) download
+# and install into .venv-test/ while the Rust tests build and run: the
+# network's minutes overlap the compiler's. An optimisation only: the
+# install of `./python[test]` below installs whatever this did not, and
+# reports any failure.
+[ -x .venv-test/bin/python ] || python3 -m venv .venv-test
+python_extra_log="$(mktemp)"
+.venv-test/bin/python tools/install-test-extra.py > "$python_extra_log" 2>&1 &
+python_extra=$!
+trap 'kill "$python_extra" 2>/dev/null || true; rm -f "$python_extra_log"' EXIT
 # With the `mpi` feature, so that the multi-process training tests
 # (crates/mbs-tool/tests/train_mpi.rs) run the binary that `mpirun` launches.
 cargo test --workspace --locked --features mbs-tool/mpi
+wait "$python_extra" || { cat "$python_extra_log"; echo "(the install below retries)"; }
 # The Python package (python/, pyo3 + maturin) built from this tree into a
 # virtual environment, .venv-test/, with its `test` extra from PyPI (numpy,
 # pytest, PyTorch for mbs.torch, mypy, ruff; python/pyproject.toml), then
 # its checks and its tests against the mbs-tool binary the Rust tests just
 # built. They fail, never skip, when a part is missing.
-[ -x .venv-test/bin/python ] || python3 -m venv .venv-test
 # Without pip's cache: PyTorch and its CUDA libraries are about 4 GB of
 # wheels that would otherwise stay on disk twice.
 .venv-test/bin/python -m pip install --quiet --disable-pip-version-check --no-cache-dir \
