@@ -2,6 +2,8 @@
 //! removal (holes are filled by `mbs_image::fill`). Maps are row-major `f32`
 //! slices with `+inf` for "no value".
 
+use rayon::prelude::*;
+
 /// Invalidates left disparities that the right-view disparity does not
 /// confirm: the left pixel `x` with disparity `d` lands on right pixel
 /// `x - d`; when the right disparity there (at the floor and at the ceiling
@@ -39,90 +41,130 @@ pub fn left_right_check(left: &mut [f32], right: &[f32], width: usize, max_diff:
 /// differ by at most `max_step` pixels of disparity, with fewer than
 /// `min_size` pixels, become invalid.
 ///
-/// The regions are labelled in one raster pass over a union-find forest of
+/// The regions are labelled in a raster pass over a union-find forest of
 /// the pixels (a flood fill's stack costs a push, a pop and a division per
-/// pixel), then counted and cleared in a second.
+/// pixel), one band of rows per thread, the bands then joined along their
+/// seams; a second pass counts the regions and a third clears the small
+/// ones.
 pub fn remove_speckles(map: &mut [f32], width: usize, min_size: usize, max_step: f32) {
     if min_size <= 1 || width == 0 {
         return;
     }
-    let (roots, sizes) = Regions::of(map, width, max_step).into_roots_and_sizes(map);
-    for (d, &root) in map.iter_mut().zip(&roots) {
-        if d.is_finite() && sizes[root as usize] < min_size as u32 {
-            *d = f32::INFINITY;
+    let bands = rayon::current_num_threads();
+    remove_speckles_in_bands(map, width, min_size, max_step, bands);
+}
+
+/// [`remove_speckles`] with the labelling split into `bands` bands of rows.
+fn remove_speckles_in_bands(
+    map: &mut [f32],
+    width: usize,
+    min_size: usize,
+    max_step: f32,
+    bands: usize,
+) {
+    let band = map.len().div_ceil(width).div_ceil(bands).max(1) * width;
+    let mut forest = Forest {
+        parent: vec![0; map.len()],
+        first: 0,
+    };
+    forest
+        .parent
+        .par_chunks_mut(band)
+        .zip(map.par_chunks(band))
+        .enumerate()
+        .for_each(|(b, (parent, rows))| {
+            let mut part = Forest {
+                parent,
+                first: b * band,
+            };
+            part.label(rows, width, max_step);
+        });
+    for seam in (band..map.len()).step_by(band) {
+        for i in seam..(seam + width).min(map.len()) {
+            if (map[i] - map[i - width]).abs() <= max_step {
+                forest.join(i, i - width);
+            }
         }
     }
+    let sizes = forest.roots_and_sizes(map);
+    map.par_iter_mut()
+        .zip(&forest.parent)
+        .for_each(|(d, &root)| {
+            if d.is_finite() && sizes[root as usize] < min_size as u32 {
+                *d = f32::INFINITY;
+            }
+        });
 }
 
-/// The speckle regions of a map as a union-find forest over its pixels:
-/// `parent[i] <= i` leads towards the root of `i`'s region, its first pixel
-/// in raster order.
-struct Regions {
-    parent: Vec<u32>,
+/// Speckle regions as a union-find forest over the pixels `first..` of a
+/// map: `parent[i - first] <= i` leads towards the root of pixel `i`'s
+/// region, its first pixel in raster order.
+struct Forest<P> {
+    parent: P,
+    first: usize,
 }
 
-impl Regions {
-    /// Joins every valid pixel of `map` to its valid left and upper
-    /// neighbours within `max_step`: a pixel joined to its left neighbour
-    /// takes its parent, and one joined to its upper neighbour merges the
-    /// two regions, unless the 2x2 block they close is joined all round
-    /// (then the left neighbour's merge already made it).
-    fn of(map: &[f32], width: usize, max_step: f32) -> Self {
-        let mut regions = Regions {
-            parent: Vec::with_capacity(map.len()),
-        };
+impl<P: AsMut<[u32]>> Forest<P> {
+    /// Labels `rows` (the map's pixels from `first` on): joins each valid
+    /// pixel to its valid left and upper neighbours within `max_step`. A
+    /// pixel joined to its left neighbour takes its parent, and one joined
+    /// to its upper neighbour merges the two regions, unless the 2x2 block
+    /// they close is joined all round (the left neighbour's merge made it).
+    fn label(&mut self, rows: &[f32], width: usize, max_step: f32) {
         // An invalid pixel (+inf) is never within the step of another.
         let near = |a: f32, b: f32| (a - b).abs() <= max_step;
-        for (y, row) in map.chunks(width).enumerate() {
-            let above = (y > 0).then(|| &map[(y - 1) * width..][..row.len()]);
+        for (y, row) in rows.chunks(width).enumerate() {
+            let above = (y > 0).then(|| &rows[(y - 1) * width..][..row.len()]);
             for (x, &d) in row.iter().enumerate() {
                 let i = y * width + x;
                 let left = x > 0 && near(d, row[x - 1]);
-                let parent = if left {
-                    regions.parent[i - 1]
+                let parent = self.parent.as_mut();
+                parent[i] = if left {
+                    parent[i - 1]
                 } else {
-                    i as u32
+                    (self.first + i) as u32
                 };
-                regions.parent.push(parent);
                 let Some(above) = above else { continue };
                 if near(d, above[x])
                     && !(left && near(above[x], above[x - 1]) && near(row[x - 1], above[x - 1]))
                 {
-                    regions.join(i, i - width);
+                    self.join(self.first + i, self.first + i - width);
                 }
             }
         }
-        regions
     }
 
     /// The root of pixel `i`'s region, halving the path on the way.
     fn root(&mut self, mut i: usize) -> usize {
-        while self.parent[i] as usize != i {
-            let up = self.parent[i] as usize;
-            self.parent[i] = self.parent[up];
+        let (parent, first) = (self.parent.as_mut(), self.first);
+        while parent[i - first] as usize != i {
+            let up = parent[i - first] as usize;
+            parent[i - first] = parent[up - first];
             i = up;
         }
         i
     }
 
-    /// Merges the regions of `a` and `b` under the earlier root.
+    /// Merges the regions of pixels `a` and `b` under the earlier root.
     fn join(&mut self, a: usize, b: usize) {
         let (ra, rb) = (self.root(a), self.root(b));
         let (keep, merged) = if ra < rb { (ra, rb) } else { (rb, ra) };
-        self.parent[merged] = keep as u32;
+        self.parent.as_mut()[merged - self.first] = keep as u32;
     }
 
-    /// Each pixel's root, and at each root the number of valid pixels of its
-    /// region, in one sweep: parents come before their children, so each
-    /// parent already holds its root when a child reads it.
-    fn into_roots_and_sizes(mut self, map: &[f32]) -> (Vec<u32>, Vec<u32>) {
+    /// Points every pixel of the whole map's forest at its root, and
+    /// returns at each root the number of valid pixels of its region, in
+    /// one sweep: parents come before their children, so each parent holds
+    /// its root when a child reads it.
+    fn roots_and_sizes(&mut self, map: &[f32]) -> Vec<u32> {
+        let parent = self.parent.as_mut();
         let mut sizes = vec![0u32; map.len()];
         for (i, d) in map.iter().enumerate() {
-            let root = self.parent[self.parent[i] as usize];
-            self.parent[i] = root;
+            let root = parent[parent[i] as usize];
+            parent[i] = root;
             sizes[root as usize] += u32::from(d.is_finite());
         }
-        (self.parent, sizes)
+        sizes
     }
 }
 
@@ -193,18 +235,22 @@ mod tests {
                     level => level as f32 + (next() % 3) as f32 * 0.25,
                 })
                 .collect();
-            let (mut fast, mut reference) = (map.clone(), map.clone());
-            remove_speckles(&mut fast, width, min_size, 1.0);
+            let mut reference = map.clone();
             flood_fill_reference(&mut reference, width, min_size, 1.0);
-            assert_eq!(
-                fast, reference,
-                "{width}x{height}, regions under {min_size}"
-            );
-            let removed = map.iter().zip(&fast).filter(|(a, b)| a != b).count();
+            let removed = map.iter().zip(&reference).filter(|(a, b)| a != b).count();
             assert!(
                 removed > 0 || width * height < 20,
                 "{width}x{height}: {removed}"
             );
+            // One band, and bands whose seams cut regions.
+            for bands in [1, 2, 3, 7] {
+                let mut fast = map.clone();
+                remove_speckles_in_bands(&mut fast, width, min_size, 1.0, bands);
+                assert_eq!(
+                    fast, reference,
+                    "{width}x{height} in {bands} bands, regions under {min_size}"
+                );
+            }
         }
     }
 
