@@ -39,12 +39,14 @@ use mbs_nets::official::StateDict;
 
 mod logs;
 mod open;
+mod placement;
 mod report;
 mod resume;
 mod steps;
 
 pub use logs::{TRAIN_LOG, VAL_LOG, read_log, validation_json};
 use logs::{open_log, write_line};
+pub use placement::Placement;
 use report::RunReport;
 pub use report::{LOSS_PLOT, TENSORBOARD_DIR, VAL_PLOT, VISUALS_DIR};
 pub use resume::computing_differences;
@@ -173,32 +175,34 @@ impl TrainingRun {
         out: &Path,
         config: RunConfig,
     ) -> Result<(Self, Start), TrainError> {
-        Self::open_on(manifest, out, config, vec![Device::flex()], None, None)
+        let placement = Placement::cpu(&config)?;
+        Self::open_on(manifest, out, config, placement, None)
     }
 
     /// Opens the run in `out` on the training data of `manifest`, training on
-    /// `devices` (data parallel when there are several, see
-    /// [`S3Trainer::step_parallel`]; the weights live on the first, and a
-    /// checkpoint resumes on any number of devices): resumes from the newest checkpoint there, or starts fresh,
-    /// from the weights of `init` when given (see [`initial_weights`]; a
-    /// resumed run ignores it). Resuming with a configuration that changes
-    /// what is computed is refused.
+    /// the devices of `placement` (checked with this `config`; data
+    /// parallel when there are several, see [`S3Trainer::step_parallel`];
+    /// the weights live on the first, and a checkpoint resumes on any
+    /// number of devices): resumes from the newest checkpoint there, or
+    /// starts fresh, from the weights of `init` when given (see
+    /// [`initial_weights`]; a resumed run ignores it). Resuming with a
+    /// configuration that changes what is computed is refused.
     ///
-    /// With `processes`, the run is one rank of a data-parallel run over
-    /// several processes (an MPI job, see [`S3Trainer::step_distributed`]),
-    /// each on one device: the ranks first [`agree`] on the settings, the
+    /// With the placement's processes, the run is one rank of a
+    /// data-parallel run over several processes (an MPI job, see
+    /// [`S3Trainer::step_distributed`]), each on one device: the ranks first [`agree`] on the settings, the
     /// manifest and the checkpoint they found (before any file is
     /// written), then rank 0 alone writes the run's files and validates.
     pub fn open_on(
         manifest: &Path,
         out: &Path,
         config: RunConfig,
-        devices: Vec<Device>,
+        placement: Placement,
         init: Option<&Path>,
-        processes: Option<Rc<dyn Collective>>,
     ) -> Result<(Self, Start), TrainError> {
         config.validate()?;
-        let device = open::check_placement(&config, &devices, processes.as_deref())?;
+        let Placement { devices, processes } = placement;
+        let device = devices[0].clone();
         let (samples, validation) = open::load_data(manifest, &config)?;
         let train_device = device.clone().autodiff();
         let latest = Checkpoint::latest(out)?;

@@ -1,5 +1,5 @@
-//! Opening a run, as named steps: where it trains (devices, processes),
-//! its data, the processes' agreement, its first weights, resuming from a
+//! Opening a run, as named steps (where it trains is checked before, in
+//! [`super::Placement`]): its data, the processes' agreement, its first weights, resuming from a
 //! checkpoint, and the output folder.
 
 use std::fs;
@@ -20,45 +20,9 @@ use crate::config::RunConfig;
 use crate::data::{TrainingSamples, ValidationSet};
 use crate::distributed::{Collective, agree};
 use crate::error::TrainError;
-use crate::precision::check_support;
 use crate::step::S3Trainer;
 use mbs_core::atomic::write_bytes_atomic;
 use mbs_nets::StereoNetwork;
-
-/// The device that holds the weights (the first of `devices`), once the
-/// placement is possible: one device per process of several, no more
-/// sharers than batch items, and the run's precision on every device.
-pub(super) fn check_placement(
-    config: &RunConfig,
-    devices: &[Device],
-    processes: Option<&dyn Collective>,
-) -> Result<Device, TrainError> {
-    let Some(device) = devices.first().cloned() else {
-        return Err(TrainError::Config("no device to train on".into()));
-    };
-    if let Some(processes) = processes.filter(|_| devices.len() > 1) {
-        return Err(TrainError::Distributed(format!(
-            "each of the {} processes trains on one device, not {}: give one device per \
-             process",
-            processes.size(),
-            devices.len()
-        )));
-    }
-    // What shares each batch: the processes, or this one's devices.
-    let (sharers, what) = match processes {
-        Some(processes) => (processes.size(), "processes"),
-        None => (devices.len(), "devices"),
-    };
-    if config.data.batch_size < sharers {
-        return Err(TrainError::Config(format!(
-            "data.batch_size {} is smaller than the {sharers} {what} that share it",
-            config.data.batch_size
-        )));
-    }
-    let named = devices.iter().map(|device| (format!("{device:?}"), device));
-    check_support(config.trainer.precision, named)?;
-    Ok(device)
-}
 
 /// The training samples of `manifest` (their files checked) and the
 /// held-out pairs validation scores.

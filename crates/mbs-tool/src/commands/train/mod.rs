@@ -10,7 +10,6 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Context, bail};
-use burn::tensor::Device;
 use clap::Parser;
 use mbs_nets::BackboneKind;
 use mbs_nets::checkpoint::CHECKPOINTS_DIR;
@@ -18,7 +17,9 @@ use mbs_nets::device::DeviceList;
 use mbs_train::checkpoint::Checkpoint;
 use mbs_train::distributed::{Collective, agree, all_succeeded};
 use mbs_train::precision::Precision;
-use mbs_train::run::{End, Quiet, Start, TrainingRun, computing_differences, run_identity};
+use mbs_train::run::{
+    End, Placement, Quiet, Start, TrainingRun, computing_differences, run_identity,
+};
 use mbs_train::{RunConfig, TrainError};
 
 use crate::cli::processes::ReportedByRankZero;
@@ -288,17 +289,11 @@ fn train(
     out: &Path,
     processes: Option<&Rc<dyn Collective>>,
 ) -> anyhow::Result<()> {
-    let devices = open_devices(args, &config, processes)?;
+    let placement = open_devices(args, &config, processes)?;
     crate::cli::require_file(manifest, "manifest")?;
     prepare_folder(args, &config, manifest, out, processes)?;
-    let (mut training, start) = TrainingRun::open_on(
-        manifest,
-        out,
-        config,
-        devices,
-        args.init.as_deref(),
-        processes.cloned(),
-    )?;
+    let init = args.init.as_deref();
+    let (mut training, start) = TrainingRun::open_on(manifest, out, config, placement, init)?;
     let writer = training.is_writer();
     let total = training.config().steps();
     if let Start::Resumed(steps) = start
@@ -335,14 +330,14 @@ fn train(
 }
 
 /// The devices `--device` names for this process (the rank's local GPU
-/// under MPI), opened before anything is removed or written (a bad name
-/// is an input error, on every rank alike), with the run's precision
-/// checked on each and its memory estimated.
+/// under MPI), opened and accepted for the run before anything is removed
+/// or written (a bad name is an input error, on every rank alike), with
+/// their memory estimated.
 fn open_devices(
     args: &Args,
     config: &RunConfig,
     processes: Option<&Rc<dyn Collective>>,
-) -> anyhow::Result<Vec<Device>> {
+) -> anyhow::Result<Placement> {
     let device_list = match processes {
         Some(processes) => args.device.of_process(processes.local_rank())?,
         None => args.device.clone(),
@@ -352,16 +347,19 @@ fn open_devices(
         let outcome = devices.as_ref().map(drop).map_err(|e| e.to_string());
         all_succeeded(processes.as_ref(), outcome)?;
     }
-    let devices = devices?;
     let names = device_list.names();
-    let labelled = names.iter().map(ToString::to_string).zip(&devices);
-    mbs_train::precision::check_support(config.trainer.precision, labelled)?;
+    let labelled = names
+        .iter()
+        .map(ToString::to_string)
+        .zip(devices?)
+        .collect();
+    let placement = Placement::check(config, labelled, processes.cloned())?;
     if let Some(warning) = mbs_train::memory::check(config, &names)?
         && processes.is_none_or(|p| p.rank() == 0)
     {
         eprintln!("warning: {warning}");
     }
-    Ok(devices)
+    Ok(placement)
 }
 
 /// Readies `out` (its checkpoints removed with `--restart`), once every
