@@ -44,7 +44,7 @@ pub fn census(gray: &[u8], width: usize, win_w: usize, win_h: usize) -> Vec<u32>
                 offsets: &offsets,
                 top_left: y * pw,
                 pw,
-                centre: (ry * pw + rx),
+                centre: ry * pw + rx,
                 planes,
                 row,
             });
@@ -58,14 +58,17 @@ pub fn census(gray: &[u8], width: usize, win_w: usize, win_h: usize) -> Vec<u32>
 struct CensusRow<'a> {
     /// The edge-replicated image, `pw` pixels a row.
     padded: &'a [u8],
+    /// The window offsets `(dy, dx)` sampled, eight to a signature byte.
     offsets: &'a [(usize, usize)],
     /// Where the row's window starts in `padded`.
     top_left: usize,
+    /// The padded width.
     pw: usize,
     /// The centre's offset from the window's start.
     centre: usize,
     /// Scratch: one byte plane of the row per signature byte.
     planes: &'a mut Vec<u8>,
+    /// The row's signatures.
     row: &'a mut [u32],
 }
 
