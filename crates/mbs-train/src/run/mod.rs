@@ -190,9 +190,10 @@ impl TrainingRun {
     ///
     /// With the placement's processes, the run is one rank of a
     /// data-parallel run over several processes (an MPI job, see
-    /// [`S3Trainer::step_distributed`]), each on one device: the ranks first [`agree`] on the settings, the
-    /// manifest and the checkpoint they found (before any file is
-    /// written), then rank 0 alone writes the run's files and validates.
+    /// [`S3Trainer::step_distributed`]), each on one device: the ranks
+    /// first [`agree`] on the settings, the manifest and the checkpoint
+    /// they found (before any file is written), then rank 0 alone writes
+    /// the run's files and validates.
     pub fn open_on(
         manifest: &Path,
         out: &Path,

@@ -1,6 +1,6 @@
 //! Opening a run, as named steps (where it trains is checked before, in
-//! [`super::Placement`]): its data, the processes' agreement, its first weights, resuming from a
-//! checkpoint, and the output folder.
+//! [`super::Placement`]): its data, the processes' agreement, its first
+//! weights, resuming from a checkpoint, and the output folder.
 
 use std::fs;
 use std::path::Path;
