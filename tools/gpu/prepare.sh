@@ -4,9 +4,15 @@
 # no Rust: at most 48 MiB with both builds, 32 MiB with one. Copy it there
 # and run `python3 run.py --out results` in it.
 #
-# Usage: tools/gpu/prepare.sh OUT [--official-raft DIR] [--official-igev DIR]
+# Usage: tools/gpu/prepare.sh OUT [--force] [--official-raft DIR] [--official-igev DIR]
 #            [--binary FILE] [--autotune-binary FILE | --no-autotune]
-#   OUT                    the folder to fill (made anew)
+#   OUT                    the folder to make; it must not exist (a file, a
+#                          folder, a link: anything there is refused) and its
+#                          parent folder must; relative to the current folder
+#   --force                replace OUT, once the new one is complete, when it
+#                          is a bundle this script made (it holds the marker
+#                          file .mbs-gpu-bundle); anything else at OUT is still
+#                          refused and left as it is
 #   --official-raft DIR    a clone of princeton-vl/RAFT-Stereo: its core/ is
 #                          copied (never committed here), for the official
 #                          step and predictions
@@ -17,43 +23,124 @@
 #   --autotune-binary FILE one built with --features cuda,autotune already
 #   --no-autotune          leave the autotune build out (run.py skips its phase)
 #
+# Relative paths are taken from the folder it is run in. Every argument is
+# checked before anything is built (exit 2, with a line naming the problem).
 # It builds `cargo build --release -p mbs-tool --features cuda` (offline:
 # no CUDA toolkit, no LLVM) and the same with `autotune` (burn picks each
 # kernel by timing the candidates on the GPU), compresses each with xz -9
 # (about 16 MiB), and adds run.py, official_predict.py, the PyTorch benchmarks (tools/bench),
-# a test pair (testdata/middlebury-baby2) and the official code; then it
-# prints the folder's size and fails when it is over the limit.
+# a test pair (testdata/middlebury-baby2), the official code and the marker
+# file .mbs-gpu-bundle; then it prints the folder's size and fails when it is
+# over the limit. The folder is filled under a fresh temporary name beside
+# OUT (.OUT.XXXXXX, made by mktemp) and renamed to OUT when complete; on
+# failure or interruption only that temporary folder is removed.
 set -euo pipefail
-cd "$(dirname "$0")/../.."
-usage() { sed -n '7,18p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2; }
-[ $# -ge 1 ] || usage
-out=$1
-shift
-raft="" igev="" binary="" tuned="" with_autotune=1
+unset CDPATH
+self=$(cd "$(dirname "$0")" && pwd -P)/$(basename "$0")
+root=$(cd "$(dirname "$self")/../.." && pwd -P)
+caller=$PWD
+marker=.mbs-gpu-bundle
+marker_line="mbs GPU check bundle, made by tools/gpu/prepare.sh"
+help() { sed -n '/^# Usage:/,/^#$/p' "$self" | sed -e '$d' -e 's/^# \{0,1\}//'; }
+# A usage error: the problem, the usage line, exit 2.
+usage() {
+    echo "prepare.sh: $*" >&2
+    help | sed -n '1,2p' >&2
+    echo "(tools/gpu/prepare.sh --help describes each argument)" >&2
+    exit 2
+}
+fail() { echo "prepare.sh: $*" >&2; exit 2; }
+# A path as the caller meant it: relative ones from the caller's folder,
+# trailing slashes dropped (OUT/ is OUT).
+absolute() {
+    local path=$1
+    case $path in /*) ;; *) path=$caller/$path ;; esac
+    while [ "${path%/}" != "$path" ] && [ "$path" != / ]; do path=${path%/}; done
+    printf '%s\n' "$path"
+}
+# Whether $1 is a folder this script made: a real folder (not a link) with
+# the marker file, whose first line is the marker's.
+own_bundle() {
+    [ -d "$1" ] && [ ! -L "$1" ] && [ -f "$1/$marker" ] && [ ! -L "$1/$marker" ] \
+        && [ "$(head -n 1 "$1/$marker" 2>/dev/null)" = "$marker_line" ]
+}
+# Refuses an OUT that is there, unless --force and it is our own bundle.
+check_out() {
+    if [ -e "$out" ] || [ -L "$out" ]; then
+        if [ "$force" = 0 ]; then
+            fail "$out already exists; choose another OUT, or remove it yourself (--force replaces only a bundle prepare.sh made)"
+        fi
+        if [ -L "$out" ]; then
+            fail "$out is a link, not a bundle prepare.sh made: --force does not replace it"
+        elif [ ! -d "$out" ]; then
+            fail "$out is not a folder, so not a bundle prepare.sh made: --force does not replace it"
+        elif ! own_bundle "$out"; then
+            fail "$out is not a bundle prepare.sh made (no $marker file in it): --force does not replace it"
+        fi
+    fi
+}
+
+out="" force=0 raft="" igev="" binary="" tuned="" with_autotune=1
 while [ $# -gt 0 ]; do
     case "$1" in
-        --official-raft) raft=${2:?--official-raft needs a folder}; shift 2 ;;
-        --official-igev) igev=${2:?--official-igev needs a folder}; shift 2 ;;
-        --binary) binary=${2:?--binary needs a file}; shift 2 ;;
-        --autotune-binary) tuned=${2:?--autotune-binary needs a file}; shift 2 ;;
+        --official-raft|--official-igev|--binary|--autotune-binary)
+            [ $# -ge 2 ] && [ -n "$2" ] || usage "$1 needs a value"
+            case "$1" in
+                --official-raft) raft=$(absolute "$2") ;;
+                --official-igev) igev=$(absolute "$2") ;;
+                --binary) binary=$(absolute "$2") ;;
+                --autotune-binary) tuned=$(absolute "$2") ;;
+            esac
+            shift 2 ;;
         --no-autotune) with_autotune=0; shift ;;
-        *) echo "prepare.sh: unknown argument '$1'" >&2; usage ;;
+        --force) force=1; shift ;;
+        -h|--help) help; exit 0 ;;
+        -*) usage "unknown argument '$1'" ;;
+        *)
+            [ -z "$out" ] || usage "one OUT only: '$out' and '$1'"
+            [ -n "$1" ] || usage "OUT is empty"
+            out=$(absolute "$1"); shift ;;
     esac
 done
+[ -n "$out" ] || usage "OUT is missing"
+[ "$out" != / ] || fail "OUT cannot be /"
+parent=$(dirname "$out")
+[ -d "$parent" ] || fail "$parent, the folder OUT $out would go in, does not exist"
+[ -w "$parent" ] || fail "$parent, the folder OUT $out would go in, is not writable"
+check_out
 if [ "$with_autotune" = 0 ] && [ -n "$tuned" ]; then
-    echo "prepare.sh: --autotune-binary and --no-autotune contradict each other" >&2
-    exit 2
+    fail "--autotune-binary and --no-autotune contradict each other"
 fi
-limit_mib=$((with_autotune ? 48 : 32))
+check_file() {
+    [ -z "$2" ] || [ -e "$2" ] || fail "$1 $2: no such file"
+    [ -z "$2" ] || [ -f "$2" ] || fail "$1 $2: not a regular file"
+    [ -z "$2" ] || [ -r "$2" ] || fail "$1 $2: not readable"
+}
+check_file --binary "$binary"
+check_file --autotune-binary "$tuned"
 for folder in "$raft" "$igev"; do
     if [ -n "$folder" ] && [ ! -d "$folder/core" ]; then
-        echo "prepare.sh: $folder has no core/ folder (the official code's)" >&2
-        exit 1
+        fail "$folder has no core/ folder (the official code's)"
     fi
 done
-# Each build is copied out of target/ before the next one replaces it.
+command -v xz >/dev/null || fail "xz is not installed (it compresses the binaries)"
+if { [ -z "$binary" ] || { [ "$with_autotune" = 1 ] && [ -z "$tuned" ]; }; } && ! command -v cargo >/dev/null; then
+    fail "cargo is not installed: build elsewhere and pass --binary (and --autotune-binary or --no-autotune)"
+fi
+[ -z "$igev" ] || command -v python3 >/dev/null || fail "python3 is needed to fetch timm for --official-igev"
+limit_mib=$((with_autotune ? 48 : 32))
+
+# Everything this script makes lies in these two temporary folders until
+# the end, and only they are removed on failure or interruption. The
+# partial one is beside OUT, so that the last step is a rename.
 builds=$(mktemp -d)
 trap 'rm -rf "$builds"' EXIT
+tmp=$(mktemp -d "$parent/.$(basename "$out").XXXXXX")
+trap 'rm -rf "$builds" "$tmp"' EXIT
+trap 'exit 130' INT
+trap 'exit 143' TERM
+cd "$root"
+# Each build is copied out of target/ before the next one replaces it.
 if [ -z "$binary" ]; then
     cargo build --release --locked -p mbs-tool --features cuda
     binary=$builds/mbs-tool
@@ -64,13 +151,10 @@ if [ "$with_autotune" = 1 ] && [ -z "$tuned" ]; then
     tuned=$builds/mbs-tool-autotune
     cp target/release/mbs-tool "$tuned"
 fi
-[ -f "$binary" ] || { echo "prepare.sh: --binary $binary: no such file" >&2; exit 1; }
-[ -z "$tuned" ] || [ -f "$tuned" ] || { echo "prepare.sh: --autotune-binary $tuned: no such file" >&2; exit 1; }
 
-# Made under a temporary name and renamed when complete.
-partial="$out.partial"
-rm -rf "$partial"
+partial=$tmp/bundle
 mkdir -p "$partial/bench" "$partial/data/pair"
+echo "$marker_line" > "$partial/$marker"
 echo "prepare.sh: compressing $binary ($(du -m "$binary" | cut -f1) MiB) with xz -9" >&2
 xz -9 -T0 -c "$binary" > "$partial/mbs-tool.xz"
 if [ -n "$tuned" ]; then
@@ -89,17 +173,24 @@ if [ -n "$igev" ]; then
     (cd "$igev" && find core -name '*.py' -print0 | xargs -0 tar -cf -) | tar -xf - -C "$partial/official/IGEV-Stereo"
     # timm 0.5.4 is pure Python: its wheel unpacked is importable (run.py
     # puts vendor/ on PYTHONPATH for the official step).
-    wheels=$(mktemp -d)
-    python3 -m pip download --quiet --no-deps --only-binary=:all: timm==0.5.4 -d "$wheels"
-    python3 -m zipfile -e "$wheels"/timm-0.5.4-*.whl "$partial/vendor"
-    rm -rf "$wheels"
+    mkdir "$tmp/wheels"
+    python3 -m pip download --quiet --no-deps --only-binary=:all: timm==0.5.4 -d "$tmp/wheels"
+    python3 -m zipfile -e "$tmp/wheels"/timm-0.5.4-*.whl "$partial/vendor"
 fi
 size_kib=$(du -sk "$partial" | cut -f1)
 if [ "$size_kib" -gt $((limit_mib * 1024)) ]; then
     echo "prepare.sh: the folder is $((size_kib / 1024)) MiB, over the ${limit_mib} MiB limit" >&2
-    rm -rf "$partial"
     exit 1
 fi
-rm -rf "$out"
-mv "$partial" "$out"
+# OUT again, as it may have changed during the build: a bundle of ours is
+# moved into the temporary folder (removed with it), anything else refused.
+check_out
+if [ -e "$out" ]; then
+    mv "$out" "$tmp/previous"
+fi
+if ! mv "$partial" "$out"; then
+    [ ! -e "$tmp/previous" ] || mv "$tmp/previous" "$out"
+    echo "prepare.sh: could not rename $partial to $out" >&2
+    exit 1
+fi
 echo "prepare.sh: $out is $((size_kib / 1024)) MiB ($size_kib KiB); on the GPU machine: cd $(basename "$out") && python3 run.py --out results"

@@ -39,10 +39,12 @@ PyTorch, and are recorded as not run without them.
 import argparse
 import glob
 import json
+import lzma
 import os
 import shutil
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -435,17 +437,89 @@ def table(results):
     return "\n".join(lines)
 
 
-def unpacked(name):
-    """The binary `name` beside this script, unpacked from `name.xz` when
-    only that is there; None when neither is."""
-    binary, packed = HERE / name, HERE / f"{name}.xz"
-    if not binary.is_file() and packed.is_file():
-        import lzma
+class UnpackError(Exception):
+    """An archive that cannot be unpacked, or a binary in the way."""
 
-        with lzma.open(packed) as source, open(binary, "wb") as target:
-            shutil.copyfileobj(source, target)
-        binary.chmod(0o755)
-    return binary if binary.is_file() else None
+
+def unpacked(name):
+    """The binary `name` beside this script; None when neither it nor
+    `name.xz` is there. With `name.xz` there, the binary is the archive's
+    complete unpack: made under a temporary name beside it, checked
+    (decompressed to the end with the archive's own checksum, not empty,
+    executable) and renamed, with a stamp (`.name.unpacked`) recording the
+    archive and the binary it gave. A binary without a matching stamp (an
+    older run.py's interrupted unpack, or an older archive's) is replaced
+    when it is a part of the archive's content or was unpacked by run.py,
+    kept when it is that content, and otherwise left alone (UnpackError)."""
+    binary, packed = HERE / name, HERE / f"{name}.xz"
+    if not packed.is_file():
+        return binary if binary.is_file() else None
+    stamp = HERE / f".{name}.unpacked"
+    try:
+        recorded = json.loads(stamp.read_text())
+    except (OSError, ValueError):
+        recorded = {}
+    if binary.is_file() and recorded == {"archive": identity(packed), "binary": identity(binary)}:
+        return binary
+    made_by_us = binary.is_file() and recorded.get("binary") == identity(binary)
+    descriptor, temporary = tempfile.mkstemp(dir=HERE, prefix=f".{name}.", suffix=".unpacking")
+    temporary = Path(temporary)
+    try:
+        try:
+            with os.fdopen(descriptor, "wb") as target, lzma.open(packed) as source:
+                shutil.copyfileobj(source, target, 1 << 20)
+                target.flush()
+                os.fsync(target.fileno())
+        except EOFError as error:
+            raise UnpackError(f"{packed}: truncated archive ({error})") from None
+        except lzma.LZMAError as error:
+            raise UnpackError(f"{packed}: corrupt archive ({error})") from None
+        except OSError as error:
+            raise UnpackError(f"{packed}: cannot unpack it beside itself ({error})") from None
+        if temporary.stat().st_size == 0:
+            raise UnpackError(f"{packed}: unpacks to an empty file")
+        temporary.chmod(0o755)
+        if binary.exists() or binary.is_symlink():
+            if not binary.is_file() or binary.is_symlink():
+                raise UnpackError(f"{binary} is in the way of unpacking {packed.name} and is not a file run.py "
+                                  "made: move it away, or pass --binary/--autotune-binary")
+            relation = compare(binary, temporary)
+            if relation == "same":
+                temporary.unlink()
+            elif relation == "part" or made_by_us:
+                os.replace(temporary, binary)
+            else:
+                raise UnpackError(f"{binary} is not {packed.name}'s content and run.py did not unpack it: move "
+                                  "it away, or pass --binary/--autotune-binary")
+        else:
+            os.replace(temporary, binary)
+        partial = stamp.with_name(f"{stamp.name}.partial")
+        partial.write_text(json.dumps({"archive": identity(packed), "binary": identity(binary)}) + "\n")
+        partial.replace(stamp)
+    except OSError as error:
+        raise UnpackError(f"{packed}: cannot unpack it beside itself ({error})") from None
+    finally:
+        if temporary.exists():
+            temporary.unlink()
+    return binary
+
+
+def identity(path):
+    """A file's size and modification time (nanoseconds)."""
+    status = path.stat()
+    return [status.st_size, status.st_mtime_ns]
+
+
+def compare(existing, complete):
+    """Whether `existing` has the same bytes as `complete` ("same"), is a
+    beginning of them ("part": an interrupted unpack), or neither ("other")."""
+    with open(existing, "rb") as a, open(complete, "rb") as b:
+        while True:
+            chunk = a.read(1 << 20)
+            if not chunk:
+                return "same" if not b.read(1) else "part"
+            if b.read(len(chunk)) != chunk:
+                return "other"
 
 
 def main():
@@ -460,10 +534,14 @@ def main():
     parser.add_argument("--small", action="store_true", help="small sizes (CI on the CPU)")
     parser.add_argument("--phases", help="comma-separated subset of: " + ", ".join(n for n, _, _ in PHASES))
     args = parser.parse_args()
-    args.binary = args.binary or unpacked("mbs-tool")
-    if args.binary is None or not args.binary.is_file():
-        parser.error(f"--binary {args.binary or HERE / 'mbs-tool'}: no such file")
-    args.autotune_binary = args.autotune_binary or unpacked("mbs-tool-autotune")
+    try:
+        args.binary = args.binary or unpacked("mbs-tool")
+        if args.binary is None or not args.binary.is_file():
+            parser.error(f"--binary {args.binary or HERE / 'mbs-tool'}: no such file")
+        args.autotune_binary = args.autotune_binary or unpacked("mbs-tool-autotune")
+    except UnpackError as error:
+        print(f"run.py: {error}", file=sys.stderr)
+        return 2
     if args.autotune_binary is not None and not args.autotune_binary.is_file():
         parser.error(f"--autotune-binary {args.autotune_binary}: no such file")
     args.binary = args.binary.resolve()
