@@ -17,14 +17,23 @@ use crate::error::{FormatError, Result};
 /// Suffix of in-progress files and folders.
 pub const PARTIAL_SUFFIX: &str = ".partial";
 
+/// The longest file name, in bytes, of the file systems mbs writes to.
+const MAX_FILE_NAME: usize = 255;
+
 /// A temporary name for `path`, unique to this process and call:
-/// `NAME.PID-N.partial`.
+/// `NAME.PID-N.partial`, with `NAME` shortened (at a character boundary)
+/// where the whole would pass the file systems' 255 bytes, so that any
+/// name a file system takes can be written.
 pub fn partial_path(path: &Path) -> PathBuf {
     static NEXT: AtomicU64 = AtomicU64::new(0);
     let n = NEXT.fetch_add(1, Ordering::Relaxed);
-    let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(format!(".{}-{n}{PARTIAL_SUFFIX}", std::process::id()));
-    path.with_file_name(name)
+    let tag = format!(".{}-{n}{PARTIAL_SUFFIX}", std::process::id());
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let mut keep = name.len().min(MAX_FILE_NAME - tag.len());
+    while !name.is_char_boundary(keep) {
+        keep -= 1;
+    }
+    path.with_file_name(format!("{}{tag}", &name[..keep]))
 }
 
 /// The process id a temporary name was made by, if `name` is one.
@@ -100,40 +109,13 @@ pub fn refuse_special_target(path: &Path) -> Result<()> {
     if kind.is_file() {
         return Ok(());
     }
-    let what = if kind.is_dir() {
-        "a folder"
-    } else {
-        special_file_kind(&kind)
-    };
     Err(FormatError::invalid(
         path,
         format!(
-            "exists and is {what}, not a regular file; refusing to replace it (give a file name)"
+            "exists and is {}, not a regular file; refusing to replace it (give a file name)",
+            crate::regular::describe(&kind)
         ),
     ))
-}
-
-/// What a file that is neither a regular file nor a folder is.
-#[cfg(unix)]
-fn special_file_kind(kind: &fs::FileType) -> &'static str {
-    use std::os::unix::fs::FileTypeExt;
-    if kind.is_char_device() {
-        "a character device"
-    } else if kind.is_block_device() {
-        "a block device"
-    } else if kind.is_fifo() {
-        "a FIFO (named pipe)"
-    } else if kind.is_socket() {
-        "a socket"
-    } else {
-        "a special file"
-    }
-}
-
-/// What a file that is neither a regular file nor a folder is.
-#[cfg(not(unix))]
-fn special_file_kind(_: &fs::FileType) -> &'static str {
-    "a special file"
 }
 
 /// Creates `path`'s folders, lets `fill` make the file at a fresh temporary
@@ -146,12 +128,84 @@ fn place_atomically(path: &Path, fill: impl FnOnce(&Path) -> std::io::Result<()>
     }
     let partial = partial_path(path);
     fill(&partial)
-        .and_then(|()| fs::rename(&partial, path))
-        .map_err(|e| {
+        .map_err(|e| FormatError::io(path, e))
+        .and_then(|()| publish(&partial, path))
+        .inspect_err(|_| {
             // Best effort: the partial file is garbage either way.
             let _ = fs::remove_file(&partial);
-            FormatError::io(path, e)
         })
+}
+
+/// Renames the finished `partial` to `path` without ever replacing a file
+/// that is not a regular file, even one made at `path` while `partial` was
+/// written (a check before a plain rename would leave that moment open).
+///
+/// On Linux: `renameat2` with `RENAME_NOREPLACE` when `path` is absent
+/// (the kernel refuses if something appeared); when something is there,
+/// `RENAME_EXCHANGE` swaps the two atomically and what came out is looked
+/// at under the temporary name: a regular file (or a link to one, or to
+/// nothing) is removed, anything else is swapped back and refused. A file
+/// system without these flags gets the check and a plain rename.
+fn publish(partial: &Path, path: &Path) -> Result<()> {
+    match publish_exclusively(partial, path) {
+        Some(result) => result,
+        None => {
+            refuse_special_target(path)?;
+            fs::rename(partial, path).map_err(|e| FormatError::io(path, e))
+        }
+    }
+}
+
+/// [`publish`] through `renameat2`; `None` where the file system or the
+/// kernel does not offer it.
+#[cfg(target_os = "linux")]
+fn publish_exclusively(partial: &Path, path: &Path) -> Option<Result<()>> {
+    use rustix::fs::{CWD, RenameFlags, renameat_with};
+    use rustix::io::Errno;
+    let unsupported = |e: Errno| e == Errno::INVAL || e == Errno::NOSYS || e == Errno::NOTSUP;
+    loop {
+        match renameat_with(CWD, partial, CWD, path, RenameFlags::NOREPLACE) {
+            Ok(()) => return Some(Ok(())),
+            Err(e) if unsupported(e) => return None,
+            Err(e) if e != Errno::EXIST => return Some(Err(FormatError::io(path, e.into()))),
+            Err(_) => {}
+        }
+        match renameat_with(CWD, partial, CWD, path, RenameFlags::EXCHANGE) {
+            Ok(()) => return Some(take_out_replaced(partial, path)),
+            // Removed between the two calls: try the first again.
+            Err(Errno::NOENT) => {}
+            Err(e) if unsupported(e) => return None,
+            Err(e) => return Some(Err(FormatError::io(path, e.into()))),
+        }
+    }
+}
+
+/// After the exchange, `partial` holds what was at `path`: removed when
+/// it is a regular file (or a link to one, or to nothing); otherwise the
+/// two are swapped back and the write refused.
+#[cfg(target_os = "linux")]
+fn take_out_replaced(partial: &Path, path: &Path) -> Result<()> {
+    use rustix::fs::{CWD, RenameFlags, renameat_with};
+    match fs::metadata(partial) {
+        Ok(metadata) if !metadata.is_file() => {
+            renameat_with(CWD, partial, CWD, path, RenameFlags::EXCHANGE)
+                .map_err(|e| FormatError::io(path, e.into()))?;
+            Err(FormatError::invalid(
+                path,
+                format!(
+                    "is {}, not a regular file (it appeared while the output was written); \
+                     refusing to replace it",
+                    crate::regular::describe(&metadata.file_type())
+                ),
+            ))
+        }
+        _ => fs::remove_file(partial).map_err(|e| FormatError::io(partial, e)),
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn publish_exclusively(_: &Path, _: &Path) -> Option<Result<()>> {
+    None
 }
 /// Places a copy of `source` at `path` atomically: a hard link where the
 /// file system allows it (no space used), else a copy. Nothing is done when

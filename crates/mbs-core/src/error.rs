@@ -67,6 +67,17 @@ impl FormatError {
         }
     }
 
+    /// What is wrong, without the file's name (for errors that name the
+    /// file themselves).
+    pub fn reason(&self) -> String {
+        match self {
+            Self::Io { source, .. } => source.to_string(),
+            Self::Invalid { message, .. } => message.clone(),
+            Self::Image { source, .. } => source.to_string(),
+            Self::Exr { source, .. } => source.to_string(),
+        }
+    }
+
     /// The file this error is about.
     pub fn path(&self) -> &Path {
         match self {

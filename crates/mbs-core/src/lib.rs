@@ -13,9 +13,11 @@ pub mod confine;
 pub mod error;
 pub mod formats;
 pub mod geometry;
+pub mod inputs;
 pub mod layered;
 pub mod limits;
 pub mod metrics;
+pub mod regular;
 
 pub use error::{FormatError, Result};
 pub use geometry::{Rig, Side};

@@ -35,6 +35,18 @@ pub enum NocSource {
     Levels(PathBuf),
 }
 
+impl NocSource {
+    /// The file it is read from.
+    pub fn path(&self) -> &Path {
+        match self {
+            NocSource::Map(path)
+            | NocSource::Mask(path)
+            | NocSource::Occlusion(path)
+            | NocSource::Levels(path) => path,
+        }
+    }
+}
+
 /// A ground-truth disparity file with what it takes to read it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GroundTruthFile {

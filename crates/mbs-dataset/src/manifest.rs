@@ -194,10 +194,7 @@ impl Manifest {
     /// state (unique ids), so that every command reads the same model.
     /// On-disk checks are `validate`'s.
     pub fn load(path: &Path) -> Result<Manifest, DatasetError> {
-        let text = std::fs::read_to_string(path).map_err(|source| DatasetError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text = mbs_core::regular::read_text(path)?;
         let document: serde_json::Value = serde_json::from_str(&text)
             .map_err(|e| manifest_error(path, format!("not valid JSON: {e}")))?;
         Manifest::from_document(path, document)

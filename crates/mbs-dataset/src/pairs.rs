@@ -7,6 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use mbs_core::Side;
+use mbs_core::inputs::InputFiles;
 
 use crate::DatasetError;
 use crate::benchmark::Benchmark;
@@ -37,6 +38,36 @@ pub struct StereoPair {
     /// The dataset's bound on the pair's disparities, when it states one:
     /// they lie in `0..n` (Middlebury's and ETH3D's `calib.txt` `ndisp`).
     pub disparity_bound: Option<u32>,
+}
+
+impl StereoPair {
+    /// Every file the pair is read from: the views, the ground truth and
+    /// its mask, and the `calib.txt` beside the views that bounds the
+    /// disparities.
+    pub fn input_files(&self) -> Vec<PathBuf> {
+        let mut files = vec![self.reference.clone(), self.target.clone()];
+        if let Some(truth) = &self.truth {
+            files.push(truth.disparity.clone());
+            if let Some(noc) = &truth.noc {
+                files.push(noc.path().to_path_buf());
+            }
+        }
+        if self.disparity_bound.is_some() {
+            files.push(self.reference.with_file_name(crate::two_view::CALIBRATION));
+        }
+        files
+    }
+}
+
+/// Every input file of `pairs`, for refusing outputs that would replace one.
+pub fn input_files<'a>(pairs: impl IntoIterator<Item = &'a StereoPair>) -> InputFiles {
+    let mut inputs = InputFiles::new();
+    for pair in pairs {
+        for file in pair.input_files() {
+            inputs.add(&file);
+        }
+    }
+    inputs
 }
 
 /// Which frames of a KITTI folder are pairs.

@@ -48,11 +48,18 @@ const PNG_IEND: [u8; 12] = [0, 0, 0, 0, b'I', b'E', b'N', b'D', 0xAE, 0x42, 0x60
 /// Probes `path`. Fast mode reads the header and checks that the file is not
 /// truncated; `deep` decodes every pixel (and checks CRCs).
 pub fn probe(path: &Path, deep: bool) -> Result<ImageInfo, ProbeError> {
-    if path.is_dir() {
-        return Err(ProbeError::Corrupt("is a folder, expected a file".into()));
-    }
-    if !path.is_file() {
-        return Err(ProbeError::Missing);
+    match std::fs::metadata(path) {
+        Err(_) => return Err(ProbeError::Missing),
+        Ok(metadata) if metadata.is_dir() => {
+            return Err(ProbeError::Corrupt("is a folder, expected a file".into()));
+        }
+        Ok(metadata) if !metadata.is_file() => {
+            return Err(ProbeError::Corrupt(format!(
+                "is {}, not a regular file",
+                mbs_core::regular::describe(&metadata.file_type())
+            )));
+        }
+        Ok(_) => {}
     }
     let ext = path
         .extension()

@@ -8,6 +8,7 @@
 //! downloads have no occlusion maps, so SceneFlow's pairs have no NOC
 //! pixels: only ALL is scored.
 
+use std::collections::HashMap;
 use std::path::{Component, Path, PathBuf};
 
 use mbs_core::Side;
@@ -27,16 +28,24 @@ const DISPARITY: &str = "disparity";
 /// `dir` is a SceneFlow folder holding a pass (the final pass when it
 /// holds both) or a folder inside a pass (e.g. `frames_finalpass/TEST` for
 /// FlyingThings3D's test split). A pair is named after its path inside the
-/// pass without `left`, joined by `_` (`TEST_A_0000_0006`), and they come
-/// in that order. Another folder, or one without frames, is a layout error
-/// naming what was expected.
+/// pass without `left` (`TEST/A/0000/0006`), so that no two frames share a
+/// name and outputs mirror the dataset's folders, and they come in that
+/// order; two frames whose names would still meet (file names that are not
+/// UTF-8) are an error naming both. Another folder, or one without frames,
+/// is a layout error naming what was expected.
 pub fn scene_flow_pairs(dir: &Path) -> Result<Vec<StereoPair>, DatasetError> {
+    // Absolute, so that `.` inside a pass finds the pass above it.
+    let dir = &std::path::absolute(dir).map_err(|source| DatasetError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
     let (pass, walk_from) = match PASSES.iter().map(|p| dir.join(p)).find(|p| p.is_dir()) {
         Some(pass) => (pass.clone(), pass),
         None => (pass_above(dir)?, dir.to_path_buf()),
     };
     let truth_root = pass.with_file_name(DISPARITY);
-    let mut pairs = Vec::new();
+    let mut pairs: Vec<StereoPair> = Vec::new();
+    let mut named: HashMap<String, PathBuf> = HashMap::new();
     for left in left_folders(&walk_from)? {
         let inside = left.strip_prefix(&pass).unwrap_or(&left).to_path_buf();
         let right = left.with_file_name("right");
@@ -49,10 +58,21 @@ pub fn scene_flow_pairs(dir: &Path) -> Result<Vec<StereoPair>, DatasetError> {
                 .map(|c| c.as_os_str().to_string_lossy().into_owned())
                 .collect();
             id.push(frame.clone());
+            let id = id.join("/");
+            let reference = left.join(format!("{frame}.png"));
+            if let Some(first) = named.insert(id.clone(), reference.clone()) {
+                return Err(DatasetError::Layout {
+                    path: reference,
+                    message: format!(
+                        "is named {id}, as {} is: rename one of them",
+                        first.display()
+                    ),
+                });
+            }
             pairs.push(StereoPair {
-                id: id.join("_"),
+                id,
                 cameras: (0, 1),
-                reference: left.join(format!("{frame}.png")),
+                reference,
                 target: right.join(format!("{frame}.png")),
                 side: Side::Right,
                 truth: truth.is_file().then_some(GroundTruthFile {
@@ -147,9 +167,9 @@ mod tests {
         assert_eq!(
             ids,
             [
-                "TEST_A_0000_0006",
-                "TEST_A_0000_0007",
-                "a_rain_of_stones_x2_0000"
+                "TEST/A/0000/0006",
+                "TEST/A/0000/0007",
+                "a_rain_of_stones_x2/0000"
             ]
         );
         assert_eq!(
@@ -165,6 +185,19 @@ mod tests {
         assert!(pairs[1].truth.is_none());
     }
 
+    /// `TEST/A/0000` and `TEST/A_0000` used to both name their frame 0006
+    /// `TEST_A_0000_0006`: predict wrote one file for two frames.
+    #[test]
+    fn frames_whose_folders_differ_have_different_names() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path();
+        frame(root, "frames_finalpass", "TEST/A/0000", "0006", true);
+        frame(root, "frames_finalpass", "TEST/A_0000", "0006", true);
+        let pairs = scene_flow_pairs(root).unwrap();
+        let ids: Vec<&str> = pairs.iter().map(|p| p.id.as_str()).collect();
+        assert_eq!(ids, ["TEST/A/0000/0006", "TEST/A_0000/0006"]);
+    }
+
     #[test]
     fn a_folder_inside_a_pass_gives_its_frames_only() {
         let dir = tempfile::tempdir().unwrap();
@@ -173,7 +206,7 @@ mod tests {
         frame(root, "frames_cleanpass", "TRAIN/B/0001", "0010", true);
         let pairs = scene_flow_pairs(&root.join("frames_cleanpass/TEST")).unwrap();
         assert_eq!(pairs.len(), 1);
-        assert_eq!(pairs[0].id, "TEST_B_0001_0010");
+        assert_eq!(pairs[0].id, "TEST/B/0001/0010");
         assert!(pairs[0].truth.is_some());
     }
 

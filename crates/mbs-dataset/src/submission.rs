@@ -1,18 +1,23 @@
 //! The files the benchmarks' evaluation servers accept, written as their
 //! documentation lays them out, with the time each prediction took:
 //!
-//! - KITTI 2012 and 2015: `disp_0/<frame>.png`, 16-bit, disparity × 256
-//!   rounded, 0 = no prediction; zipped as `kitti_submission.zip` with
-//!   `disp_0/` at its root (the server takes no timing file: the time is
-//!   entered in its form).
+//! - KITTI 2015: `disp_0/<frame>.png`, 16-bit, disparity × 256 rounded,
+//!   0 = no prediction; zipped as `kitti_submission.zip` with `disp_0/` at
+//!   its root. KITTI 2012: the same PNGs at the archive's root (its
+//!   devkit's readme; it reads `<frame>.png` from the unpacked folder).
+//!   The servers take no timing file: the time is entered in their form.
 //! - Middlebury MiddEval3: `<split>/<Scene>/disp0<NAME>.pfm` (float PFM,
-//!   `inf` = no prediction) and `time<NAME>.txt` (seconds), the split
-//!   folder named as the input's (`testH`, `trainingH`, …); zipped as
-//!   `middlebury_submission.zip`.
+//!   `inf` = no prediction; `disp0<NAME>_s.pfm` for a sparse map) and
+//!   `time<NAME>.txt` (seconds), the split folder named as the input's
+//!   (`testH`, `trainingH`, …); zipped as `middlebury_submission.zip` with
+//!   every split of the method found in the folder, so that a run per
+//!   split into one folder makes one archive of all.
 //! - ETH3D two-view: `low_res_two_view/<scene>.pfm` and `<scene>.txt`
 //!   holding `runtime <seconds>`; zipped as `eth3d_submission.zip`.
 //!
-//! Every file is written atomically; the archive is made last from the
+//! Every file is written atomically, and a pair counts as written only
+//! when each of its files is complete (an image that decodes to its end,
+//! a timing file that holds a number); the archive is made last from the
 //! files present, so a resumed run's archive holds every pair.
 
 use std::io::Write;
@@ -24,12 +29,17 @@ use mbs_core::formats::pfm::{Endian, write_pfm_grey};
 use mbs_core::formats::png16::write_kitti_disparity;
 
 use crate::DatasetError;
+use crate::kitti::KittiVersion;
+
+/// The method name MiddEval3's own ground truth is stored under
+/// (`disp0GT.pfm`): a submission named so would overwrite it.
+const MIDDLEBURY_GROUND_TRUTH: &str = "GT";
 
 /// A benchmark server's submission layout.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum SubmissionLayout {
     /// KITTI 2012 or 2015 stereo.
-    Kitti,
+    Kitti(KittiVersion),
     /// Middlebury MiddEval3: the method's name (letters and digits, as
     /// the files are named after it) and the split folder's name.
     Middlebury {
@@ -37,37 +47,57 @@ pub enum SubmissionLayout {
         method: String,
         /// The split folder, e.g. `testH`.
         split: String,
+        /// Whether the maps leave unmatched pixels invalid (`inf`): then
+        /// they take MiddEval3's sparse name, `disp0<NAME>_s.pfm`.
+        sparse: bool,
     },
     /// ETH3D two-view (low resolution).
     Eth3d,
 }
 
 impl SubmissionLayout {
-    /// Middlebury's layout for `method` and the split folder `split`; a
-    /// name with anything but ASCII letters and digits is refused, since
-    /// MiddEval3's scripts read it back from the file names.
-    pub fn middlebury(method: &str, split: &str) -> Result<Self, String> {
+    /// Middlebury's layout for `method` and the split folder `split`
+    /// (`sparse` maps take the `_s` name); a name with anything but ASCII
+    /// letters and digits is refused, since MiddEval3's scripts read it
+    /// back from the file names, and so is `GT`, the ground truth's name.
+    pub fn middlebury(method: &str, split: &str, sparse: bool) -> Result<Self, String> {
         if method.is_empty() || !method.chars().all(|c| c.is_ascii_alphanumeric()) {
             return Err(format!(
                 "`{method}` cannot name a Middlebury method: use letters and digits only \
                  (it becomes disp0{method}.pfm)"
             ));
         }
+        if method.eq_ignore_ascii_case(MIDDLEBURY_GROUND_TRUTH) {
+            return Err(format!(
+                "`{method}` cannot name a Middlebury method: disp0{method}.pfm is the name of \
+                 MiddEval3's ground truth, which the submission would overwrite"
+            ));
+        }
         Ok(SubmissionLayout::Middlebury {
             method: method.to_string(),
             split: split.to_string(),
+            sparse,
         })
     }
 
-    /// The files of pair `id`, relative to the submission folder: the
-    /// disparity first, then its timing file where the layout has one.
+    /// The files of pair `id`, relative to the submission folder (as they
+    /// lie in the archive): the disparity first, then its timing file
+    /// where the layout has one.
     pub fn files(&self, id: &str) -> Vec<PathBuf> {
         match self {
-            SubmissionLayout::Kitti => vec![Path::new("disp_0").join(format!("{id}.png"))],
-            SubmissionLayout::Middlebury { method, split } => {
+            SubmissionLayout::Kitti(KittiVersion::Kitti2015) => {
+                vec![Path::new("disp_0").join(format!("{id}.png"))]
+            }
+            SubmissionLayout::Kitti(KittiVersion::Kitti2012) => vec![format!("{id}.png").into()],
+            SubmissionLayout::Middlebury {
+                method,
+                split,
+                sparse,
+            } => {
                 let scene = Path::new(split).join(id);
+                let suffix = if *sparse { "_s" } else { "" };
                 vec![
-                    scene.join(format!("disp0{method}.pfm")),
+                    scene.join(format!("disp0{method}{suffix}.pfm")),
                     scene.join(format!("time{method}.txt")),
                 ]
             }
@@ -81,9 +111,21 @@ impl SubmissionLayout {
         }
     }
 
-    /// Whether every file of pair `id` is in `out` (a resumed run skips it).
+    /// Whether every file of pair `id` is in `out` and complete (a resumed
+    /// run skips it): each map decodes to its last pixel, each timing file
+    /// holds a number.
     pub fn is_written(&self, out: &Path, id: &str) -> bool {
-        self.files(id).iter().all(|f| out.join(f).is_file())
+        self.files(id).iter().all(|f| is_complete(&out.join(f)))
+    }
+
+    /// Every file a run over pairs `ids` writes under `out`, the archive
+    /// last: the paths a command checks before it writes anything.
+    pub fn outputs(&self, out: &Path, ids: &[String]) -> Vec<PathBuf> {
+        ids.iter()
+            .flat_map(|id| self.files(id))
+            .map(|file| out.join(file))
+            .chain([out.join(self.archive_name())])
+            .collect()
     }
 
     /// Writes pair `id`'s disparity and the `seconds` its prediction took
@@ -97,7 +139,7 @@ impl SubmissionLayout {
     ) -> Result<(), DatasetError> {
         let files: Vec<PathBuf> = self.files(id).iter().map(|f| out.join(f)).collect();
         match self {
-            SubmissionLayout::Kitti => write_kitti_disparity(&files[0], disparity)?,
+            SubmissionLayout::Kitti(_) => write_kitti_disparity(&files[0], disparity)?,
             SubmissionLayout::Middlebury { .. } => {
                 write_pfm_grey(&files[0], disparity, Endian::Little)?;
                 write_bytes_atomic(&files[1], format!("{seconds:.6}\n").as_bytes())?;
@@ -110,35 +152,61 @@ impl SubmissionLayout {
         Ok(())
     }
 
+    /// For Middlebury, the files of the method's complete scenes in the
+    /// split folders of `out` other than this layout's, sorted; nothing for
+    /// the other layouts.
+    fn other_splits(&self, out: &Path) -> Result<Vec<PathBuf>, DatasetError> {
+        let SubmissionLayout::Middlebury {
+            method,
+            split: this,
+            sparse,
+        } = self
+        else {
+            return Ok(Vec::new());
+        };
+        let mut files = Vec::new();
+        for split in sorted_folders(out)?.into_iter().filter(|s| s != this) {
+            let layout = SubmissionLayout::Middlebury {
+                method: method.clone(),
+                split: split.clone(),
+                sparse: *sparse,
+            };
+            for scene in sorted_folders(&out.join(&split))? {
+                if layout.is_written(out, &scene) {
+                    files.extend(layout.files(&scene));
+                }
+            }
+        }
+        Ok(files)
+    }
+
     /// The archive's file name.
     pub fn archive_name(&self) -> &'static str {
         match self {
-            SubmissionLayout::Kitti => "kitti_submission.zip",
+            SubmissionLayout::Kitti(_) => "kitti_submission.zip",
             SubmissionLayout::Middlebury { .. } => "middlebury_submission.zip",
             SubmissionLayout::Eth3d => "eth3d_submission.zip",
         }
     }
 
     /// Zips the files of pairs `ids` found under `out` into `out`'s
-    /// archive (paths relative to `out`, `/`-separated, in `ids`' order);
-    /// returns its path. A pair whose files are missing is an error naming
-    /// the file.
+    /// archive (paths relative to `out`, `/`-separated, in `ids`' order;
+    /// for Middlebury, after them, the method's complete scenes of the
+    /// other splits in `out`); returns its path. A pair whose files are
+    /// missing is an error naming the file.
     pub fn archive(&self, out: &Path, ids: &[String]) -> Result<PathBuf, DatasetError> {
         let path = out.join(self.archive_name());
         let mut entries = Vec::new();
-        for id in ids {
-            for file in self.files(id) {
-                let bytes = std::fs::read(out.join(&file)).map_err(|source| DatasetError::Io {
-                    path: out.join(&file),
-                    source,
-                })?;
-                let name = file
-                    .components()
-                    .map(|c| c.as_os_str().to_string_lossy())
-                    .collect::<Vec<_>>()
-                    .join("/");
-                entries.push((name, bytes));
-            }
+        let mut files: Vec<PathBuf> = ids.iter().flat_map(|id| self.files(id)).collect();
+        files.extend(self.other_splits(out)?);
+        for file in files {
+            let bytes = mbs_core::regular::read_bytes(&out.join(&file))?;
+            let name = file
+                .components()
+                .map(|c| c.as_os_str().to_string_lossy())
+                .collect::<Vec<_>>()
+                .join("/");
+            entries.push((name, bytes));
         }
         write_atomic(&path, |writer| {
             let mut zip = zip::ZipWriter::new(writer);
@@ -154,6 +222,40 @@ impl SubmissionLayout {
         })?;
         Ok(path)
     }
+}
+
+/// The names of the folders in `dir` (links to folders included), sorted;
+/// names that are not UTF-8 are left out.
+fn sorted_folders(dir: &Path) -> Result<Vec<String>, DatasetError> {
+    let io = |source| DatasetError::Io {
+        path: dir.to_path_buf(),
+        source,
+    };
+    let mut names = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(io)? {
+        let entry = entry.map_err(io)?;
+        if entry.path().is_dir()
+            && let Ok(name) = entry.file_name().into_string()
+        {
+            names.push(name);
+        }
+    }
+    names.sort();
+    Ok(names)
+}
+
+/// Whether the submission file `path` is complete: a map that decodes to
+/// its last pixel, a timing file that holds a number (`runtime N` for
+/// ETH3D).
+fn is_complete(path: &Path) -> bool {
+    let is_text = path.extension().is_some_and(|e| e == "txt");
+    if !is_text {
+        return crate::probe::probe(path, false).is_ok();
+    }
+    mbs_core::regular::read_text(path).is_ok_and(|text| {
+        let number = text.trim().strip_prefix("runtime").unwrap_or(text.trim());
+        number.trim().parse::<f64>().is_ok_and(f64::is_finite)
+    })
 }
 
 #[cfg(test)]
@@ -183,7 +285,7 @@ mod tests {
     #[test]
     fn kitti_writes_16_bit_codes_and_zips_disp_0() {
         let dir = tempfile::tempdir().unwrap();
-        let layout = SubmissionLayout::Kitti;
+        let layout = SubmissionLayout::Kitti(KittiVersion::Kitti2015);
         for id in ["000000_10", "000001_10"] {
             assert!(!layout.is_written(dir.path(), id));
             layout.write(dir.path(), id, &map(), 0.5).unwrap();
@@ -207,7 +309,7 @@ mod tests {
     #[test]
     fn middlebury_and_eth3d_write_pfm_and_their_timing_files() {
         let dir = tempfile::tempdir().unwrap();
-        let middlebury = SubmissionLayout::middlebury("MBS", "testH").unwrap();
+        let middlebury = SubmissionLayout::middlebury("MBS", "testH", false).unwrap();
         middlebury
             .write(dir.path(), "Australia", &map(), 1.25)
             .unwrap();
@@ -245,10 +347,93 @@ mod tests {
     }
 
     #[test]
-    fn middlebury_method_names_are_letters_and_digits() {
-        assert!(SubmissionLayout::middlebury("S3RAFT2", "testF").is_ok());
-        let err = SubmissionLayout::middlebury("my method", "testF").unwrap_err();
+    fn middlebury_method_names_are_letters_and_digits_and_not_the_ground_truth() {
+        assert!(SubmissionLayout::middlebury("S3RAFT2", "testF", false).is_ok());
+        let err = SubmissionLayout::middlebury("my method", "testF", false).unwrap_err();
         assert!(err.contains("letters and digits"), "{err}");
-        assert!(SubmissionLayout::middlebury("", "testF").is_err());
+        assert!(SubmissionLayout::middlebury("", "testF", false).is_err());
+        for name in ["GT", "gt", "Gt"] {
+            let err = SubmissionLayout::middlebury(name, "trainingQ", false).unwrap_err();
+            assert!(err.contains("ground truth"), "{err}");
+        }
+    }
+
+    /// KITTI 2012's devkit reads `<frame>.png` from the unpacked archive's
+    /// root; 2015's from `disp_0/`.
+    #[test]
+    fn kitti_2012_archives_its_maps_at_the_root() {
+        let dir = tempfile::tempdir().unwrap();
+        let layout = SubmissionLayout::Kitti(KittiVersion::Kitti2012);
+        layout.write(dir.path(), "000000_10", &map(), 0.5).unwrap();
+        assert!(dir.path().join("000000_10.png").is_file());
+        let zip = layout
+            .archive(dir.path(), &["000000_10".to_string()])
+            .unwrap();
+        let names: Vec<String> = unzip(&zip).into_iter().map(|(n, _)| n).collect();
+        assert_eq!(names, ["000000_10.png"]);
+    }
+
+    /// Runs over testH and then trainingH into one folder make one archive
+    /// holding both splits; a sparse map takes the `_s` name.
+    #[test]
+    fn middlebury_archives_every_split_of_the_method() {
+        let dir = tempfile::tempdir().unwrap();
+        let test = SubmissionLayout::middlebury("MBS", "testH", false).unwrap();
+        test.write(dir.path(), "Australia", &map(), 1.0).unwrap();
+        // Another method's scene and an unfinished one are left out.
+        let other = SubmissionLayout::middlebury("Other", "testH", false).unwrap();
+        other.write(dir.path(), "Bicycle2", &map(), 1.0).unwrap();
+        let training = SubmissionLayout::middlebury("MBS", "trainingH", false).unwrap();
+        training
+            .write(dir.path(), "Adirondack", &map(), 2.0)
+            .unwrap();
+        training
+            .write(dir.path(), "Jadeplant", &map(), 2.0)
+            .unwrap();
+        std::fs::remove_file(dir.path().join("trainingH/Jadeplant/timeMBS.txt")).unwrap();
+        let zip = training
+            .archive(dir.path(), &["Adirondack".to_string()])
+            .unwrap();
+        let names: Vec<String> = unzip(&zip).into_iter().map(|(n, _)| n).collect();
+        assert_eq!(
+            names,
+            [
+                "trainingH/Adirondack/disp0MBS.pfm",
+                "trainingH/Adirondack/timeMBS.txt",
+                "testH/Australia/disp0MBS.pfm",
+                "testH/Australia/timeMBS.txt",
+            ]
+        );
+        let sparse = SubmissionLayout::middlebury("MBS", "testH", true).unwrap();
+        assert_eq!(
+            sparse.files("Australia")[0],
+            Path::new("testH/Australia/disp0MBS_s.pfm")
+        );
+    }
+
+    /// A file cut short (a crash outside the atomic writer, a copy that
+    /// stopped) or a timing file without a number is not counted as done.
+    #[test]
+    fn an_incomplete_file_is_not_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let layout = SubmissionLayout::Eth3d;
+        layout
+            .write(dir.path(), "delivery_area_1l", &map(), 0.5)
+            .unwrap();
+        assert!(layout.is_written(dir.path(), "delivery_area_1l"));
+        let pfm = dir.path().join("low_res_two_view/delivery_area_1l.pfm");
+        let bytes = std::fs::read(&pfm).unwrap();
+        std::fs::write(&pfm, &bytes[..bytes.len() - 3]).unwrap();
+        assert!(!layout.is_written(dir.path(), "delivery_area_1l"));
+        std::fs::write(&pfm, &bytes).unwrap();
+        let txt = dir.path().join("low_res_two_view/delivery_area_1l.txt");
+        std::fs::write(&txt, "runtime \n").unwrap();
+        assert!(!layout.is_written(dir.path(), "delivery_area_1l"));
+        let kitti = SubmissionLayout::Kitti(KittiVersion::Kitti2015);
+        kitti.write(dir.path(), "000000_10", &map(), 0.5).unwrap();
+        let png = dir.path().join("disp_0/000000_10.png");
+        let bytes = std::fs::read(&png).unwrap();
+        std::fs::write(&png, &bytes[..bytes.len() - 20]).unwrap();
+        assert!(!kitti.is_written(dir.path(), "000000_10"));
     }
 }

@@ -30,25 +30,38 @@ const DISPARITY: &str = "disp0GT.pfm";
 /// The left view's occlusion mask.
 const MASK: &str = "mask0nocc.png";
 /// The scene's calibration, with its disparity bound.
-const CALIBRATION: &str = "calib.txt";
+pub(crate) const CALIBRATION: &str = "calib.txt";
 
 /// The `ndisp` of the scene folder `scene`'s `calib.txt` (lines of
 /// `key=value`): `None` without the file or the key; a value that is not
-/// a positive whole number is an error naming the file.
+/// a positive whole number, a second `ndisp` line, or a `calib.txt` that
+/// is not a regular file (a FIFO would block the read) is an error naming
+/// the file.
 fn disparity_bound(scene: &Path) -> Result<Option<u32>, DatasetError> {
     let path = scene.join(CALIBRATION);
-    let text = match std::fs::read_to_string(&path) {
-        Ok(text) => text,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(e) => return Err(DatasetError::Io { path, source: e }),
-    };
-    let Some(value) = text
+    if std::fs::symlink_metadata(&path).is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound) {
+        return Ok(None);
+    }
+    let text = mbs_core::regular::read_text(&path)?;
+    let values: Vec<&str> = text
         .lines()
         .filter_map(|line| line.split_once('='))
-        .find(|(key, _)| key.trim() == "ndisp")
+        .filter(|(key, _)| key.trim() == "ndisp")
         .map(|(_, value)| value.trim())
-    else {
-        return Ok(None);
+        .collect();
+    let value = match values.as_slice() {
+        [] => return Ok(None),
+        [value] => *value,
+        _ => {
+            return Err(DatasetError::Layout {
+                path,
+                message: format!(
+                    "has {} ndisp lines ({}); expected one",
+                    values.len(),
+                    values.join(", ")
+                ),
+            });
+        }
     };
     match value.parse::<u32>() {
         Ok(n) if n > 0 => Ok(Some(n)),
@@ -60,10 +73,16 @@ fn disparity_bound(scene: &Path) -> Result<Option<u32>, DatasetError> {
 }
 
 /// Where the ground truth of `scene` under `root` lies: the scene's own
-/// folder (Middlebury) or the sibling `<root>_gt` folder (ETH3D).
+/// folder (Middlebury) or the sibling `<root>_gt` folder (ETH3D; `root`
+/// made absolute first, so that `.` or `..` name their folder).
 fn truth_dir(benchmark: Benchmark, root: &Path, scene: &str) -> PathBuf {
     match benchmark {
         Benchmark::Eth3d => {
+            let root = std::path::absolute(root).unwrap_or_else(|_| root.to_path_buf());
+            let root = match root.file_name() {
+                Some(_) => root,
+                None => root.canonicalize().unwrap_or(root),
+            };
             let mut name = root.file_name().unwrap_or_default().to_os_string();
             name.push("_gt");
             root.with_file_name(name).join(scene)

@@ -138,7 +138,7 @@ pub fn validate_manifest(
         files_checked: 0,
         problems: Vec::new(),
     };
-    let mut document: serde_json::Value = match std::fs::read_to_string(manifest_path)
+    let mut document: serde_json::Value = match mbs_core::regular::read_text(manifest_path)
         .map_err(|e| e.to_string())
         .and_then(|text| serde_json::from_str(&text).map_err(|e| format!("not valid JSON: {e}")))
     {

@@ -85,7 +85,8 @@ pub fn read_state<T: for<'de> Deserialize<'de>>(dir: &Path) -> Result<T, NetErro
         format: String,
     }
     let path = dir.join(STATE_FILE);
-    let text = fs::read_to_string(&path).map_err(|e| NetError::checkpoint(&path, e))?;
+    let text =
+        mbs_core::regular::read_text(&path).map_err(|e| NetError::checkpoint(&path, e.reason()))?;
     let not_state =
         |e: serde_json::Error| NetError::checkpoint(&path, format!("not a checkpoint state: {e}"));
     let Format { format } = serde_json::from_str(&text).map_err(not_state)?;
@@ -100,7 +101,8 @@ pub fn read_state<T: for<'de> Deserialize<'de>>(dir: &Path) -> Result<T, NetErro
 
 /// Loads `module`'s weights from the burnpack file `path`.
 pub fn load_module<M: Module>(mut module: M, path: &Path) -> Result<M, NetError> {
-    let bytes = fs::read(path).map_err(|e| NetError::checkpoint(path, e))?;
+    let bytes =
+        mbs_core::regular::read_bytes(path).map_err(|e| NetError::checkpoint(path, e.reason()))?;
     let mut store = BurnpackStore::from_bytes(Some(Bytes::from_bytes_vec(bytes)));
     module
         .load_from(&mut store)

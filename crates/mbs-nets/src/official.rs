@@ -103,7 +103,8 @@ impl StateDict {
     }
 
     fn read_safetensors(path: &Path) -> Result<Self, NetError> {
-        let bytes = std::fs::read(path).map_err(|e| NetError::weights(path, e))?;
+        let bytes =
+            mbs_core::regular::read_bytes(path).map_err(|e| NetError::weights(path, e.reason()))?;
         let file = SafeTensors::deserialize(&bytes)
             .map_err(|e| NetError::weights(path, format!("not a safetensors file: {e}")))?;
         let mut tensors = BTreeMap::new();

@@ -547,7 +547,7 @@ fn benchmark_layouts_score_as_computed_independently() {
 
     let pred = dir.path().join("pred");
     predict_folder("--sceneflow", &scene_flow, &pred);
-    let predicted = pred.join("TEST_A_0000_0006.pfm");
+    let predicted = pred.join("TEST/A/0000/0006.pfm");
     let scores = teddy_scores(&predicted, 3.0);
     eval_scores_sceneflow_and_drivingstereo_layouts(&pred, &scene_flow, &driving, scores);
     let per_image = dir.path().join("scores.json");
@@ -572,7 +572,7 @@ fn eval_scores_sceneflow_and_drivingstereo_layouts(
     driving: &Path,
     (pixels, epe, out3): (u64, f64, f64),
 ) {
-    let predicted = pred.join("TEST_A_0000_0006.pfm");
+    let predicted = pred.join("TEST/A/0000/0006.pfm");
     std::fs::copy(&predicted, pred.join(format!("{DRIVING_STEREO_FRAME}.pfm"))).unwrap();
     std::fs::remove_file(driving.join("disparity-map-half-size/broken.png")).unwrap();
     for flag in ["--sceneflow", "--drivingstereo"] {
@@ -672,7 +672,7 @@ fn per_image_scores_name_the_frames(per_image: &Path) {
             .expect("--per-image is JSON");
     assert_eq!(
         scores["SceneFlow flyingthings3d"]["images"][0]["name"],
-        "TEST_A_0000_0006"
+        "TEST/A/0000/0006"
     );
 }
 

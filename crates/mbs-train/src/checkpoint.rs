@@ -150,6 +150,16 @@ pub struct Checkpoint {
     pub state: CheckpointState,
 }
 
+/// Removes the completed checkpoints of the run folder `run` (a run
+/// started again from fresh weights); anything else in its checkpoints
+/// folder is left where it is.
+pub fn discard_all(run: &Path) -> Result<(), TrainError> {
+    for (_, path) in completed(&run.join(CHECKPOINTS_DIR))? {
+        fs::remove_dir_all(&path).map_err(|e| TrainError::checkpoint(&path, e))?;
+    }
+    Ok(())
+}
+
 impl Checkpoint {
     /// The newest completed checkpoint of the run folder `run`, if any.
     pub fn latest(run: &Path) -> Result<Option<Checkpoint>, TrainError> {
@@ -186,7 +196,8 @@ impl Checkpoint {
     /// The Adam state.
     pub fn optimizer(&self) -> Result<ModuleOptimizer, TrainError> {
         let path = self.dir.join(OPTIMIZER_FILE);
-        let bytes = fs::read(&path).map_err(|e| TrainError::checkpoint(&path, e))?;
+        let bytes = mbs_core::regular::read_bytes(&path)
+            .map_err(|e| TrainError::checkpoint(&path, e.reason()))?;
         self.config()?
             .trainer
             .optimizer

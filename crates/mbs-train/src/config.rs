@@ -78,7 +78,8 @@ impl RunConfig {
     /// Reads a configuration file (JSON, any subset of the keys) for
     /// [`RunConfig::layered`]; errors name the file.
     pub fn read_file(path: &std::path::Path) -> Result<Value, TrainError> {
-        let text = std::fs::read_to_string(path).map_err(|e| TrainError::data(path, e))?;
+        let text =
+            mbs_core::regular::read_text(path).map_err(|e| TrainError::data(path, e.reason()))?;
         serde_json::from_str(&text).map_err(|e| TrainError::data(path, format!("not JSON: {e}")))
     }
 

@@ -39,7 +39,10 @@ pub fn read_exr(path: &Path) -> Result<FloatImage> {
         source,
     };
     // The header's sizes are checked before the pixels are read.
-    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(exr_error)?;
+    // Read through a checked handle: a FIFO under the name must not block.
+    let bytes = crate::regular::read_bytes(path)?;
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(&bytes), false)
+        .map_err(exr_error)?;
     for header in &meta.headers {
         let size = header.layer_size;
         crate::limits::checked_samples(
@@ -56,7 +59,7 @@ pub fn read_exr(path: &Path) -> Result<FloatImage> {
         .all_channels()
         .first_valid_layer()
         .all_attributes()
-        .from_file(path)
+        .from_buffered(std::io::Cursor::new(bytes))
         .map_err(exr_error)?;
     let layer = &image.layer_data;
     let channels = &layer.channel_data.list;

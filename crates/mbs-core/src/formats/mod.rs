@@ -21,17 +21,12 @@ pub fn png_encoder<W: std::io::Write>(writer: W) -> image::codecs::png::PngEncod
 }
 
 /// Decodes a raster image (PNG, PNM) whatever its extension says, within
-/// [`crate::limits`]; a folder, a missing file or an undecodable one is an
-/// error naming the path.
+/// [`crate::limits`]; a folder, a FIFO or another special file, a missing
+/// file or an undecodable one is an error naming the path.
 pub fn open_image(path: &std::path::Path) -> crate::Result<image::DynamicImage> {
-    if path.is_dir() {
-        return Err(crate::FormatError::invalid(
-            path,
-            "is a folder, expected an image file",
-        ));
-    }
-    let mut reader = image::ImageReader::open(path)
-        .and_then(image::ImageReader::with_guessed_format)
+    let file = crate::regular::open_regular(path)?;
+    let mut reader = image::ImageReader::new(std::io::BufReader::new(file))
+        .with_guessed_format()
         .map_err(|e| crate::FormatError::io(path, e))?;
     if reader.format().is_none() {
         return Err(crate::FormatError::invalid(

@@ -31,7 +31,7 @@ pub enum Pfm {
 
 /// Reads a PFM file, grey or colour, either byte order.
 pub fn read_pfm(path: &Path) -> Result<Pfm> {
-    let bytes = std::fs::read(path).map_err(|e| FormatError::io(path, e))?;
+    let bytes = crate::regular::read_bytes(path)?;
     decode_pfm(&bytes).map_err(|message| FormatError::invalid(path, message))
 }
 

@@ -247,9 +247,9 @@ impl ModelCard {
 
     /// Reads and checks a card file.
     pub fn from_file(path: &Path) -> Result<ModelCard> {
-        let json = std::fs::read_to_string(path).map_err(|e| OnnxError::Card {
+        let json = mbs_core::regular::read_text(path).map_err(|e| OnnxError::Card {
             card: path.display().to_string(),
-            message: format!("cannot read: {e}"),
+            message: format!("cannot read: {}", e.reason()),
         })?;
         ModelCard::from_json(&path.display().to_string(), &json)
     }

@@ -19,11 +19,34 @@ pub fn join() -> anyhow::Result<Option<Rc<dyn Collective>>> {
     join_mpi(launch.count)
 }
 
+/// Joins the MPI job, which must hold the `launched` processes the
+/// launcher's variables announce: a process that finds itself alone in a
+/// world of one (the variables set by hand or inherited, with no MPI job
+/// behind them) would train alone into a folder another process writes too.
 #[cfg(feature = "mpi")]
-fn join_mpi(_launched: usize) -> anyhow::Result<Option<Rc<dyn Collective>>> {
+fn join_mpi(launched: usize) -> anyhow::Result<Option<Rc<dyn Collective>>> {
     let processes = mbs_mpi::MpiProcesses::join()
         .ok_or_else(|| anyhow::anyhow!("MPI was already initialised in this process"))?;
+    let size = processes.size();
+    if size != launched {
+        anyhow::bail!(
+            "the launcher's variables ({}) say {launched} processes, but MPI gives this process \
+             a job of {size}: start the processes with mpirun or srun (with MPI support), or \
+             unset those variables to run one process",
+            launch_variables(|name| std::env::var(name).ok())
+        );
+    }
     Ok(Some(Rc::new(processes)))
+}
+
+/// The launcher variables that are set, as `NAME=VALUE` joined by commas.
+#[cfg(feature = "mpi")]
+fn launch_variables(var: impl Fn(&str) -> Option<String>) -> String {
+    super::shard::LAUNCH_VARIABLES
+        .iter()
+        .filter_map(|name| var(name).map(|value| format!("{name}={value}")))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 #[cfg(not(feature = "mpi"))]

@@ -32,6 +32,17 @@ impl FromStr for Shard {
     }
 }
 
+/// The variables that give a process its rank and its launch's size, in
+/// the order [`Shard::of_launch`] reads them (rank, then size).
+pub const LAUNCH_VARIABLES: [&str; 6] = [
+    "OMPI_COMM_WORLD_RANK",
+    "OMPI_COMM_WORLD_SIZE",
+    "PMI_RANK",
+    "PMI_SIZE",
+    "SLURM_PROCID",
+    "SLURM_STEP_NUM_TASKS",
+];
+
 impl Shard {
     /// This process's shard from the variables its launcher sets (`var`
     /// reads one, `None` when unset):
@@ -56,10 +67,21 @@ impl Shard {
         };
         let processes = Self::of_launch(&var).map_err(prefixed)?;
         let shard = match (array, processes) {
-            (Some(array), Some(processes)) => Shard {
-                index: array.index * processes.count + processes.index,
-                count: array.count * processes.count,
-            },
+            (Some(array), Some(processes)) => {
+                let index = array
+                    .index
+                    .checked_mul(processes.count)
+                    .and_then(|first| first.checked_add(processes.index));
+                let count = array.count.checked_mul(processes.count);
+                let (Some(index), Some(count)) = (index, count) else {
+                    return Err(format!(
+                        "--shard auto: the array's {} tasks times the launch's {} processes \
+                         overflow a shard number",
+                        array.count, processes.count
+                    ));
+                };
+                Shard { index, count }
+            }
             (Some(one), None) | (None, Some(one)) => one,
             (None, None) => {
                 return Err(
@@ -85,13 +107,12 @@ impl Shard {
     /// (`mpirun`, `srun`), from the variables [`Shard::from_launcher`]
     /// reads for them; `None` when no launcher set them.
     pub fn of_launch(var: impl Fn(&str) -> Option<String>) -> Result<Option<Self>, String> {
-        match variable_pair(&var, "OMPI_COMM_WORLD_RANK", "OMPI_COMM_WORLD_SIZE")? {
-            Some(shard) => Ok(Some(shard)),
-            None => match variable_pair(&var, "PMI_RANK", "PMI_SIZE")? {
-                Some(shard) => Ok(Some(shard)),
-                None => variable_pair(&var, "SLURM_PROCID", "SLURM_STEP_NUM_TASKS"),
-            },
+        for pair in LAUNCH_VARIABLES.chunks_exact(2) {
+            if let Some(shard) = variable_pair(&var, pair[0], pair[1])? {
+                return Ok(Some(shard));
+            }
         }
+        Ok(None)
     }
 
     /// Keeps this shard's items of an already sorted list.
@@ -169,6 +190,29 @@ fn variable_pair(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An array and a launch whose product passes `usize` is refused in
+    /// words (it used to overflow a multiplication and panic).
+    #[test]
+    fn an_overflowing_array_times_launch_is_an_error() {
+        let huge = usize::MAX.to_string();
+        let vars = [
+            ("SLURM_ARRAY_TASK_ID", "1"),
+            ("SLURM_ARRAY_TASK_COUNT", huge.as_str()),
+            ("OMPI_COMM_WORLD_RANK", "1"),
+            ("OMPI_COMM_WORLD_SIZE", "4"),
+        ];
+        let var = |name: &str| {
+            vars.iter()
+                .find(|(key, _)| *key == name)
+                .map(|(_, value)| value.to_string())
+        };
+        let err = Shard::from_launcher(var).unwrap_err();
+        assert!(
+            err.contains("overflow") && err.contains("4 processes"),
+            "{err}"
+        );
+    }
 
     #[test]
     fn parses_and_selects_round_robin() {

@@ -8,11 +8,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use clap::Parser;
-use mbs_core::atomic::write_bytes_atomic;
+use mbs_core::atomic::{refuse_special_target, write_bytes_atomic};
+use mbs_core::inputs::InputFiles;
 use mbs_core::metrics::{MetricsReport, Region};
 use mbs_dataset::benchmark::Benchmark;
 use mbs_dataset::kitti::KittiVersion;
-use mbs_dataset::pairs::PairSource;
+use mbs_dataset::pairs::{PairSource, StereoPair};
 use mbs_infer::SgmConfig;
 use serde_json::{Value, json};
 
@@ -89,7 +90,11 @@ struct Column {
 /// Runs `benchmark`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
-    let listed = list_folders(&args)?;
+    let (listed, inputs) = list_folders(&args)?;
+    if let Some(path) = &args.per_image {
+        inputs.refuse(path)?;
+        refuse_special_target(path)?;
+    }
     args.source.refuse_unused_device()?;
     let matcher = args.source.matcher(SgmConfig::default())?;
     let mut columns = Vec::new();
@@ -132,10 +137,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Every folder the flags give, in flag order, with its items to score;
-/// all are listed before anything is predicted, so that a folder off its
-/// layout stops the command at once.
-fn list_folders(args: &Args) -> anyhow::Result<Vec<(Benchmark, &PathBuf, Vec<Item>)>> {
+/// The folders of [`list_folders`], each with its items to score.
+type Listed<'a> = Vec<(Benchmark, &'a PathBuf, Vec<Item>)>;
+
+/// Every folder the flags give, in flag order, with its items to score,
+/// and every file they read; all are listed before anything is predicted,
+/// so that a folder off its layout stops the command at once.
+fn list_folders(args: &Args) -> anyhow::Result<(Listed<'_>, InputFiles)> {
     let folders: Vec<(Benchmark, &PathBuf)> = [
         (Benchmark::Kitti, &args.kitti),
         (Benchmark::Middlebury, &args.middlebury),
@@ -152,19 +160,22 @@ fn list_folders(args: &Args) -> anyhow::Result<Vec<(Benchmark, &PathBuf, Vec<Ite
              --sceneflow DIR (each may be repeated)"
         );
     }
-    folders
-        .into_iter()
-        .map(|(benchmark, dir)| {
-            let source = PairSource::Benchmark {
-                benchmark,
-                dir: dir.clone(),
-            };
-            let pairs = source
-                .scored_pairs()
-                .with_context(|| format!("{benchmark} folder {}", dir.display()))?;
-            Ok((benchmark, dir, items(pairs, None)))
-        })
-        .collect()
+    let mut inputs = InputFiles::new();
+    let mut listed = Vec::new();
+    for (benchmark, dir) in folders {
+        let source = PairSource::Benchmark {
+            benchmark,
+            dir: dir.clone(),
+        };
+        let pairs = source
+            .scored_pairs()
+            .with_context(|| format!("{benchmark} folder {}", dir.display()))?;
+        for file in pairs.iter().flat_map(StereoPair::input_files) {
+            inputs.add(&file);
+        }
+        listed.push((benchmark, dir, items(pairs, None)));
+    }
+    Ok((listed, inputs))
 }
 
 /// A folder's column name: the benchmark (KITTI with its year) and the

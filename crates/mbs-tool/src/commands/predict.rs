@@ -2,12 +2,14 @@
 //! source (the built-in semi-global matcher, an ONNX model, a trained
 //! network).
 
+use std::collections::HashMap;
 use std::path::PathBuf;
 
 use anyhow::bail;
 use clap::Parser;
 use mbs_core::confine::join_confined;
 use mbs_core::formats::{DisparityFormat, rgb};
+use mbs_core::inputs::InputFiles;
 use mbs_dataset::pairs::StereoPair;
 use mbs_infer::SgmConfig;
 use mbs_viz::colormap::{colorize_disparity, disparity_scale};
@@ -74,10 +76,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     };
     let pairs = source.pairs()?;
+    let inputs = mbs_dataset::pairs::input_files(&pairs);
     let pairs = match args.shard {
         Some(shard) => shard.select(pairs),
         None => pairs,
     };
+    check_outputs(&args, &pairs, &inputs)?;
     args.source.refuse_unused_device()?;
     let matcher = args.source.matcher(SgmConfig::default())?;
     crate::cli::prepare_out(&args.out)?;
@@ -90,12 +94,43 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     summary.finish("predict", "pairs")
 }
 
-fn predict_one(args: &Args, matcher: &PairMatcher, pair: &StereoPair) -> anyhow::Result<Outcome> {
+/// A pair's disparity file and colour picture under `--out`.
+fn outputs(args: &Args, pair: &StereoPair) -> anyhow::Result<(PathBuf, PathBuf)> {
     let out = join_confined(
         &args.out,
         &format!("{}.{}", pair.id, args.format.extension()),
     )?;
     let color = join_confined(&args.out, &format!("{}_color.png", pair.id))?;
+    Ok((out, color))
+}
+
+/// Refuses, before anything is written, an output that would replace one
+/// of the files the pairs are read from, or that two pairs would share.
+fn check_outputs(args: &Args, pairs: &[StereoPair], inputs: &InputFiles) -> anyhow::Result<()> {
+    let mut written_by: HashMap<PathBuf, &str> = HashMap::new();
+    for pair in pairs {
+        let (out, color) = outputs(args, pair)?;
+        let files = if args.color {
+            vec![out, color]
+        } else {
+            vec![out]
+        };
+        for file in files {
+            inputs.refuse(&file)?;
+            if let Some(first) = written_by.insert(file.clone(), &pair.id) {
+                bail!(
+                    "{}: pairs {first} and {} would both be written there",
+                    file.display(),
+                    pair.id
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+fn predict_one(args: &Args, matcher: &PairMatcher, pair: &StereoPair) -> anyhow::Result<Outcome> {
+    let (out, color) = outputs(args, pair)?;
     if !args.overwrite && out.exists() && (!args.color || color.exists()) {
         return Ok(Outcome::Skipped);
     }

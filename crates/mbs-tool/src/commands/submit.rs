@@ -10,6 +10,7 @@ use anyhow::{Context, anyhow, bail};
 use clap::Parser;
 use mbs_core::formats::rgb;
 use mbs_dataset::benchmark::Benchmark;
+use mbs_dataset::kitti::KittiFolder;
 use mbs_dataset::pairs::{PairSource, StereoPair};
 use mbs_dataset::submission::SubmissionLayout;
 use mbs_infer::SgmConfig;
@@ -25,16 +26,21 @@ use crate::cli::source::{PairMatcher, StereoSourceArgs};
       --backbone raft-stereo --weights s3.safetensors --device cuda --out sub-mb
   mbs-tool submit --eth3d /data/ETH3D/two_view_test --checkpoint runs/s3 --out sub-eth3d
 
-Writes what each server documents: KITTI <out>/disp_0/<frame>.png (16-bit,
-disparity x 256, 0 = none) zipped as kitti_submission.zip (enter the time per
-image in the server's form); Middlebury <out>/<split>/<Scene>/disp0<NAME>.pfm
-and time<NAME>.txt (seconds), <split> named as the input folder (give testH
-and trainingH with the same --out to submit both), zipped as
-middlebury_submission.zip; ETH3D <out>/low_res_two_view/<scene>.pfm and
-<scene>.txt ('runtime SECONDS'), zipped as eth3d_submission.zip. Pairs run one
-at a time and each prediction is timed alone (reading the images excluded);
-the mean time is printed at the end. Finished pairs are skipped, so an
-interrupted run resumes; the archive is made when every pair is done.")]
+Writes what each server documents: KITTI 2015 <out>/disp_0/<frame>.png
+(16-bit, disparity x 256, 0 = none), KITTI 2012 <out>/<frame>.png (its devkit
+reads them at the archive's root), zipped as kitti_submission.zip (enter the
+time per image in the server's form); Middlebury
+<out>/<split>/<Scene>/disp0<NAME>.pfm (disp0<NAME>_s.pfm with --no-fill, a
+sparse map) and time<NAME>.txt (seconds), <split> named as the input folder,
+zipped as middlebury_submission.zip with every split of NAME under --out (run
+testH and trainingH with the same --out: the second run's archive holds
+both); ETH3D <out>/low_res_two_view/<scene>.pfm and <scene>.txt ('runtime
+SECONDS'), zipped as eth3d_submission.zip. Pairs run one at a time and each
+prediction is timed alone (reading the images excluded); the mean time is
+printed at the end. Finished pairs are skipped (a file cut short is
+recomputed), so an interrupted run resumes; the archive is made when every
+pair is done. An output that would replace one of the files read (a view,
+ground truth, mask or calib.txt) is refused before anything is written.")]
 pub struct Args {
     /// What predicts the pairs.
     #[command(flatten)]
@@ -68,6 +74,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     .pairs()?;
     args.source.refuse_unused_device()?;
+    let ids: Vec<String> = pairs.iter().map(|p| p.id.clone()).collect();
+    let inputs = mbs_dataset::pairs::input_files(&pairs);
+    for output in layout.outputs(&args.out, &ids) {
+        inputs.refuse(&output)?;
+    }
     let matcher = args.source.matcher(SgmConfig::default())?;
     crate::cli::prepare_out(&args.out)?;
     let seconds = std::sync::Mutex::new(Vec::new());
@@ -87,7 +98,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
     );
     summary.finish("submit", "pairs")?;
-    let ids: Vec<String> = pairs.into_iter().map(|p| p.id).collect();
     let archive = layout.archive(&args.out, &ids)?;
     let seconds = seconds.into_inner().unwrap_or_default();
     if !seconds.is_empty() {
@@ -104,7 +114,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// The benchmark, folder and submission layout the flags name.
 fn layout(args: &Args) -> anyhow::Result<(Benchmark, PathBuf, SubmissionLayout)> {
     if let Some(dir) = &args.kitti {
-        return Ok((Benchmark::Kitti, dir.clone(), SubmissionLayout::Kitti));
+        let version = KittiFolder::open(dir)?.version;
+        return Ok((
+            Benchmark::Kitti,
+            dir.clone(),
+            SubmissionLayout::Kitti(version),
+        ));
     }
     if let Some(dir) = &args.middlebury {
         let split = dir
@@ -115,7 +130,8 @@ fn layout(args: &Args) -> anyhow::Result<(Benchmark, PathBuf, SubmissionLayout)>
             .map(|n| n.to_string_lossy().into_owned())
             .ok_or_else(|| anyhow!("{}: not a MiddEval3 split folder", dir.display()))?;
         let method = args.name.as_deref().unwrap_or_default();
-        let layout = SubmissionLayout::middlebury(method, &split).map_err(|e| anyhow!(e))?;
+        let layout = SubmissionLayout::middlebury(method, &split, args.source.no_fill)
+            .map_err(|e| anyhow!(e))?;
         return Ok((Benchmark::Middlebury, dir.clone(), layout));
     }
     match &args.eth3d {

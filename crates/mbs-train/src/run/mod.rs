@@ -167,6 +167,17 @@ pub struct TrainingRun {
     report: RunReport,
 }
 
+/// Where a run's first weights come from.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Beginning<'a> {
+    /// Weights a new run starts from (another run, a checkpoint, an
+    /// official file), instead of fresh ones.
+    pub init: Option<&'a Path>,
+    /// Start again from fresh (or `init`'s) weights, discarding the run's
+    /// checkpoints.
+    pub restart: bool,
+}
+
 impl TrainingRun {
     /// Opens the run in `out` on the training data of `manifest`, on the CPU
     /// (see [`TrainingRun::open_on`]).
@@ -176,7 +187,7 @@ impl TrainingRun {
         config: RunConfig,
     ) -> Result<(Self, Start), TrainError> {
         let placement = Placement::cpu(&config)?;
-        Self::open_on(manifest, out, config, placement, None)
+        Self::open_on(manifest, out, config, placement, Beginning::default())
     }
 
     /// Opens the run in `out` on the training data of `manifest`, training on
@@ -184,9 +195,12 @@ impl TrainingRun {
     /// parallel when there are several, see [`S3Trainer::step_parallel`];
     /// the weights live on the first, and a checkpoint resumes on any
     /// number of devices): resumes from the newest checkpoint there, or
-    /// starts fresh, from the weights of `init` when given (see
-    /// [`initial_weights`]; a resumed run ignores it). Resuming with a
-    /// configuration that changes what is computed is refused.
+    /// starts fresh, from the weights of `beginning.init` when given (see
+    /// [`initial_weights`]; a resumed run ignores it). With
+    /// `beginning.restart` the checkpoints there are ignored and, once
+    /// every check has passed and the first weights are loaded, removed
+    /// (a refused run removes nothing). Resuming with a configuration that
+    /// changes what is computed is refused.
     ///
     /// With the placement's processes, the run is one rank of a
     /// data-parallel run over several processes (an MPI job, see
@@ -199,14 +213,19 @@ impl TrainingRun {
         out: &Path,
         config: RunConfig,
         placement: Placement,
-        init: Option<&Path>,
+        beginning: Beginning<'_>,
     ) -> Result<(Self, Start), TrainError> {
         config.validate()?;
         let Placement { devices, processes } = placement;
+        let Beginning { init, restart } = beginning;
         let device = devices[0].clone();
         let (samples, validation) = open::load_data(manifest, &config)?;
         let train_device = device.clone().autodiff();
-        let latest = Checkpoint::latest(out)?;
+        let latest = if restart {
+            None
+        } else {
+            Checkpoint::latest(out)?
+        };
         if let Some(processes) = &processes {
             let steps = latest.as_ref().map(|c| c.state.steps);
             open::agree_on_start(processes.as_ref(), &config, manifest, steps, init)?;
@@ -228,6 +247,9 @@ impl TrainingRun {
             check_same_weights(processes.as_ref(), &networks, trainer.steps_taken())?;
         }
         if writer {
+            if restart {
+                crate::checkpoint::discard_all(out)?;
+            }
             open::prepare_folder(out, &config, start)?;
         }
         let resumed_after = match start {

@@ -2,7 +2,6 @@
 //! [`super::Placement`]): its data, the processes' agreement, its first
 //! weights, resuming from a checkpoint, and the output folder.
 
-use std::fs;
 use std::path::Path;
 use std::sync::PoisonError;
 
@@ -121,10 +120,8 @@ pub(super) fn prepare_folder(
         let path = out.join(log);
         match start {
             Start::Resumed(steps) => truncate_log(&path, steps)?,
-            Start::Fresh if path.exists() => {
-                fs::remove_file(&path).map_err(|e| TrainError::data(&path, e))?;
-            }
-            Start::Fresh => {}
+            // Emptied through the writer, which refuses a special file.
+            Start::Fresh => write_bytes_atomic(&path, b"")?,
         }
     }
     let config_json = serde_json::to_vec_pretty(&config.to_json()?)

@@ -12,13 +12,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::{Context, bail};
 use clap::Parser;
 use mbs_nets::BackboneKind;
-use mbs_nets::checkpoint::CHECKPOINTS_DIR;
 use mbs_nets::device::DeviceList;
 use mbs_train::checkpoint::Checkpoint;
 use mbs_train::distributed::{Collective, agree, all_succeeded};
 use mbs_train::precision::Precision;
 use mbs_train::run::{
-    End, Placement, Quiet, Start, TrainingRun, computing_differences, run_identity,
+    Beginning, End, Placement, Quiet, Start, TrainingRun, computing_differences, run_identity,
 };
 use mbs_train::{RunConfig, TrainError};
 
@@ -291,9 +290,17 @@ fn train(
 ) -> anyhow::Result<()> {
     let placement = open_devices(args, &config, processes)?;
     crate::cli::require_file(manifest, "manifest")?;
+    if let Some(init) = &args.init
+        && !init.exists()
+    {
+        bail!("--init {}: no such file or folder", init.display());
+    }
     prepare_folder(args, &config, manifest, out, processes)?;
-    let init = args.init.as_deref();
-    let (mut training, start) = TrainingRun::open_on(manifest, out, config, placement, init)?;
+    let beginning = Beginning {
+        init: args.init.as_deref(),
+        restart: args.restart,
+    };
+    let (mut training, start) = TrainingRun::open_on(manifest, out, config, placement, beginning)?;
     let writer = training.is_writer();
     let total = training.config().steps();
     if let Start::Resumed(steps) = start
@@ -362,9 +369,9 @@ fn open_devices(
     Ok(placement)
 }
 
-/// Readies `out` (its checkpoints removed with `--restart`), once every
-/// process agrees on the command, by the writer alone while the others
-/// wait.
+/// Makes `out`, once every process agrees on the command, by the writer
+/// alone while the others wait (`--restart`'s checkpoints are removed by
+/// the run, after its checks).
 fn prepare_folder(
     args: &Args,
     config: &RunConfig,
@@ -381,19 +388,7 @@ fn prepare_folder(
         agree(processes.as_ref(), &command)?;
     }
     if processes.is_none_or(|p| p.rank() == 0) {
-        if args.restart {
-            let checkpoints = out.join(CHECKPOINTS_DIR);
-            if checkpoints.exists() {
-                std::fs::remove_dir_all(&checkpoints)
-                    .with_context(|| format!("cannot remove {}", checkpoints.display()))?;
-            }
-        }
         crate::cli::prepare_out(out)?;
-    }
-    if let Some(init) = &args.init
-        && !init.exists()
-    {
-        bail!("--init {}: no such file or folder", init.display());
     }
     if let Some(processes) = processes {
         // The others wait until rank 0 has prepared the folder.

@@ -1,0 +1,129 @@
+//! The files a command reads, so that none of its outputs replaces one: an
+//! output path is compared with every input by file identity (device and
+//! inode on Unix, so a link, a relative path or a hard link to an input is
+//! caught) and by resolved path, before anything is written.
+
+use std::collections::HashMap;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use crate::error::{FormatError, Result};
+
+/// What identifies a file on disk.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+enum FileId {
+    /// Device and inode (Unix).
+    #[cfg(unix)]
+    Inode(u64, u64),
+    /// Nothing but the resolved path identifies it (elsewhere).
+    #[cfg(not(unix))]
+    Unknown,
+}
+
+/// The identity of the existing file `path` (links followed).
+fn identity(path: &Path) -> Option<FileId> {
+    let metadata = fs::metadata(path).ok()?;
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        Some(FileId::Inode(metadata.dev(), metadata.ino()))
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = metadata;
+        Some(FileId::Unknown)
+    }
+}
+
+/// The files a command reads.
+#[derive(Debug, Default)]
+pub struct InputFiles {
+    /// The inputs by identity, with the name the command read each under.
+    by_identity: HashMap<FileId, PathBuf>,
+    /// The inputs' resolved paths.
+    by_path: HashMap<PathBuf, PathBuf>,
+}
+
+impl InputFiles {
+    /// No inputs yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Records `path` as an input; a missing file records nothing (the
+    /// command reports it when it reads it).
+    pub fn add(&mut self, path: &Path) {
+        if let Some(id) = identity(path).filter(|_| cfg!(unix)) {
+            self.by_identity.insert(id, path.to_path_buf());
+        }
+        if let Ok(resolved) = fs::canonicalize(path) {
+            self.by_path.insert(resolved, path.to_path_buf());
+        }
+    }
+
+    /// The input `output` would replace, if any.
+    pub fn clash(&self, output: &Path) -> Option<&Path> {
+        if let Some(input) = identity(output).and_then(|id| self.by_identity.get(&id)) {
+            return Some(input);
+        }
+        let resolved = fs::canonicalize(output).ok()?;
+        self.by_path.get(&resolved).map(PathBuf::as_path)
+    }
+
+    /// Refuses an `output` that is one of the inputs, naming both.
+    pub fn refuse(&self, output: &Path) -> Result<()> {
+        match self.clash(output) {
+            None => Ok(()),
+            Some(input) => Err(FormatError::invalid(
+                output,
+                format!(
+                    "is {}, which this command reads; refusing to replace an input \
+                     (choose another output)",
+                    describe_input(output, input)
+                ),
+            )),
+        }
+    }
+}
+
+/// How an output that clashes with `input` is said to be it.
+fn describe_input(output: &Path, input: &Path) -> String {
+    if output == input {
+        "one of its inputs".into()
+    } else {
+        format!("the input {}", input.display())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_input_under_any_name_is_refused_and_others_pass() {
+        let dir = tempfile::tempdir().unwrap();
+        let truth = dir.path().join("disp0GT.pfm");
+        fs::write(&truth, b"PF").unwrap();
+        let mut inputs = InputFiles::new();
+        inputs.add(&truth);
+        inputs.add(&dir.path().join("missing.png"));
+        let err = inputs.refuse(&truth).unwrap_err().to_string();
+        assert!(err.contains("disp0GT.pfm: is one of its inputs"), "{err}");
+        // The same file by another path, a link and a hard link.
+        let dotted = dir.path().join(".").join("disp0GT.pfm");
+        let link = dir.path().join("link.pfm");
+        let hard = dir.path().join("hard.pfm");
+        #[cfg(unix)]
+        std::os::unix::fs::symlink(&truth, &link).unwrap();
+        fs::hard_link(&truth, &hard).unwrap();
+        for other in [&dotted, &link, &hard] {
+            if !other.exists() {
+                continue;
+            }
+            let err = inputs.refuse(other).unwrap_err().to_string();
+            assert!(err.contains("refusing to replace an input"), "{err}");
+        }
+        assert!(inputs.refuse(&dir.path().join("disp0MBS.pfm")).is_ok());
+        assert!(inputs.refuse(&dir.path().join("missing.png")).is_ok());
+    }
+}
