@@ -18,10 +18,25 @@
 //!   one. A matcher that wants KITTI-style scoring fills its holes before
 //!   evaluation (the built-in SGM does, from the background side).
 //! - An empty set of pixels gives `None`, never `NaN`.
+//!
+//! Those are the `pixels` protocol's rules; [`Protocol`] names the other
+//! projects' rules (stereo_toolbox, RAFT-Stereo, IGEV-Stereo, the KITTI,
+//! ETH3D and Middlebury evaluators), scored through [`Rules::score`] and
+//! combined by [`ProtocolReport`].
 
+mod prediction;
+mod protocol;
+mod protocol_report;
 mod report;
+mod score;
 
+pub use prediction::interpolate_background;
+pub use protocol::{
+    Aggregation, Dataset, Figure, GtRange, PredictionRule, Protocol, ProtocolError, Regions, Rules,
+};
+pub use protocol_report::ProtocolReport;
 pub use report::{MetricsReport, metrics_json};
+pub use score::{Frame, ImageScore, Summary, Tally};
 
 use crate::{FloatImage, MaskImage};
 
@@ -97,6 +112,14 @@ impl ErrorSums {
     /// Adds one pixel: `prediction` against a `gt` that the caller has
     /// checked to be valid (finite).
     pub fn add(&mut self, prediction: f32, gt: f32) {
+        self.add_judged(prediction, gt, |err| {
+            err > D1_ABS_PX && err > D1_REL * gt.abs()
+        });
+    }
+
+    /// Adds one pixel as [`ErrorSums::add`] does, with `d1` judging whether
+    /// a finite error is a D1 outlier (for a devkit's own arithmetic).
+    pub fn add_judged(&mut self, prediction: f32, gt: f32, d1: impl Fn(f32) -> bool) {
         self.pixels += 1;
         if !prediction.is_finite() {
             self.missing += 1;
@@ -109,7 +132,7 @@ impl ErrorSums {
         for (n, &x) in self.outliers.iter_mut().zip(&self.thresholds) {
             *n += u64::from(err > x);
         }
-        self.d1_outliers += u64::from(err > D1_ABS_PX && err > D1_REL * gt.abs());
+        self.d1_outliers += u64::from(d1(err));
     }
 
     /// Adds the sums of `other` (pixel pooling). Both must track the same
