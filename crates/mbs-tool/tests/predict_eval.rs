@@ -598,8 +598,9 @@ fn eval_scores_sceneflow_and_drivingstereo_layouts(
     }
 }
 
-/// `benchmark --json` of the Middlebury, DrivingStereo (its broken frame's
-/// ground truth back) and SceneFlow folders, with per-image scores into
+/// `benchmark --json --protocol pixels` (pooled over pixels) of the
+/// Middlebury, DrivingStereo (its broken frame's ground truth back) and
+/// SceneFlow folders, with per-image scores into
 /// `per_image`: the DrivingStereo frame without a right view fails, the
 /// rest is scored. Returns the table.
 fn benchmark_scores_all_but_a_failed_frame(
@@ -622,6 +623,8 @@ fn benchmark_scores_all_but_a_failed_frame(
         scene_flow.to_str().unwrap(),
         "--max-disparity",
         "64",
+        "--protocol",
+        "pixels",
         "--per-image",
         per_image.to_str().unwrap(),
         "--json",
@@ -676,8 +679,8 @@ fn per_image_scores_name_the_frames(per_image: &Path) {
     );
 }
 
-/// `benchmark` without `--json` prints the text table and the paper's
-/// row, with SceneFlow's Out-1 `out1`.
+/// `benchmark --protocol pixels` without `--json` prints the text table
+/// and the paper's row, with SceneFlow's pooled Out-1 `out1`.
 fn benchmark_prints_the_papers_row(scene_flow: &Path, out1: f64) {
     let output = run(&[
         "benchmark",
@@ -685,6 +688,8 @@ fn benchmark_prints_the_papers_row(scene_flow: &Path, out1: f64) {
         scene_flow.to_str().unwrap(),
         "--max-disparity",
         "64",
+        "--protocol",
+        "pixels",
     ]);
     assert!(output.status.success(), "{}", text(&output));
     let stdout = String::from_utf8_lossy(&output.stdout);

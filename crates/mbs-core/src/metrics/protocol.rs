@@ -451,20 +451,22 @@ impl Rules {
                 "upsampled x1/2/4, clipped to [0, ndisp], +inf/NaN bad"
             }
         };
-        let outlier = match self.headline {
-            Figure::D1 => "|d - gt| > 3 px and > 5 % of gt".to_string(),
-            Figure::Out(x) => format!("|d - gt| > {x} px"),
-        };
+        let thresholds: Vec<String> = self.thresholds.iter().map(f32::to_string).collect();
+        let mut outlier = format!("Out-x |d - gt| > x px (x = {})", thresholds.join(", "));
+        if self.d1 {
+            outlier += ", D1 > 3 px and > 5 % of gt";
+        }
         let epe = self
             .epe
             .map_or("none".to_string(), |a| a.describe().to_string());
         format!(
-            "{} on {}: GT {}; regions {regions}; prediction {prediction}; outlier {outlier}, \
-             {}; EPE {epe}",
+            "{} on {}: GT {}; regions {regions}; prediction {prediction}; {outlier}, {}; \
+             headline {}; EPE {epe}",
             self.protocol,
             self.dataset.name(),
             self.valid.describe(),
-            self.outliers.describe()
+            self.outliers.describe(),
+            self.headline.name()
         )
     }
 }

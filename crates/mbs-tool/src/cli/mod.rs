@@ -1,6 +1,6 @@
 //! Pieces shared by the subcommands: sharding, parallel batches with a
 //! progress bar and a summary, thread-pool setup, ONNX Runtime flags, the
-//! pairs and the disparity source.
+//! pairs, the images eval and benchmark score, and the disparity source.
 
 pub mod batch;
 pub mod onnx;
@@ -8,6 +8,7 @@ pub mod pairs;
 pub mod processes;
 pub mod report_error;
 pub mod rig;
+pub mod scoring;
 pub mod shard;
 pub mod source;
 pub mod values;

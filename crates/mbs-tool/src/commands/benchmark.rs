@@ -1,8 +1,8 @@
 //! `mbs-tool benchmark`: one disparity source scored zero-shot on several
-//! benchmarks' folders at once, each with its customary metric (Out-3 on
-//! KITTI and DrivingStereo, Out-2 on Middlebury, Out-1 on ETH3D and
-//! SceneFlow), printed as the S3 paper's Table 4 (OCC and ALL per
-//! benchmark).
+//! benchmarks' folders at once under one scoring protocol — by default the
+//! S3 paper's (stereo_toolbox: Out-3 on KITTI and DrivingStereo, Out-2 on
+//! Middlebury, Out-1 on ETH3D, per-image percentages averaged over the
+//! images) — printed as the paper's Table 4 (OCC and ALL per benchmark).
 
 use std::path::{Path, PathBuf};
 
@@ -10,15 +10,16 @@ use anyhow::{Context, bail};
 use clap::Parser;
 use mbs_core::atomic::{refuse_special_target, write_bytes_atomic};
 use mbs_core::inputs::InputFiles;
-use mbs_core::metrics::{MetricsReport, Region};
+use mbs_core::metrics::{Protocol, ProtocolReport, Region, Rules};
 use mbs_dataset::benchmark::Benchmark;
 use mbs_dataset::kitti::KittiVersion;
 use mbs_dataset::pairs::{PairSource, StereoPair};
 use mbs_infer::SgmConfig;
 use serde_json::{Value, json};
 
+use crate::cli::pairs::FrameList;
+use crate::cli::scoring::{Listing, check_listed, dataset_of, items, score_all};
 use crate::cli::source::StereoSourceArgs;
-use crate::commands::eval::{Item, items, score_all};
 
 /// Arguments of `benchmark`.
 #[derive(Parser)]
@@ -30,14 +31,20 @@ use crate::commands::eval::{Item, items, score_all};
   mbs-tool benchmark --checkpoint runs/s3 --kitti /data/kitti2015/training --json
   mbs-tool benchmark --middlebury MiddEval3/trainingQ --per-image scores.json   # the built-in matcher
 
+  mbs-tool benchmark --kitti kitti2012/training --frames kitti2012/training=train_all.txt \\
+      --kitti kitti2015/training --protocol pixels
+
 Every folder is read as its benchmark's download unpacks (see `mbs-tool eval
---help` for the layouts) and scored with that benchmark's metric and
-threshold; --threshold sets one for all. Each flag may be given several
-times (KITTI 2012 and 2015, DrivingStereo's weathers), each folder a column.
-Scores are pooled over the pixels of a folder's images; OCC is '-' where the
-benchmark has no occlusion mask (DrivingStereo, SceneFlow). A folder that
-does not match its layout stops the command before anything is scored; an
-image that fails is reported and counted, and the others are scored.")]
+--help` for the layouts) and scored under --protocol: s3 (the paper's
+stereo_toolbox, the default), pixels (mbs's pooled figures), raft-stereo,
+igev-stereo, kitti, eth3d or middlebury (docs/evaluation.md), each with its
+benchmark's threshold; --threshold sets one for all. Each flag may be given
+several times (KITTI 2012 and 2015, DrivingStereo's weathers), each folder a
+column. OCC is '-' where the benchmark has no occlusion mask (DrivingStereo,
+SceneFlow) or the protocol does not score it. A folder that does not match
+its layout stops the command before anything is scored; an image that fails
+is reported and counted, and the others are scored; frames without usable
+ground truth are named in a warning.")]
 pub struct Args {
     /// What predicts the pairs.
     #[command(flatten)]
@@ -64,6 +71,17 @@ pub struct Args {
     /// customary one.
     #[arg(long, value_name = "PX", value_parser = crate::cli::values::positive_f32)]
     pub threshold: Option<f32>,
+    /// The scoring rules: s3 (the S3 paper's stereo_toolbox), pixels
+    /// (mbs's, pooled over pixels), raft-stereo, igev-stereo, kitti, eth3d
+    /// or middlebury (each project's own; docs/evaluation.md).
+    #[arg(long, default_value = "s3")]
+    pub protocol: Protocol,
+    /// Score only the frames a file names, one a line (blank lines and #
+    /// comments ignored): DIR=FILE for the folder DIR (as given to its
+    /// flag), FILE for every folder without one of its own (each name must
+    /// be in one of them). May be repeated.
+    #[arg(long, value_name = "[DIR=]FILE")]
+    pub frames: Vec<String>,
     /// Print JSON instead of the tables.
     #[arg(long)]
     pub json: bool,
@@ -79,12 +97,14 @@ pub struct Args {
 struct Column {
     /// The column's name: the benchmark and the folder.
     label: String,
-    /// The metric's threshold.
-    threshold: f32,
-    /// The images scored, pooled.
-    report: Option<MetricsReport>,
+    /// The rules its images are scored under.
+    rules: Rules,
+    /// The images scored.
+    report: Option<ProtocolReport>,
     /// Images that failed.
     failed: usize,
+    /// Frames without usable ground truth, not scored.
+    unscored: Vec<String>,
 }
 
 /// Runs `benchmark`.
@@ -98,18 +118,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     args.source.refuse_unused_device()?;
     let matcher = args.source.matcher(SgmConfig::default())?;
     let mut columns = Vec::new();
-    for (benchmark, dir, items) in listed {
-        let label = label(benchmark, dir);
-        let threshold = args
-            .threshold
-            .unwrap_or_else(|| benchmark.customary_threshold());
-        eprintln!("{label}: {} images", items.len());
-        let (scored, summary) = score_all(&items, Some(&matcher), None, &[threshold]);
-        columns.push(Column {
+    for folder in listed {
+        let Folder {
             label,
-            threshold,
-            report: (!scored.is_empty()).then(|| MetricsReport::new(scored)),
+            rules,
+            listing,
+        } = folder;
+        eprintln!("{label}: {} images", listing.pairs.len());
+        let items = items(listing.pairs, None);
+        let (scored, summary) = score_all(&items, Some(&matcher), None, &rules);
+        columns.push(Column {
+            report: (!scored.is_empty()).then(|| ProtocolReport::new(rules.clone(), scored)),
+            label,
+            rules,
             failed: summary.failed,
+            unscored: listing.unscored,
         });
     }
     if let Some(path) = &args.per_image {
@@ -119,16 +142,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .collect();
         write_json(path, &Value::Object(per_image))?;
     }
+    print_columns(&args, matcher.name(), &columns);
+    finish(&columns)
+}
+
+/// Prints the columns: JSON, or the table and the paper's row.
+fn print_columns(args: &Args, source: &str, columns: &[Column]) {
     if args.json {
         let rows: Vec<Value> = columns.iter().map(column_json).collect();
         println!(
             "{:#}",
-            json!({ "source": matcher.name(), "benchmarks": rows })
+            json!({ "source": source, "protocol": args.protocol.name(), "benchmarks": rows })
         );
     } else {
-        println!("{}", matcher.name());
-        print!("{}", table(&columns));
-        print!("{}", paper_row(&columns));
+        println!("{source}");
+        println!("protocol {}: {}", args.protocol, args.protocol.source());
+        print!("{}", table(columns));
+        print!("{}", paper_row(columns));
+    }
+}
+
+/// Names the frames left unscored, then fails when an image failed.
+fn finish(columns: &[Column]) -> anyhow::Result<()> {
+    for c in columns {
+        let listing = Listing {
+            unscored: c.unscored.clone(),
+            ..Listing::default()
+        };
+        listing.warn_unscored(&c.label);
     }
     let failed: usize = columns.iter().map(|c| c.failed).sum();
     if failed > 0 {
@@ -137,13 +178,60 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The folders of [`list_folders`], each with its items to score.
-type Listed<'a> = Vec<(Benchmark, &'a PathBuf, Vec<Item>)>;
+/// A folder to score: its column name, its rules and its pairs.
+struct Folder {
+    /// The column's name.
+    label: String,
+    /// The protocol's rules for its benchmark.
+    rules: Rules,
+    /// Its pairs with ground truth (the listed ones) and the unscored.
+    listing: Listing,
+}
 
-/// Every folder the flags give, in flag order, with its items to score,
-/// and every file they read; all are listed before anything is predicted,
-/// so that a folder off its layout stops the command at once.
-fn list_folders(args: &Args) -> anyhow::Result<(Listed<'_>, InputFiles)> {
+/// Every folder the flags give, in flag order, with its rules and pairs
+/// (only the frames `--frames` lists), and every file they read; all are
+/// listed before anything is predicted, so that a folder off its layout, a
+/// protocol without rules for it or a listed frame that is nowhere stops
+/// the command at once.
+fn list_folders(args: &Args) -> anyhow::Result<(Vec<Folder>, InputFiles)> {
+    let folders = folders(args)?;
+    let lists = FrameLists::read(&args.frames, &folders)?;
+    let mut listed = Vec::new();
+    for &(benchmark, dir) in &folders {
+        let source = PairSource::Benchmark {
+            benchmark,
+            dir: dir.clone(),
+        };
+        let mut rules = args.protocol.rules(dataset_of(&source))?;
+        if let Some(x) = args.threshold {
+            rules = rules.with_thresholds(&[x]);
+        }
+        let listing = Listing::of(&source)
+            .with_context(|| format!("{benchmark} folder {}", dir.display()))?;
+        listed.push((label(benchmark, dir), rules, listing));
+    }
+    lists.check(&folders, &listed)?;
+    let mut inputs = InputFiles::new();
+    let mut kept = Vec::new();
+    for ((_, dir), (label, rules, listing)) in folders.iter().zip(listed) {
+        let listing = match lists.for_folder(dir) {
+            Some(list) => listing.keep(list),
+            None => listing,
+        };
+        for file in listing.pairs.iter().flat_map(StereoPair::input_files) {
+            inputs.add(&file);
+        }
+        kept.push(Folder {
+            label,
+            rules,
+            listing,
+        });
+    }
+    Ok((kept, inputs))
+}
+
+/// The folders the flags give, in flag order, with their benchmarks.
+fn folders(args: &Args) -> anyhow::Result<Vec<(Benchmark, &PathBuf)>> {
     let folders: Vec<(Benchmark, &PathBuf)> = [
         (Benchmark::Kitti, &args.kitti),
         (Benchmark::Middlebury, &args.middlebury),
@@ -160,22 +248,80 @@ fn list_folders(args: &Args) -> anyhow::Result<(Listed<'_>, InputFiles)> {
              --sceneflow DIR (each may be repeated)"
         );
     }
-    let mut inputs = InputFiles::new();
-    let mut listed = Vec::new();
-    for (benchmark, dir) in folders {
-        let source = PairSource::Benchmark {
-            benchmark,
-            dir: dir.clone(),
+    Ok(folders)
+}
+
+/// The `--frames` lists: those bound to a folder (`DIR=FILE`) and the
+/// one for every other folder (`FILE`).
+struct FrameLists {
+    bound: Vec<(PathBuf, FrameList)>,
+    shared: Option<FrameList>,
+}
+
+impl FrameLists {
+    /// Reads the `specs` against the `folders` given: `DIR=FILE` when DIR
+    /// is one of them, else FILE; two lists for one folder, or two shared
+    /// lists, are an error.
+    fn read(specs: &[String], folders: &[(Benchmark, &PathBuf)]) -> anyhow::Result<FrameLists> {
+        let mut lists = FrameLists {
+            bound: Vec::new(),
+            shared: None,
         };
-        let pairs = source
-            .scored_pairs()
-            .with_context(|| format!("{benchmark} folder {}", dir.display()))?;
-        for file in pairs.iter().flat_map(StereoPair::input_files) {
-            inputs.add(&file);
+        for spec in specs {
+            let bound = spec
+                .split_once('=')
+                .filter(|(dir, _)| folders.iter().any(|(_, d)| d.as_path() == Path::new(dir)));
+            match bound {
+                Some((dir, file)) => {
+                    if lists.bound.iter().any(|(d, _)| d == Path::new(dir)) {
+                        bail!("--frames: two lists for the folder {dir}");
+                    }
+                    let list = FrameList::read(Path::new(file))?;
+                    lists.bound.push((PathBuf::from(dir), list));
+                }
+                None if lists.shared.is_some() => {
+                    bail!(
+                        "--frames: two lists for every folder ({spec} and another); give DIR=FILE"
+                    )
+                }
+                None => lists.shared = Some(FrameList::read(Path::new(spec))?),
+            }
         }
-        listed.push((benchmark, dir, items(pairs, None)));
+        Ok(lists)
     }
-    Ok((listed, inputs))
+
+    /// The list that applies to the folder `dir`, if any.
+    fn for_folder(&self, dir: &Path) -> Option<&FrameList> {
+        self.bound
+            .iter()
+            .find(|(d, _)| d == dir)
+            .map(|(_, l)| l)
+            .or(self.shared.as_ref())
+    }
+
+    /// An error naming the listed frames that none of the folders a list
+    /// applies to has.
+    fn check(
+        &self,
+        folders: &[(Benchmark, &PathBuf)],
+        listed: &[(String, Rules, Listing)],
+    ) -> anyhow::Result<()> {
+        let lists = self
+            .bound
+            .iter()
+            .map(|(_, l)| l)
+            .chain(self.shared.as_ref());
+        for list in lists {
+            let (names, listings): (Vec<String>, Vec<&Listing>) = folders
+                .iter()
+                .zip(listed)
+                .filter(|((_, dir), _)| self.for_folder(dir) == Some(list))
+                .map(|((_, dir), (_, _, listing))| (dir.display().to_string(), listing))
+                .unzip();
+            check_listed(list, &listings, &names.join(" or "))?;
+        }
+        Ok(())
+    }
 }
 
 /// A folder's column name: the benchmark (KITTI with its year) and the
@@ -191,16 +337,16 @@ fn label(benchmark: Benchmark, dir: &Path) -> String {
     }
 }
 
-/// The pooled Out-x (percent) of `region` in a column, if scored (NOC and
-/// OCC exist only where the ground truth has an occlusion mask).
+/// The protocol's headline figure (percent) of `region` in a column, if
+/// scored (NOC and OCC exist only where the ground truth has an occlusion
+/// mask and the protocol scores them).
 fn out_x(column: &Column, region: Region) -> Option<f64> {
-    let sums = column.report.as_ref()?.pooled().get(region)?;
-    sums.metrics().out(column.threshold)
+    column.report.as_ref()?.headline(region)
 }
 
-/// The pooled EPE of every valid pixel in a column, if scored.
+/// The column's EPE, as the protocol combines it, if scored.
 fn epe(column: &Column) -> Option<f64> {
-    column.report.as_ref()?.pooled().all.metrics().epe
+    column.report.as_ref()?.epe()
 }
 
 /// One row per folder: metric, images, OCC, NOC, ALL and EPE.
@@ -212,11 +358,11 @@ fn table(columns: &[Column]) -> String {
         "benchmark", "metric", "images", "failed", "OCC", "NOC", "ALL", "EPE"
     );
     for c in columns {
-        let images = c.report.as_ref().map_or(0, MetricsReport::images);
+        let images = c.report.as_ref().map_or(0, ProtocolReport::images);
         out += &format!(
             "{:<width$} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8}\n",
             c.label,
-            format!("Out-{}", c.threshold),
+            c.rules.headline.name(),
             images,
             c.failed,
             pct(out_x(c, Region::Occ)),
@@ -236,7 +382,12 @@ fn paper_row(columns: &[Column]) -> String {
     let mut row = String::from("|");
     for c in columns {
         for region in [Region::Occ, Region::All] {
-            head += &format!(" {} {} Out-{} |", c.label, region.name(), c.threshold);
+            head += &format!(
+                " {} {} {} |",
+                c.label,
+                region.name(),
+                c.rules.headline.name()
+            );
             rule += " ---: |";
             row += &format!(
                 " {} |",
@@ -247,13 +398,16 @@ fn paper_row(columns: &[Column]) -> String {
     format!("\nTable 4 row (Markdown):\n{head}\n{rule}\n{row}\n")
 }
 
-/// A column as JSON: the folder's pooled OCC, NOC and ALL scores.
+/// A column as JSON: the folder's OCC, NOC and ALL headline figures, its
+/// EPE and the rules they were scored under.
 fn column_json(c: &Column) -> Value {
     json!({
         "benchmark": c.label,
-        "metric": format!("out{}", c.threshold),
-        "images": c.report.as_ref().map_or(0, MetricsReport::images),
+        "rules": c.rules.describe(),
+        "metric": c.rules.headline.key(),
+        "images": c.report.as_ref().map_or(0, ProtocolReport::images),
         "failed": c.failed,
+        "unscored": c.unscored,
         "occ": out_x(c, Region::Occ),
         "noc": out_x(c, Region::Noc),
         "all": out_x(c, Region::All),

@@ -1,21 +1,21 @@
-//! `mbs-tool eval`: predicted disparities against ground truth — EPE,
-//! Out-x and D1 over ALL, NOC and OCC pixels, per image, averaged per image
-//! and pooled over pixels (conventions §6).
+//! `mbs-tool eval`: predicted disparities against ground truth under a
+//! scoring protocol — by default mbs's `pixels`: EPE, Out-x and D1 over
+//! ALL, NOC and OCC pixels, per image, averaged per image and pooled over
+//! pixels (conventions §6); or a project's own rules (`--protocol`).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::bail;
 use clap::Parser;
-use mbs_core::FloatImage;
-use mbs_core::formats::{read_disparity, rgb};
-use mbs_core::metrics::{MetricsReport, RegionSums, evaluate};
-use mbs_dataset::ground_truth::{GroundTruthFile, NocSource, find_map};
-use mbs_dataset::pairs::{PairSource, StereoPair};
+use mbs_core::metrics::{DEFAULT_OUT_THRESHOLDS, Dataset, Protocol, ProtocolReport, Rules};
+use mbs_dataset::ground_truth::{GroundTruthFile, NocSource};
+use mbs_dataset::pairs::PairSource;
 use mbs_infer::SgmConfig;
+use serde_json::json;
 
-use crate::cli::batch;
-use crate::cli::pairs::PairArgs;
-use crate::cli::source::{PairMatcher, StereoSourceArgs};
+use crate::cli::pairs::{FrameList, PairArgs};
+use crate::cli::scoring::{Item, Listing, Prediction, check_listed, dataset_of, items, score_all};
+use crate::cli::source::StereoSourceArgs;
 
 /// Arguments of `eval`.
 #[derive(Parser)]
@@ -29,6 +29,7 @@ use crate::cli::source::{PairMatcher, StereoSourceArgs};
   mbs-tool eval pred --middlebury /data/MiddEval3/trainingH
   mbs-tool eval pred --drivingstereo /data/DrivingStereo/rainy
   mbs-tool eval --left im2.png --right im6.png --gt disp2.png --gt-scale 4 --max-disparity 64
+  mbs-tool eval pred --kitti /data/kitti2012/training --protocol kitti --frames train_all.txt
 
 Predictions are looked up as <PREDICTIONS>/<name>.pfm, .png (KITTI 16-bit)
 or .exr, <name> being the GT file stem (KITTI) or the sample id (manifest).
@@ -36,13 +37,17 @@ Without PREDICTIONS, a disparity source predicts every pair: the built-in
 matcher by default, the run's teacher with --checkpoint, an official or
 exported network with --backbone and --weights (e.g. official RAFT-Stereo
 weights), or an ONNX model with --model and --card.
-A missing prediction value (+inf/NaN, 0 in PNGs) counts as an outlier for
-Out-x and D1 and is left out of EPE; the density column says how many
-pixels had one. ALL = valid GT; NOC = valid non-occluded GT (KITTI
-disp_noc, Middlebury's and ETH3D's mask0nocc.png, a --noc mask, or the
-manifest's occlusion mask); OCC = ALL - NOC. DrivingStereo and SceneFlow
-have no occlusion masks: only ALL. `mbs-tool benchmark` scores several
-benchmarks at once with each one's customary metric.")]
+Under the default protocol, pixels, a missing prediction value (+inf/NaN,
+0 in PNGs) counts as an outlier for Out-x and D1 and is left out of EPE;
+the density column says how many pixels had one. ALL = valid GT; NOC =
+valid non-occluded GT (KITTI disp_noc, Middlebury's and ETH3D's
+mask0nocc.png, a --noc mask, or the manifest's occlusion mask); OCC = ALL -
+NOC. DrivingStereo and SceneFlow have no occlusion masks: only ALL.
+--protocol scores as a project does instead (s3, raft-stereo,
+igev-stereo, kitti, eth3d, middlebury: docs/evaluation.md); --frames FILE
+scores only the frames it names. Frames without usable ground truth are
+named in a warning. `mbs-tool benchmark` scores several benchmarks at
+once.")]
 pub struct Args {
     /// A folder of predicted disparities, or one file with --gt [default:
     /// predict every pair with the disparity source].
@@ -68,9 +73,20 @@ pub struct Args {
     /// Tsukuba: 16].
     #[arg(long, value_parser = crate::cli::values::positive_f32, allow_negative_numbers = true)]
     pub gt_scale: Option<f32>,
-    /// Out-x thresholds in pixels, comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "1,2,3", value_parser = crate::cli::values::positive_f32, allow_hyphen_values = true)]
+    /// Out-x thresholds in pixels, comma-separated [default: 1,2,3 under
+    /// pixels, the protocol's own otherwise].
+    #[arg(long, value_delimiter = ',', value_parser = crate::cli::values::positive_f32, allow_hyphen_values = true)]
     pub thresholds: Vec<f32>,
+    /// The scoring rules: pixels (mbs's), s3 (the S3 paper's
+    /// stereo_toolbox), raft-stereo, igev-stereo, kitti, eth3d or
+    /// middlebury (each project's own; docs/evaluation.md).
+    #[arg(long, default_value = "pixels")]
+    pub protocol: Protocol,
+    /// Score only the frames this file names, one a line (pair ids, e.g.
+    /// KITTI 000000_10 or a Middlebury scene); blank lines and # comments
+    /// are ignored.
+    #[arg(long, value_name = "FILE", conflicts_with = "gt")]
+    pub frames: Option<PathBuf>,
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
@@ -79,50 +95,14 @@ pub struct Args {
     pub jobs: usize,
 }
 
-/// One image to score.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Item {
-    /// Name in the table.
-    pub name: String,
-    /// Where the prediction comes from.
-    pub prediction: Prediction,
-    /// The ground truth it is scored against.
-    pub truth: GroundTruthFile,
-}
-
-/// Where a prediction comes from.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Prediction {
-    /// A disparity file.
-    File(PathBuf),
-    /// No file named after the item in this predictions folder: the item
-    /// is reported as failed and the others are scored.
-    Missing(PathBuf),
-    /// A pair the disparity source predicts.
-    Pair(StereoPair),
-}
-
 /// Runs `eval`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
-    let predictions = args.predictions.as_deref();
-    let items = match (&args.gt, args.pairs.source()?) {
-        (Some(gt), source) => {
-            let truth = GroundTruthFile {
-                disparity: gt.clone(),
-                scale: 1.0,
-                noc: args.noc.clone().map(NocSource::Mask),
-            };
-            vec![single_item(predictions, source, truth)?]
-        }
-        (None, Some(source)) => items(source.scored_pairs()?, predictions),
-        (None, None) => {
-            bail!(
-                "no ground truth: give a benchmark folder (--kitti, --middlebury, --eth3d, \
-                 --drivingstereo, --sceneflow DIR), --manifest FILE or --gt FILE"
-            )
-        }
-    };
+    let source = args.pairs.source()?;
+    let dataset = source.as_ref().map_or(Dataset::Other, dataset_of);
+    let place = source.as_ref().map_or_else(String::new, source_name);
+    let rules = rules(&args, dataset)?;
+    let (items, unscored) = list_items(&args, source)?;
     let matcher = match items
         .iter()
         .any(|i| matches!(i.prediction, Prediction::Pair(_)))
@@ -133,44 +113,75 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         false => None,
     };
-    let (scored, summary) = score_all(&items, matcher.as_ref(), args.gt_scale, &args.thresholds);
+    let (scored, summary) = score_all(&items, matcher.as_ref(), args.gt_scale, &rules);
     if scored.is_empty() {
         bail!("no image could be scored (see above)");
     }
-    let report = MetricsReport::new(scored);
+    let report = ProtocolReport::new(rules, scored);
     if args.json {
-        println!("{:#}", report.json());
+        let mut json = report.json();
+        json["unscored"] = json!(unscored.unscored);
+        println!("{json:#}");
     } else {
-        print!("{}", report.table(&args.thresholds));
+        print!("{}", report.table());
     }
+    unscored.warn_unscored(&place);
     summary.finish("eval", "images")
 }
 
-/// Scores every item with a progress bar: its prediction (read, or
-/// computed by `matcher`) against its ground truth at `thresholds`. An
-/// item that fails is reported on stderr and counted in the summary; the
-/// others are scored.
-pub fn score_all(
-    items: &[Item],
-    matcher: Option<&PairMatcher>,
-    gt_scale: Option<f32>,
-    thresholds: &[f32],
-) -> (Vec<(String, RegionSums)>, batch::Summary) {
-    let (results, summary) = batch::map(
-        items,
-        "images",
-        |item| item.name.clone(),
-        |item| {
-            let prediction = predict(item, matcher)?;
-            score(item, &prediction, gt_scale, thresholds)
-        },
-    );
-    let scored = items
-        .iter()
-        .zip(results)
-        .filter_map(|(item, sums)| Some((item.name.clone(), sums?)))
-        .collect();
-    (scored, summary)
+/// The protocol's rules for `dataset` at the `--thresholds` given, else
+/// Out-1, 2, 3 under `pixels` and the protocol's own otherwise.
+fn rules(args: &Args, dataset: Dataset) -> anyhow::Result<Rules> {
+    let rules = args.protocol.rules(dataset)?;
+    Ok(match (args.thresholds.is_empty(), args.protocol) {
+        (false, _) => rules.with_thresholds(&args.thresholds),
+        (true, Protocol::Pixels) => rules.with_thresholds(&DEFAULT_OUT_THRESHOLDS),
+        (true, _) => rules,
+    })
+}
+
+/// The items to score (only the `--frames` listed), and the source's
+/// listing naming the frames left out for want of ground truth.
+fn list_items(args: &Args, source: Option<PairSource>) -> anyhow::Result<(Vec<Item>, Listing)> {
+    let predictions = args.predictions.as_deref();
+    match (&args.gt, source) {
+        (Some(gt), source) => {
+            let truth = GroundTruthFile {
+                disparity: gt.clone(),
+                scale: 1.0,
+                noc: args.noc.clone().map(NocSource::Mask),
+            };
+            let item = single_item(predictions, source, truth)?;
+            Ok((vec![item], Listing::default()))
+        }
+        (None, Some(source)) => {
+            let mut listing = Listing::of(&source)?;
+            if let Some(path) = &args.frames {
+                let list = FrameList::read(path)?;
+                check_listed(&list, &[&listing], &source_name(&source))?;
+                listing = listing.keep(&list);
+            }
+            let pairs = std::mem::take(&mut listing.pairs);
+            Ok((items(pairs, predictions), listing))
+        }
+        (None, None) => {
+            bail!(
+                "no ground truth: give a benchmark folder (--kitti, --middlebury, --eth3d, \
+                 --drivingstereo, --sceneflow DIR), --manifest FILE or --gt FILE"
+            )
+        }
+    }
+}
+
+/// Where a source's frames are, for messages: its folder or manifest.
+fn source_name(source: &PairSource) -> String {
+    match source {
+        PairSource::Single { left, .. } => left.display().to_string(),
+        PairSource::Kitti { dir, .. } | PairSource::Benchmark { dir, .. } => {
+            dir.display().to_string()
+        }
+        PairSource::Manifest { path, .. } => path.display().to_string(),
+    }
 }
 
 /// The one item `--gt` scores: the prediction file, or else the one pair
@@ -189,6 +200,7 @@ fn single_item(
             name,
             prediction: Prediction::File(file.to_path_buf()),
             truth,
+            disparity_bound: None,
         });
     }
     match source {
@@ -196,99 +208,11 @@ fn single_item(
             let pair = source.pairs()?.remove(0);
             Ok(Item {
                 name: pair.id.clone(),
+                disparity_bound: pair.disparity_bound,
                 prediction: Prediction::Pair(pair),
                 truth,
             })
         }
         _ => bail!("--gt scores one prediction file (PREDICTIONS) or one pair (--left, --right)"),
     }
-}
-
-/// The pairs with ground truth, with their prediction files in the
-/// `predictions` folder (none: predicted by the disparity source).
-pub fn items(pairs: Vec<StereoPair>, predictions: Option<&Path>) -> Vec<Item> {
-    pairs
-        .into_iter()
-        .filter_map(|mut pair| {
-            let truth = pair.truth.take()?;
-            let name = pair.id.clone();
-            let prediction = match predictions {
-                Some(folder) => find_map(folder, &name).map_or_else(
-                    || Prediction::Missing(folder.to_path_buf()),
-                    Prediction::File,
-                ),
-                None => Prediction::Pair(pair),
-            };
-            Some(Item {
-                name,
-                prediction,
-                truth,
-            })
-        })
-        .collect()
-}
-
-/// Reads an item's prediction, or computes it with the disparity source;
-/// with the file it came from (for messages).
-fn predict(item: &Item, matcher: Option<&PairMatcher>) -> anyhow::Result<(FloatImage, PathBuf)> {
-    match (&item.prediction, matcher) {
-        (Prediction::File(path), _) => Ok((read_disparity(path, None)?, path.clone())),
-        (Prediction::Missing(folder), _) => bail!(
-            "no prediction {}.pfm, .png or .exr in {}",
-            item.name,
-            folder.display()
-        ),
-        (Prediction::Pair(pair), Some(matcher)) => {
-            let reference = rgb::read_rgb(&pair.reference)?;
-            let target = rgb::read_rgb(&pair.target)?;
-            let disparity = matcher.predict(pair, &reference, &target)?;
-            Ok((disparity.disparity, pair.reference.clone()))
-        }
-        (Prediction::Pair(pair), None) => {
-            bail!(
-                "{}: no prediction and no disparity source",
-                pair.reference.display()
-            )
-        }
-    }
-}
-
-fn score(
-    item: &Item,
-    (prediction, source): &(FloatImage, PathBuf),
-    gt_scale: Option<f32>,
-    thresholds: &[f32],
-) -> anyhow::Result<RegionSums> {
-    let gt = item.truth.load(gt_scale)?;
-    check_size(prediction, &gt.disparity, source, &item.truth.disparity)?;
-    if !gt.disparity.iter().any(|d| d.is_finite()) {
-        bail!(
-            "{}: the ground truth has no valid pixel: nothing to score",
-            item.truth.disparity.display()
-        );
-    }
-    Ok(evaluate(
-        prediction,
-        &gt.disparity,
-        gt.noc.as_ref(),
-        thresholds,
-    )?)
-}
-
-fn check_size(
-    prediction: &FloatImage,
-    gt: &FloatImage,
-    path: &Path,
-    gt_path: &Path,
-) -> anyhow::Result<()> {
-    if prediction.dimensions() != gt.dimensions() {
-        bail!(
-            "{}: prediction is {:?} but the ground truth {} is {:?} (width, height)",
-            path.display(),
-            prediction.dimensions(),
-            gt_path.display(),
-            gt.dimensions()
-        );
-    }
-    Ok(())
 }
