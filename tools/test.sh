@@ -25,8 +25,9 @@ python_extra_log="$(mktemp)"
 python_extra=$!
 trap 'kill "$python_extra" 2>/dev/null || true; rm -f "$python_extra_log"' EXIT
 # With the `mpi` feature, so that the multi-process training tests
-# (crates/mbs-tool/tests/train_mpi.rs) run the binary that `mpirun` launches.
-cargo test --workspace --locked --features mbs-tool/mpi
+# (crates/mbs-tool/tests/train_mpi.rs) run the binary that `mpirun` launches,
+# and the opt-in `vulkan` feature, whose tests run on lavapipe.
+cargo test --workspace --locked --features mbs-tool/mpi,mbs-tool/vulkan
 wait "$python_extra" || { cat "$python_extra_log"; echo "(the install below retries)"; }
 # The Python package (python/, pyo3 + maturin) built from this tree into a
 # virtual environment, .venv-test/, with its `test` extra from PyPI (numpy,

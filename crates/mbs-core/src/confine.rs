@@ -84,32 +84,6 @@ pub fn create_out_dir(dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| FormatError::io(dir, e))
 }
 
-/// Refuses to write `output` when it is one of the files a command reads,
-/// `inputs`. Files are compared by identity on disk (device and inode, or
-/// the platform's equivalent), so another spelling of a path, a symbolic
-/// link or a hard link is caught too. A missing `output` or input is no
-/// conflict.
-pub fn refuse_overwriting_inputs<'a>(
-    output: &Path,
-    inputs: impl IntoIterator<Item = &'a Path>,
-) -> Result<()> {
-    let Ok(output_handle) = same_file::Handle::from_path(output) else {
-        return Ok(());
-    };
-    for input in inputs {
-        if same_file::Handle::from_path(input).is_ok_and(|handle| handle == output_handle) {
-            return Err(FormatError::invalid(
-                output,
-                format!(
-                    "is {}, which this command reads; write the output elsewhere",
-                    input.display()
-                ),
-            ));
-        }
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -142,26 +116,6 @@ mod tests {
         for (name, ok) in CASES {
             assert_eq!(check_name(name).is_ok(), *ok, "{name:?}");
         }
-    }
-
-    #[test]
-    fn an_output_that_is_an_input_is_refused_however_it_is_named() {
-        let dir = tempfile::tempdir().unwrap();
-        let input = dir.path().join("weights.bpk");
-        std::fs::write(&input, b"weights").unwrap();
-        let other = dir.path().join("other.bpk");
-        std::fs::write(&other, b"other").unwrap();
-        let linked = dir.path().join("linked.bpk");
-        std::fs::hard_link(&input, &linked).unwrap();
-        let respelled = dir.path().join(".").join("weights.bpk");
-        for output in [&input, &linked, &respelled] {
-            let err = refuse_overwriting_inputs(output, [input.as_path()])
-                .unwrap_err()
-                .to_string();
-            assert!(err.contains("which this command reads"), "{err}");
-        }
-        assert!(refuse_overwriting_inputs(&other, [input.as_path()]).is_ok());
-        assert!(refuse_overwriting_inputs(&dir.path().join("new.bpk"), [input.as_path()]).is_ok());
     }
 
     #[test]

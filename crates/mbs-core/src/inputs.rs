@@ -109,7 +109,10 @@ mod tests {
         inputs.add(&dir.path().join("missing.png"));
         let err = inputs.refuse(&truth).unwrap_err().to_string();
         assert!(err.contains("disp0GT.pfm: is one of its inputs"), "{err}");
-        // The same file by another path, a link and a hard link.
+        // The same file by another path, a link and a hard link; a file
+        // that is not an input passes.
+        fs::write(dir.path().join("other.pfm"), b"other").unwrap();
+        assert!(inputs.refuse(&dir.path().join("other.pfm")).is_ok());
         let dotted = dir.path().join(".").join("disp0GT.pfm");
         let link = dir.path().join("link.pfm");
         let hard = dir.path().join("hard.pfm");

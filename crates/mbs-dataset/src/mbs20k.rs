@@ -209,7 +209,9 @@ impl Default for ScanOptions {
     }
 }
 
-fn sorted_subdirs(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
+/// The folders in `dir` (links to folders included), sorted; a name that
+/// is not UTF-8 is an error naming it.
+pub(crate) fn sorted_subdirs(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
     let io = |source| DatasetError::Io {
         path: dir.to_path_buf(),
         source,

@@ -224,24 +224,12 @@ impl SubmissionLayout {
     }
 }
 
-/// The names of the folders in `dir` (links to folders included), sorted;
-/// names that are not UTF-8 are left out.
+/// The names of the folders in `dir`, sorted.
 fn sorted_folders(dir: &Path) -> Result<Vec<String>, DatasetError> {
-    let io = |source| DatasetError::Io {
-        path: dir.to_path_buf(),
-        source,
-    };
-    let mut names = Vec::new();
-    for entry in std::fs::read_dir(dir).map_err(io)? {
-        let entry = entry.map_err(io)?;
-        if entry.path().is_dir()
-            && let Ok(name) = entry.file_name().into_string()
-        {
-            names.push(name);
-        }
-    }
-    names.sort();
-    Ok(names)
+    Ok(crate::mbs20k::sorted_subdirs(dir)?
+        .iter()
+        .filter_map(|path| Some(path.file_name()?.to_string_lossy().into_owned()))
+        .collect())
 }
 
 /// Whether the submission file `path` is complete: a map that decodes to

@@ -236,6 +236,30 @@ mod tests {
             err.contains(&bad.display().to_string()) && err.contains("ndisp=-3"),
             "{err}"
         );
+        // Two ndisp lines used to take the first without a word.
+        std::fs::write(&bad, "ndisp=64\nndisp=128\n").unwrap();
+        let err = two_view_pairs(&root, Benchmark::Middlebury)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("2 ndisp lines (64, 128)"), "{err}");
+    }
+
+    /// `--eth3d .` from inside the folder finds the `_gt` sibling as the
+    /// absolute path does.
+    #[test]
+    fn eth3d_ground_truth_is_found_from_a_relative_dot() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path().join("two_view_training");
+        scene(&root.join("delivery_area_1l"), None);
+        let gt = dir.path().join("two_view_training_gt/delivery_area_1l");
+        std::fs::create_dir_all(&gt).unwrap();
+        std::fs::write(gt.join(DISPARITY), b"Pf").unwrap();
+        let dotted = root.join(".");
+        let pairs = two_view_pairs(&dotted, Benchmark::Eth3d).unwrap();
+        assert_eq!(
+            pairs[0].truth.as_ref().map(|t| t.disparity.clone()),
+            Some(std::path::absolute(&gt).unwrap().join(DISPARITY))
+        );
     }
 
     #[test]

@@ -137,6 +137,8 @@ impl StateDict {
 
     fn read_pytorch(path: &Path) -> Result<Self, NetError> {
         use burn::store::pytorch_reader::{DType, PytorchReader};
+        // A FIFO or a folder is named here: the reader would block on one.
+        mbs_core::regular::open_regular(path).map_err(|e| NetError::weights(path, e.reason()))?;
         let reader = PytorchReader::new(path)
             .map_err(|e| NetError::weights(path, format!("not a PyTorch state dict: {e}")))?;
         let mut tensors = BTreeMap::new();

@@ -92,7 +92,7 @@ fn main() -> std::process::ExitCode {
         Err(e) if e.is::<cli::processes::ReportedByRankZero>() => std::process::ExitCode::FAILURE,
         Err(e) => {
             eprintln!("error: {}", cli::report_error::describe(&e));
-            std::process::ExitCode::FAILURE
+            std::process::ExitCode::from(cli::exit_status(&e))
         }
     }
 }

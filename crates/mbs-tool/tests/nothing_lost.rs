@@ -154,7 +154,14 @@ fn train(manifest: &str, out: &Path, extra: &[&str]) -> Output {
         .args(["train", manifest, "--out"])
         .arg(out)
         .args(common::SMALL)
-        .args(["--steps", "2", "--val-every", "0", "--checkpoint-every", "2"])
+        .args([
+            "--steps",
+            "2",
+            "--val-every",
+            "100",
+            "--checkpoint-every",
+            "2",
+        ])
         .args(extra);
     within(command, 300)
 }
@@ -175,10 +182,25 @@ fn train_checks_before_it_removes_or_writes() {
     let garbage = dir.path().join("garbage.pth");
     std::fs::write(&garbage, b"not a checkpoint").unwrap();
     for init in [dir.path().join("nowhere"), garbage] {
-        let output = train(&manifest, &run, &["--restart", "--init", init.to_str().unwrap()]);
+        let output = train(
+            &manifest,
+            &run,
+            &["--restart", "--init", init.to_str().unwrap()],
+        );
         refused(&output, &[init.file_name().unwrap().to_str().unwrap()]);
-        assert_eq!(tree(&checkpoints), kept, "checkpoints removed before a refusal");
+        assert_eq!(
+            tree(&checkpoints),
+            kept,
+            "checkpoints removed before a refusal"
+        );
     }
+    // More devices than batch items is a usage error (exit 2), refused
+    // before the folder is touched.
+    let shared = dir.path().join("shared");
+    let output = train(&manifest, &shared, &["--device", "cpu,cpu,cpu"]);
+    refused(&output, &["batch_size 2 is smaller than the 3 devices"]);
+    assert_eq!(output.status.code(), Some(2), "{}", text(&output));
+    assert!(!shared.exists());
     let fresh = dir.path().join("fresh");
     std::fs::create_dir_all(&fresh).unwrap();
     let log = fresh.join("train.jsonl");
@@ -186,5 +208,10 @@ fn train_checks_before_it_removes_or_writes() {
     let output = train(&manifest, &fresh, &[]);
     refused(&output, &["train.jsonl", "FIFO", "not a regular file"]);
     use std::os::unix::fs::FileTypeExt;
-    assert!(std::fs::symlink_metadata(&log).unwrap().file_type().is_fifo());
+    assert!(
+        std::fs::symlink_metadata(&log)
+            .unwrap()
+            .file_type()
+            .is_fifo()
+    );
 }

@@ -450,3 +450,32 @@ fn ranks_that_disagree_or_cannot_open_their_device_are_refused_before_anything_i
     );
     assert!(!out.exists(), "nothing was written");
 }
+
+/// Launcher variables that say rank 0 and 1 of 2 with no MPI job behind
+/// them used to make each process train alone into the same folder (its
+/// world of one): now each is refused, naming the variables, before the
+/// folder is made.
+#[test]
+fn launcher_variables_without_their_mpi_job_are_refused() {
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let manifest = synth(&dir.path().join("data"));
+    let out = dir.path().join("run");
+    let launchers: [&[(&str, &str)]; 2] = [
+        &[("SLURM_PROCID", "1"), ("SLURM_STEP_NUM_TASKS", "2")],
+        &[("OMPI_COMM_WORLD_RANK", "0"), ("OMPI_COMM_WORLD_SIZE", "2")],
+    ];
+    for variables in launchers {
+        let output = common::mbs_tool()
+            .args(train_args(&manifest, &out, 2))
+            .envs(variables.iter().copied())
+            .output()
+            .expect("mbs-tool starts");
+        let all = text(&output);
+        assert!(!output.status.success(), "{all}");
+        for (name, value) in variables {
+            assert!(all.contains(&format!("{name}={value}")), "{all}");
+        }
+        assert!(all.contains("MPI gives this process a job of 1"), "{all}");
+        assert!(!out.exists(), "the folder was made: {all}");
+    }
+}

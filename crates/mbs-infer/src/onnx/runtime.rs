@@ -181,10 +181,15 @@ fn same_file(a: &Path, b: &Path) -> bool {
 /// device it actually runs on (the CPU after an allowed fallback).
 pub fn open_session(model: &Path, options: &RuntimeOptions) -> Result<(Session, Device)> {
     let env = environment(options.library.as_deref())?;
-    if !model.is_file() {
+    // A FIFO or a folder is named here: ONNX Runtime would block on one.
+    let unusable = match model.exists() {
+        false => Some("no such file".to_string()),
+        true => mbs_core::regular::open_regular(model).err().map(|e| e.reason()),
+    };
+    if let Some(message) = unusable {
         return Err(OnnxError::Model {
             path: model.to_path_buf(),
-            message: "no such file".into(),
+            message,
         });
     }
     let model_error = |message: String| OnnxError::Model {

@@ -13,6 +13,30 @@ pub mod shard;
 pub mod source;
 pub mod values;
 
+/// Flags that cannot work together or with the settings, found after
+/// parsing (e.g. more devices than batch items): the command exits with
+/// status 2, as for clap's own usage errors.
+#[derive(Debug)]
+pub struct UsageError(pub String);
+
+impl std::fmt::Display for UsageError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for UsageError {}
+
+/// The exit status of a command that failed with `error`: 2 for a usage
+/// error, 1 otherwise.
+pub fn exit_status(error: &anyhow::Error) -> u8 {
+    if error.chain().any(|cause| cause.is::<UsageError>()) {
+        2
+    } else {
+        1
+    }
+}
+
 /// Creates the output folder `dir` (refusing a file in its place) and
 /// removes the temporary files a killed earlier run left in it.
 pub fn prepare_out(dir: &std::path::Path) -> anyhow::Result<()> {

@@ -8,7 +8,7 @@ use anyhow::Context;
 use burn::tensor::Device;
 use clap::Parser;
 use mbs_core::atomic::refuse_special_target;
-use mbs_core::confine::refuse_overwriting_inputs;
+use mbs_core::inputs::InputFiles;
 use mbs_nets::checkpoint::TrainedNetworks;
 
 /// Arguments of `export`.
@@ -45,7 +45,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let out = safetensors_name(&args.out);
     refuse_special_target(&out).context("--out")?;
     let checkpoint = TrainedNetworks::open(&args.run)?;
-    refuse_overwriting_inputs(&out, checkpoint.files().iter().map(PathBuf::as_path))
+    let mut inputs = InputFiles::new();
+    checkpoint.files().iter().for_each(|file| inputs.add(file));
+    inputs
+        .refuse(&out)
         .context("--out would overwrite the checkpoint it exports")?;
     let device = Device::flex();
     let (which, net) = if args.student {

@@ -360,7 +360,13 @@ fn open_devices(
         .map(ToString::to_string)
         .zip(devices?)
         .collect();
-    let placement = Placement::check(config, labelled, processes.cloned())?;
+    // Settings the devices cannot run (more sharers than batch items, no
+    // device) are usage errors.
+    let placement =
+        Placement::check(config, labelled, processes.cloned()).map_err(|e| match e {
+            TrainError::Config(message) => anyhow::Error::new(crate::cli::UsageError(message)),
+            other => other.into(),
+        })?;
     if let Some(warning) = mbs_train::memory::check(config, &names)?
         && processes.is_none_or(|p| p.rank() == 0)
     {
