@@ -182,9 +182,12 @@ fn same_file(a: &Path, b: &Path) -> bool {
 pub fn open_session(model: &Path, options: &RuntimeOptions) -> Result<(Session, Device)> {
     let env = environment(options.library.as_deref())?;
     // A FIFO or a folder is named here: ONNX Runtime would block on one.
-    let unusable = match model.exists() {
-        false => Some("no such file".to_string()),
-        true => mbs_core::regular::open_regular(model).err().map(|e| e.reason()),
+    let unusable = if model.exists() {
+        mbs_core::regular::open_regular(model)
+            .err()
+            .map(|e| e.reason())
+    } else {
+        Some("no such file".to_string())
     };
     if let Some(message) = unusable {
         return Err(OnnxError::Model {
