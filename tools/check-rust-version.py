@@ -50,7 +50,7 @@ def main() -> int:
         shown = ", ".join(f"{name} {v} needs {'.'.join(map(str, need))}" for need, name, v in newer)
         print(
             f"check-rust-version: Cargo.toml says rust-version {'.'.join(map(str, workspace[:2]))}, "
-            f"but {shown}: raise it (and the README's) to the highest"
+            f"but {shown}: raise it to the highest (and say so in the README)"
         )
         return 1
     print(f"check-rust-version: rust-version {'.'.join(map(str, workspace[:2]))} covers every dependency")

@@ -186,10 +186,16 @@ fi
 # moved into the temporary folder (removed with it), anything else refused.
 check_out
 if [ -e "$out" ]; then
-    mv "$out" "$tmp/previous"
+    mv -T "$out" "$tmp/previous"
 fi
-if ! mv "$partial" "$out"; then
-    [ ! -e "$tmp/previous" ] || mv "$tmp/previous" "$out"
+# -T: a folder made at OUT meanwhile is refused, not filled.
+if ! mv -T "$partial" "$out"; then
+    if [ -e "$tmp/previous" ] && ! mv -T "$tmp/previous" "$out"; then
+        # Kept out of the temporary folder the exit trap removes.
+        kept=$(mktemp -d "$(dirname "$out")/.$(basename "$out").previous.XXXXXX")
+        mv -T "$tmp/previous" "$kept/bundle"
+        echo "prepare.sh: the previous bundle is at $kept/bundle" >&2
+    fi
     echo "prepare.sh: could not rename $partial to $out" >&2
     exit 1
 fi

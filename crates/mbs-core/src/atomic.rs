@@ -127,13 +127,12 @@ fn place_atomically(path: &Path, fill: impl FnOnce(&Path) -> std::io::Result<()>
         fs::create_dir_all(parent).map_err(|e| FormatError::io(parent, e))?;
     }
     let partial = partial_path(path);
-    fill(&partial)
-        .map_err(|e| FormatError::io(path, e))
-        .and_then(|()| publish(&partial, path))
-        .inspect_err(|_| {
-            // Best effort: the partial file is garbage either way.
-            let _ = fs::remove_file(&partial);
-        })
+    fill(&partial).map_err(|e| {
+        // Best effort: the partial file is garbage either way.
+        let _ = fs::remove_file(&partial);
+        FormatError::io(path, e)
+    })?;
+    publish(&partial, path)
 }
 
 /// Renames the finished `partial` to `path` without ever replacing a file
@@ -145,29 +144,50 @@ fn place_atomically(path: &Path, fill: impl FnOnce(&Path) -> std::io::Result<()>
 /// `RENAME_EXCHANGE` swaps the two atomically and what came out is looked
 /// at under the temporary name: a regular file (or a link to one, or to
 /// nothing) is removed, anything else is swapped back and refused. A file
-/// system without these flags gets the check and a plain rename.
+/// system without these flags gets the check and a plain rename. On
+/// failure the temporary file is removed, unless it holds the user's file
+/// (a swap back that failed, which the error says).
 fn publish(partial: &Path, path: &Path) -> Result<()> {
-    match publish_exclusively(partial, path) {
-        Some(result) => result,
-        None => {
-            refuse_special_target(path)?;
-            fs::rename(partial, path).map_err(|e| FormatError::io(path, e))
+    let result = publish_exclusively(partial, path).unwrap_or_else(|| {
+        refuse_special_target(path)
+            .and_then(|()| fs::rename(partial, path).map_err(|e| FormatError::io(path, e)))
+            .map_err(Unpublished::Ours)
+    });
+    result.map_err(|unpublished| match unpublished {
+        Unpublished::Ours(e) => {
+            let _ = fs::remove_file(partial);
+            e
         }
-    }
+        Unpublished::Theirs(e) => e,
+    })
+}
+
+/// Why a finished file was not published, by who owns what is left at its
+/// temporary name.
+enum Unpublished {
+    /// The temporary name holds the command's file: it is removed.
+    Ours(FormatError),
+    /// It holds the user's file, which a swap back failed to return: it is
+    /// left there, and the error says where.
+    Theirs(FormatError),
 }
 
 /// [`publish`] through `renameat2`; `None` where the file system or the
 /// kernel does not offer it.
 #[cfg(target_os = "linux")]
-fn publish_exclusively(partial: &Path, path: &Path) -> Option<Result<()>> {
+fn publish_exclusively(
+    partial: &Path,
+    path: &Path,
+) -> Option<std::result::Result<(), Unpublished>> {
     use rustix::fs::{CWD, RenameFlags, renameat_with};
     use rustix::io::Errno;
     let unsupported = |e: Errno| e == Errno::INVAL || e == Errno::NOSYS || e == Errno::NOTSUP;
+    let failed = |e: Errno| Some(Err(Unpublished::Ours(FormatError::io(path, e.into()))));
     loop {
         match renameat_with(CWD, partial, CWD, path, RenameFlags::NOREPLACE) {
             Ok(()) => return Some(Ok(())),
             Err(e) if unsupported(e) => return None,
-            Err(e) if e != Errno::EXIST => return Some(Err(FormatError::io(path, e.into()))),
+            Err(e) if e != Errno::EXIST => return failed(e),
             Err(_) => {}
         }
         match renameat_with(CWD, partial, CWD, path, RenameFlags::EXCHANGE) {
@@ -175,38 +195,51 @@ fn publish_exclusively(partial: &Path, path: &Path) -> Option<Result<()>> {
             // Removed between the two calls: try the first again.
             Err(Errno::NOENT) => {}
             Err(e) if unsupported(e) => return None,
-            Err(e) => return Some(Err(FormatError::io(path, e.into()))),
+            Err(e) => return failed(e),
         }
     }
 }
 
 /// After the exchange, `partial` holds what was at `path`: removed when
-/// it is a regular file (or a link to one, or to nothing); otherwise the
-/// two are swapped back and the write refused.
+/// it is a regular file (or a link to one, or to nothing: best effort, the
+/// output is in place either way); otherwise the two are swapped back and
+/// the write refused.
 #[cfg(target_os = "linux")]
-fn take_out_replaced(partial: &Path, path: &Path) -> Result<()> {
+fn take_out_replaced(partial: &Path, path: &Path) -> std::result::Result<(), Unpublished> {
     use rustix::fs::{CWD, RenameFlags, renameat_with};
     match fs::metadata(partial) {
         Ok(metadata) if !metadata.is_file() => {
-            renameat_with(CWD, partial, CWD, path, RenameFlags::EXCHANGE)
-                .map_err(|e| FormatError::io(path, e.into()))?;
-            Err(FormatError::invalid(
+            let kind = crate::regular::describe(&metadata.file_type());
+            if let Err(e) = renameat_with(CWD, partial, CWD, path, RenameFlags::EXCHANGE) {
+                return Err(Unpublished::Theirs(FormatError::invalid(
+                    path,
+                    format!(
+                        "was {kind}, which appeared while the output was written; swapping it \
+                         back failed ({e}), so it is now at {}: move it back",
+                        partial.display()
+                    ),
+                )));
+            }
+            Err(Unpublished::Ours(FormatError::invalid(
                 path,
                 format!(
-                    "is {}, not a regular file (it appeared while the output was written); \
-                     refusing to replace it",
-                    crate::regular::describe(&metadata.file_type())
+                    "is {kind}, not a regular file (it appeared while the output was written); \
+                     refusing to replace it"
                 ),
-            ))
+            )))
         }
-        _ => fs::remove_file(partial).map_err(|e| FormatError::io(partial, e)),
+        _ => {
+            let _ = fs::remove_file(partial);
+            Ok(())
+        }
     }
 }
 
 #[cfg(not(target_os = "linux"))]
-fn publish_exclusively(_: &Path, _: &Path) -> Option<Result<()>> {
+fn publish_exclusively(_: &Path, _: &Path) -> Option<std::result::Result<(), Unpublished>> {
     None
 }
+
 /// Places a copy of `source` at `path` atomically: a hard link where the
 /// file system allows it (no space used), else a copy. Nothing is done when
 /// `path` already is `source`.
@@ -324,10 +357,11 @@ mod tests {
         let err = publish(&partial, &path).unwrap_err().to_string();
         assert!(err.contains("FIFO") && err.contains("appeared"), "{err}");
         assert!(fs::symlink_metadata(&path).unwrap().file_type().is_fifo());
-        assert_eq!(fs::read(&partial).unwrap(), b"finished");
+        assert!(!partial.exists(), "the refused output is left behind");
         // A regular file there is replaced, and nothing is left behind.
         fs::remove_file(&path).unwrap();
         fs::write(&path, b"old").unwrap();
+        fs::write(&partial, b"finished").unwrap();
         publish(&partial, &path).unwrap();
         assert_eq!(fs::read(&path).unwrap(), b"finished");
         assert!(!partial.exists());

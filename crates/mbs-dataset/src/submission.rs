@@ -115,7 +115,10 @@ impl SubmissionLayout {
     /// run skips it): each map decodes to its last pixel, each timing file
     /// holds a number.
     pub fn is_written(&self, out: &Path, id: &str) -> bool {
-        self.files(id).iter().all(|f| is_complete(&out.join(f)))
+        let runtime_prefix = matches!(self, SubmissionLayout::Eth3d);
+        self.files(id)
+            .iter()
+            .all(|f| is_complete(&out.join(f), runtime_prefix))
     }
 
     /// Every file a run over pairs `ids` writes under `out`, the archive
@@ -153,28 +156,37 @@ impl SubmissionLayout {
     }
 
     /// For Middlebury, the files of the method's complete scenes in the
-    /// split folders of `out` other than this layout's, sorted; nothing for
-    /// the other layouts.
+    /// other split of the same resolution in `out` (`trainingH` for
+    /// `testH` and the other way round: one upload is one resolution);
+    /// nothing for the other layouts.
     fn other_splits(&self, out: &Path) -> Result<Vec<PathBuf>, DatasetError> {
         let SubmissionLayout::Middlebury {
             method,
-            split: this,
+            split,
             sparse,
         } = self
         else {
             return Ok(Vec::new());
         };
+        let other = if let Some(resolution) = split.strip_prefix("test") {
+            format!("training{resolution}")
+        } else if let Some(resolution) = split.strip_prefix("training") {
+            format!("test{resolution}")
+        } else {
+            return Ok(Vec::new());
+        };
+        if !out.join(&other).is_dir() {
+            return Ok(Vec::new());
+        }
+        let layout = SubmissionLayout::Middlebury {
+            method: method.clone(),
+            split: other.clone(),
+            sparse: *sparse,
+        };
         let mut files = Vec::new();
-        for split in sorted_folders(out)?.into_iter().filter(|s| s != this) {
-            let layout = SubmissionLayout::Middlebury {
-                method: method.clone(),
-                split: split.clone(),
-                sparse: *sparse,
-            };
-            for scene in sorted_folders(&out.join(&split))? {
-                if layout.is_written(out, &scene) {
-                    files.extend(layout.files(&scene));
-                }
+        for scene in sorted_folders(&out.join(&other))? {
+            if layout.is_written(out, &scene) {
+                files.extend(layout.files(&scene));
             }
         }
         Ok(files)
@@ -233,16 +245,20 @@ fn sorted_folders(dir: &Path) -> Result<Vec<String>, DatasetError> {
 }
 
 /// Whether the submission file `path` is complete: a map that decodes to
-/// its last pixel, a timing file that holds a number (`runtime N` for
-/// ETH3D).
-fn is_complete(path: &Path) -> bool {
+/// its last pixel, a timing file that holds a number (`runtime N` where
+/// `runtime_prefix`, ETH3D's form; the number alone otherwise).
+fn is_complete(path: &Path, runtime_prefix: bool) -> bool {
     let is_text = path.extension().is_some_and(|e| e == "txt");
     if !is_text {
         return crate::probe::probe(path, false).is_ok();
     }
     mbs_core::regular::read_text(path).is_ok_and(|text| {
-        let number = text.trim().strip_prefix("runtime").unwrap_or(text.trim());
-        number.trim().parse::<f64>().is_ok_and(f64::is_finite)
+        let number = if runtime_prefix {
+            text.trim().strip_prefix("runtime ")
+        } else {
+            Some(text.trim())
+        };
+        number.is_some_and(|n| n.trim().parse::<f64>().is_ok_and(f64::is_finite))
     })
 }
 
@@ -379,6 +395,11 @@ mod tests {
             .write(dir.path(), "Jadeplant", &map(), 2.0)
             .unwrap();
         std::fs::remove_file(dir.path().join("trainingH/Jadeplant/timeMBS.txt")).unwrap();
+        // Another resolution and a backup copy are not this upload's.
+        for split in ["testQ", "backup"] {
+            let layout = SubmissionLayout::middlebury("MBS", split, false).unwrap();
+            layout.write(dir.path(), "Australia", &map(), 1.0).unwrap();
+        }
         let zip = training
             .archive(dir.path(), &["Adirondack".to_string()])
             .unwrap();
@@ -417,6 +438,17 @@ mod tests {
         let txt = dir.path().join("low_res_two_view/delivery_area_1l.txt");
         std::fs::write(&txt, "runtime \n").unwrap();
         assert!(!layout.is_written(dir.path(), "delivery_area_1l"));
+        // Each server's own form: ETH3D's "runtime N", Middlebury's "N".
+        std::fs::write(&txt, "0.5\n").unwrap();
+        assert!(!layout.is_written(dir.path(), "delivery_area_1l"));
+        let middlebury = SubmissionLayout::middlebury("MBS", "testH", false).unwrap();
+        middlebury
+            .write(dir.path(), "Australia", &map(), 0.5)
+            .unwrap();
+        assert!(middlebury.is_written(dir.path(), "Australia"));
+        let time = dir.path().join("testH/Australia/timeMBS.txt");
+        std::fs::write(&time, "runtime 0.5\n").unwrap();
+        assert!(!middlebury.is_written(dir.path(), "Australia"));
         let kitti = SubmissionLayout::Kitti(KittiVersion::Kitti2015);
         kitti.write(dir.path(), "000000_10", &map(), 0.5).unwrap();
         let png = dir.path().join("disp_0/000000_10.png");

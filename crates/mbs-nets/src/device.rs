@@ -1,5 +1,5 @@
 //! Where training and inference run: `cpu` (burn's flex backend), `vulkan`
-//! (any Vulkan GPU through burn's wgpu backend, the default `vulkan`
+//! (any Vulkan GPU through burn's wgpu backend, the opt-in `vulkan`
 //! feature), `cuda` (an NVIDIA GPU through CubeCL's CUDA runtime, the `cuda`
 //! feature). A comma-separated list names the devices of a data-parallel
 //! run (see [`crate::S3Trainer::step_parallel`]).

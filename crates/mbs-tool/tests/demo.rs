@@ -14,8 +14,8 @@ use std::path::Path;
 use common::{lines, mbs_tool, text};
 use serde_json::Value;
 
-/// The number after `key` on the first line of `log` that holds it, e.g.
-/// `EPE 0.0010 px` for `key` "EPE".
+/// The number after `key` on each line of `log` that holds `line_holds`,
+/// e.g. 0.0010 from `... EPE 0.0010 px` for `key` "EPE".
 fn figures_after(log: &str, line_holds: &str, key: &str) -> Vec<f64> {
     log.lines()
         .filter(|line| line.contains(line_holds))

@@ -181,7 +181,10 @@ fn train_checks_before_it_removes_or_writes() {
     assert!(!kept.is_empty());
     let garbage = dir.path().join("garbage.pth");
     std::fs::write(&garbage, b"not a checkpoint").unwrap();
-    for init in [dir.path().join("nowhere"), garbage] {
+    // --restart would remove the checkpoint --init names.
+    let own = run.join("checkpoints/step-0000002");
+    assert!(own.is_dir());
+    for init in [dir.path().join("nowhere"), garbage, own, run.clone()] {
         let output = train(
             &manifest,
             &run,

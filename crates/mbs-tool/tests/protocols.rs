@@ -471,13 +471,20 @@ fn network(
 }
 
 /// io_disp.h `interpolateBackground()`, on the devkit's own encoding: a
-/// PNG value 0 (here a value not finite or below 0) is -1.
+/// PNG value 0 (a value not finite, or whose code `round(d * 256)` is
+/// below 1) is -1.
 fn interpolate_background(pred: &FloatImage) -> Vec<f32> {
     let (w, h) = (pred.width() as i32, pred.height() as i32);
     let mut data: Vec<f32> = pred
         .as_raw()
         .iter()
-        .map(|&d| if d.is_finite() && d >= 0.0 { d } else { -1.0 })
+        .map(|&d| {
+            if d.is_finite() && (d * 256.0).round() >= 1.0 {
+                d
+            } else {
+                -1.0
+            }
+        })
         .collect();
     let at = |u: i32, v: i32| (v * w + u) as usize;
     for v in 0..h {

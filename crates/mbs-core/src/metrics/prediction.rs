@@ -46,7 +46,7 @@ pub(super) fn prepare(
             .iter()
             .map(|d| d.is_finite() && d.abs() <= width)
             .collect(),
-        // io_disp.h isValid: data >= 0 (PNG 0 reads as invalid).
+        // io_disp.h isValid: data >= 0, where a PNG 0 reads as -1.
         PredictionRule::KittiBackground => raw.iter().map(|d| kitti_valid(*d)).collect(),
         _ => raw.iter().map(|d| d.is_finite()).collect(),
     };
@@ -57,17 +57,21 @@ pub(super) fn prepare(
     Ok(Prepared { values, estimated })
 }
 
-/// Whether the KITTI devkit holds a value valid: finite and not negative.
+/// Whether the KITTI devkit holds a value valid: it reads the submission's
+/// 16-bit PNG, where a value is `round(d * 256)` and 0 is a hole, so a
+/// value below 1/512 px (0 included), a negative one or a non-finite one
+/// is a hole.
 fn kitti_valid(d: f32) -> bool {
-    d.is_finite() && d >= 0.0
+    d.is_finite() && (d * 256.0).round() >= 1.0
 }
 
 /// The KITTI devkits' `interpolateBackground()` (io_disp.h) on a row-major
 /// map `width` wide: in each row, a run of holes with a valid pixel on
 /// both sides takes the smaller (background) of the two; the row's ends
 /// take its first and last valid values; then each column's top and
-/// bottom take its first and last valid values. Holes are values that are
-/// not finite or below 0; a hole nothing reaches stays `-1`, the devkit's
+/// bottom take its first and last valid values. Holes are the values a
+/// KITTI PNG stores as 0 (see `kitti_valid`); a hole nothing reaches stays
+/// `-1`, the devkit's
 /// invalid value, and is compared as `-1`.
 pub fn interpolate_background(map: &[f32], width: usize) -> Vec<f32> {
     let mut d: Vec<f32> = map

@@ -105,6 +105,10 @@ impl StereoSourceArgs {
     /// Opens the chosen source; `preset` is the command's built-in matcher,
     /// which the flags adjust.
     pub fn open(&self, preset: SgmConfig) -> anyhow::Result<StereoSource> {
+        if self.no_fill && self.uses_network() {
+            // It would only rename the maps (Middlebury's sparse `_s` name).
+            anyhow::bail!("--no-fill is for the built-in matcher: networks predict every pixel");
+        }
         if let (Some(model), Some(card)) = (&self.model, &self.card) {
             let stereo = OnnxStereo::open(model, ModelCard::load(card)?, &self.runtime.options()?)?;
             self.runtime
@@ -141,8 +145,7 @@ impl StereoSourceArgs {
     /// runs on the CPU. For commands whose `--device` serves only the
     /// disparity source (`extrapolate`'s also serves an ONNX inpainter).
     pub fn refuse_unused_device(&self) -> anyhow::Result<()> {
-        let network = self.model.is_some() || self.checkpoint.is_some() || self.weights.is_some();
-        if !network && self.runtime.device != "cpu" {
+        if !self.uses_network() && self.runtime.device != "cpu" {
             anyhow::bail!(
                 "--device {}: the built-in matcher runs on the CPU; --device is for networks \
                  (--model, --checkpoint, --weights)",
@@ -150,6 +153,27 @@ impl StereoSourceArgs {
             );
         }
         Ok(())
+    }
+
+    /// The files the source reads (model, card file, run or weights), so
+    /// that no output replaces one.
+    pub fn files(&self) -> Vec<PathBuf> {
+        let card = self.card.as_ref().map(PathBuf::from);
+        [
+            self.model.clone(),
+            card,
+            self.checkpoint.clone(),
+            self.weights.clone(),
+        ]
+        .into_iter()
+        .flatten()
+        .collect()
+    }
+
+    /// Whether a network (ONNX, a run, weights) predicts, not the built-in
+    /// matcher.
+    fn uses_network(&self) -> bool {
+        self.model.is_some() || self.checkpoint.is_some() || self.weights.is_some()
     }
 
     /// The chosen source as a matcher of listed pairs (see

@@ -221,11 +221,8 @@ impl TrainingRun {
         let device = devices[0].clone();
         let (samples, validation) = open::load_data(manifest, &config)?;
         let train_device = device.clone().autodiff();
-        let latest = if restart {
-            None
-        } else {
-            Checkpoint::latest(out)?
-        };
+        let latest = (!restart).then(|| Checkpoint::latest(out)).transpose()?;
+        let latest = latest.flatten();
         if let Some(processes) = &processes {
             let steps = latest.as_ref().map(|c| c.state.steps);
             open::agree_on_start(processes.as_ref(), &config, manifest, steps, init)?;
@@ -247,10 +244,7 @@ impl TrainingRun {
             check_same_weights(processes.as_ref(), &networks, trainer.steps_taken())?;
         }
         if writer {
-            if restart {
-                crate::checkpoint::discard_all(out)?;
-            }
-            open::prepare_folder(out, &config, start)?;
+            open::prepare_folder(out, &config, start, restart)?;
         }
         let resumed_after = match start {
             Start::Resumed(steps) => Some(steps),

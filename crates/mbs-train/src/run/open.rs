@@ -109,13 +109,18 @@ pub(super) fn resume(
     Ok(())
 }
 
-/// Readies `out` for the run's writer: the logs cut back to a resumed
-/// run's step (or removed for a fresh run), and the configuration written.
+/// Readies `out` for the run's writer: its checkpoints removed when it
+/// `restart`s, the logs cut back to a resumed run's step (or emptied for a
+/// fresh run), and the configuration written.
 pub(super) fn prepare_folder(
     out: &Path,
     config: &RunConfig,
     start: Start,
+    restart: bool,
 ) -> Result<(), TrainError> {
+    if restart {
+        crate::checkpoint::discard_all(out)?;
+    }
     for log in [TRAIN_LOG, VAL_LOG] {
         let path = out.join(log);
         match start {

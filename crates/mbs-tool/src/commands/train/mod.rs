@@ -12,6 +12,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::{Context, bail};
 use clap::Parser;
 use mbs_nets::BackboneKind;
+use mbs_nets::checkpoint::CHECKPOINTS_DIR;
 use mbs_nets::device::DeviceList;
 use mbs_train::checkpoint::Checkpoint;
 use mbs_train::distributed::{Collective, agree, all_succeeded};
@@ -290,10 +291,8 @@ fn train(
 ) -> anyhow::Result<()> {
     let placement = open_devices(args, &config, processes)?;
     crate::cli::require_file(manifest, "manifest")?;
-    if let Some(init) = &args.init
-        && !init.exists()
-    {
-        bail!("--init {}: no such file or folder", init.display());
+    if let Some(init) = &args.init {
+        check_init(init, out, args.restart)?;
     }
     prepare_folder(args, &config, manifest, out, processes)?;
     let beginning = Beginning {
@@ -373,6 +372,27 @@ fn open_devices(
         eprintln!("warning: {warning}");
     }
     Ok(placement)
+}
+
+/// Refuses an `--init` that does not exist, or that `--restart` would
+/// remove: the run's own folder or one of its checkpoints.
+fn check_init(init: &Path, out: &Path, restart: bool) -> anyhow::Result<()> {
+    if !init.exists() {
+        bail!("--init {}: no such file or folder", init.display());
+    }
+    let inside = |a: &Path, b: &Path| match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a.starts_with(b),
+        _ => false,
+    };
+    if restart && (inside(init, &out.join(CHECKPOINTS_DIR)) || inside(out, init)) {
+        bail!(
+            "--init {}: --restart removes the checkpoints of {} that it would start from; \
+             copy them elsewhere first, or resume without --restart",
+            init.display(),
+            out.display()
+        );
+    }
+    Ok(())
 }
 
 /// Makes `out`, once every process agrees on the command, by the writer
