@@ -105,7 +105,9 @@ impl Conv {
         {
             return Err(format!("a size, stride or dilation of 0 in {self:?}"));
         }
-        if self.in_channels % self.groups != 0 || self.out_channels % self.groups != 0 {
+        if !self.in_channels.is_multiple_of(self.groups)
+            || !self.out_channels.is_multiple_of(self.groups)
+        {
             return Err(format!(
                 "{} input and {} output channels do not split into {} groups",
                 self.in_channels, self.out_channels, self.groups

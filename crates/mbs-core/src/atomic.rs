@@ -244,10 +244,10 @@ fn publish_exclusively(_: &Path, _: &Path) -> Option<std::result::Result<(), Unp
 /// file system allows it (no space used), else a copy. Nothing is done when
 /// `path` already is `source`.
 pub fn link_or_copy(source: &Path, path: &Path) -> Result<()> {
-    if let (Ok(a), Ok(b)) = (fs::canonicalize(source), fs::canonicalize(path)) {
-        if a == b {
-            return Ok(());
-        }
+    if let (Ok(a), Ok(b)) = (fs::canonicalize(source), fs::canonicalize(path))
+        && a == b
+    {
+        return Ok(());
     }
     if !source.is_file() {
         return Err(FormatError::invalid(source, "missing, or not a file"));

@@ -31,7 +31,7 @@ impl StereoMatcher for BlockMatcher {
 
     fn predict(&self, left: &RgbImage, right: &RgbImage) -> Result<Disparity> {
         check_same_size(left, right)?;
-        if self.window % 2 == 0 || self.max_disparity == 0 {
+        if self.window.is_multiple_of(2) || self.max_disparity == 0 {
             return Err(InferError::InvalidConfig {
                 name: "window / max_disparity",
                 value: format!("{} / {}", self.window, self.max_disparity),

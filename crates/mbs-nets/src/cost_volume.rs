@@ -40,7 +40,9 @@ impl CostVolumeNetConfig {
     /// and the layer widths.
     pub fn validate(&self, max_disparity: usize) -> Result<(), NetError> {
         ranges::require(
-            max_disparity >= 4 && max_disparity % 4 == 0 && max_disparity <= ranges::MAX_DISPARITY,
+            max_disparity >= 4
+                && max_disparity.is_multiple_of(4)
+                && max_disparity <= ranges::MAX_DISPARITY,
             "max_disparity",
             max_disparity,
             format!("a multiple of 4 from 4 to {}", ranges::MAX_DISPARITY),

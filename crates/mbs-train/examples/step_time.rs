@@ -253,7 +253,7 @@ fn batch(args: &Args, device: &Device) -> StepBatch {
     let reference = image();
     let student_target = image();
     let teacher_target = image();
-    let even = |i: &usize| i % 2 == 0;
+    let even = |i: &usize| i.is_multiple_of(2);
     StepBatch {
         augmented_reference: reference.clone(),
         augmented_target: student_target.clone(),

@@ -80,7 +80,7 @@ impl IgevStereoConfig {
         )?;
         ranges::require(
             self.max_disp >= 32
-                && self.max_disp % 32 == 0
+                && self.max_disp.is_multiple_of(32)
                 && self.max_disp <= ranges::MAX_DISPARITY,
             "max_disp",
             self.max_disp,

@@ -145,7 +145,7 @@ fn array_task(
         .and_then(|tasks| tasks.checked_mul(step))
         .and_then(|span| span.checked_add(first));
     let on_the_array =
-        id >= first && last.is_some_and(|last| id <= last) && (id - first) % step == 0;
+        id >= first && last.is_some_and(|last| id <= last) && (id - first).is_multiple_of(step);
     if !on_the_array {
         let ids = match last {
             Some(last) => format!("ids {first} to {last} in steps of {step}"),

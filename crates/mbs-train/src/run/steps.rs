@@ -150,7 +150,7 @@ impl TrainingRun {
         taken: usize,
         observer: &mut dyn Observer,
     ) -> Result<(), TrainError> {
-        if taken % self.config.val_every != 0 && taken != self.config.steps() {
+        if !taken.is_multiple_of(self.config.val_every) && taken != self.config.steps() {
             return Ok(());
         }
         if let Some(processes) = &self.processes {
@@ -179,7 +179,7 @@ impl TrainingRun {
         taken: usize,
         observer: &mut dyn Observer,
     ) -> Result<(), TrainError> {
-        let due = taken % self.config.log_every == 0 || taken == self.config.steps();
+        let due = taken.is_multiple_of(self.config.log_every) || taken == self.config.steps();
         if !due || !self.is_writer() {
             return Ok(());
         }
