@@ -1,7 +1,7 @@
 //! The files a command reads, so that none of its outputs replaces one: an
 //! output path is compared with every input by file identity (device and
-//! inode on Unix, so a link, a relative path or a hard link to an input is
-//! caught) and by resolved path, before anything is written.
+//! inode on Unix, so another spelling, a link or a hard link to an input is
+//! caught; the resolved path elsewhere), before anything is written.
 
 use std::collections::HashMap;
 use std::fs;
@@ -9,30 +9,26 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{FormatError, Result};
 
-/// What identifies a file on disk.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-enum FileId {
-    /// Device and inode (Unix).
-    #[cfg(unix)]
-    Inode(u64, u64),
-    /// Nothing but the resolved path identifies it (elsewhere).
-    #[cfg(not(unix))]
-    Unknown,
+/// What identifies a file on disk: device and inode.
+#[cfg(unix)]
+type FileId = (u64, u64);
+
+/// What identifies a file on disk: its resolved path.
+#[cfg(not(unix))]
+type FileId = PathBuf;
+
+/// The identity of the existing file `path` (links followed).
+#[cfg(unix)]
+fn identity(path: &Path) -> Option<FileId> {
+    use std::os::unix::fs::MetadataExt;
+    let metadata = fs::metadata(path).ok()?;
+    Some((metadata.dev(), metadata.ino()))
 }
 
 /// The identity of the existing file `path` (links followed).
+#[cfg(not(unix))]
 fn identity(path: &Path) -> Option<FileId> {
-    let metadata = fs::metadata(path).ok()?;
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::MetadataExt;
-        Some(FileId::Inode(metadata.dev(), metadata.ino()))
-    }
-    #[cfg(not(unix))]
-    {
-        let _ = metadata;
-        Some(FileId::Unknown)
-    }
+    fs::canonicalize(path).ok()
 }
 
 /// The files a command reads.
@@ -40,8 +36,6 @@ fn identity(path: &Path) -> Option<FileId> {
 pub struct InputFiles {
     /// The inputs by identity, with the name the command read each under.
     by_identity: HashMap<FileId, PathBuf>,
-    /// The inputs' resolved paths.
-    by_path: HashMap<PathBuf, PathBuf>,
 }
 
 impl InputFiles {
@@ -53,21 +47,15 @@ impl InputFiles {
     /// Records `path` as an input; a missing file records nothing (the
     /// command reports it when it reads it).
     pub fn add(&mut self, path: &Path) {
-        if let Some(id) = identity(path).filter(|_| cfg!(unix)) {
+        if let Some(id) = identity(path) {
             self.by_identity.insert(id, path.to_path_buf());
-        }
-        if let Ok(resolved) = fs::canonicalize(path) {
-            self.by_path.insert(resolved, path.to_path_buf());
         }
     }
 
     /// The input `output` would replace, if any.
-    pub fn clash(&self, output: &Path) -> Option<&Path> {
-        if let Some(input) = identity(output).and_then(|id| self.by_identity.get(&id)) {
-            return Some(input);
-        }
-        let resolved = fs::canonicalize(output).ok()?;
-        self.by_path.get(&resolved).map(PathBuf::as_path)
+    fn clash(&self, output: &Path) -> Option<&Path> {
+        let input = self.by_identity.get(&identity(output)?)?;
+        Some(input)
     }
 
     /// Refuses an `output` that is one of the inputs, naming both.
@@ -83,6 +71,13 @@ impl InputFiles {
                 ),
             )),
         }
+    }
+}
+
+impl<P: AsRef<Path>> Extend<P> for InputFiles {
+    /// Records every path as an input ([`InputFiles::add`]).
+    fn extend<I: IntoIterator<Item = P>>(&mut self, paths: I) {
+        paths.into_iter().for_each(|path| self.add(path.as_ref()));
     }
 }
 

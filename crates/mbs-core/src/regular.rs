@@ -67,6 +67,17 @@ pub fn read_text(path: &Path) -> Result<String> {
         .map_err(|_| FormatError::invalid(path, "is not UTF-8 text"))
 }
 
+/// [`read_text`], or `None` when nothing is at `path` (also a link to
+/// nothing); anything else that cannot be read is an error naming it.
+pub fn read_text_if_present(path: &Path) -> Result<Option<String>> {
+    match read_text(path) {
+        Err(FormatError::Io { source, .. }) if source.kind() == std::io::ErrorKind::NotFound => {
+            Ok(None)
+        }
+        other => other.map(Some),
+    }
+}
+
 #[cfg(unix)]
 fn open_without_blocking(path: &Path, options: &mut fs::OpenOptions) -> std::io::Result<fs::File> {
     use std::os::unix::fs::OpenOptionsExt;
@@ -122,6 +133,14 @@ mod tests {
         assert_eq!(read_text(&path).unwrap(), "ndisp=64\n");
         let err = read_bytes(&dir.path().join("none.txt")).unwrap_err();
         assert!(err.to_string().contains("none.txt"), "{err}");
+        assert_eq!(
+            read_text_if_present(&dir.path().join("none.txt")).unwrap(),
+            None
+        );
+        assert_eq!(
+            read_text_if_present(&path).unwrap().as_deref(),
+            Some("ndisp=64\n")
+        );
         fs::write(&path, [0xff, 0xfe]).unwrap();
         let err = read_text(&path).unwrap_err().to_string();
         assert!(err.contains("calib.txt: is not UTF-8"), "{err}");

@@ -62,11 +62,7 @@ impl StereoPair {
 /// Every input file of `pairs`, for refusing outputs that would replace one.
 pub fn input_files<'a>(pairs: impl IntoIterator<Item = &'a StereoPair>) -> InputFiles {
     let mut inputs = InputFiles::new();
-    for pair in pairs {
-        for file in pair.input_files() {
-            inputs.add(&file);
-        }
-    }
+    inputs.extend(pairs.into_iter().flat_map(StereoPair::input_files));
     inputs
 }
 

@@ -39,10 +39,9 @@ pub(crate) const CALIBRATION: &str = "calib.txt";
 /// the file.
 fn disparity_bound(scene: &Path) -> Result<Option<u32>, DatasetError> {
     let path = scene.join(CALIBRATION);
-    if std::fs::symlink_metadata(&path).is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound) {
+    let Some(text) = mbs_core::regular::read_text_if_present(&path)? else {
         return Ok(None);
-    }
-    let text = mbs_core::regular::read_text(&path)?;
+    };
     let values: Vec<&str> = text
         .lines()
         .filter_map(|line| line.split_once('='))

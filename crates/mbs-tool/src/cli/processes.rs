@@ -33,7 +33,7 @@ fn join_mpi(launched: usize) -> anyhow::Result<Option<Rc<dyn Collective>>> {
             "the launcher's variables ({}) say {launched} processes, but MPI gives this process \
              a job of {size}: start the processes with mpirun or srun (with MPI support), or \
              unset those variables to run one process",
-            launch_variables(|name| std::env::var(name).ok())
+            launch_variables()
         );
     }
     Ok(Some(Rc::new(processes)))
@@ -41,10 +41,10 @@ fn join_mpi(launched: usize) -> anyhow::Result<Option<Rc<dyn Collective>>> {
 
 /// The launcher variables that are set, as `NAME=VALUE` joined by commas.
 #[cfg(feature = "mpi")]
-fn launch_variables(var: impl Fn(&str) -> Option<String>) -> String {
+fn launch_variables() -> String {
     super::shard::LAUNCH_VARIABLES
         .iter()
-        .filter_map(|name| var(name).map(|value| format!("{name}={value}")))
+        .filter_map(|name| Some(format!("{name}={}", std::env::var(name).ok()?)))
         .collect::<Vec<_>>()
         .join(", ")
 }

@@ -212,22 +212,16 @@ fn list_folders(args: &Args) -> anyhow::Result<(Vec<Folder>, InputFiles)> {
     }
     lists.check(&folders, &listed)?;
     let mut inputs = InputFiles::new();
-    let list_files = lists.bound.iter().map(|(_, list)| &list.path);
-    for file in list_files.chain(lists.shared.iter().map(|list| &list.path)) {
-        inputs.add(file);
-    }
-    for file in args.source.files() {
-        inputs.add(&file);
-    }
+    inputs.extend(lists.bound.iter().map(|(_, list)| &list.path));
+    inputs.extend(lists.shared.iter().map(|list| &list.path));
+    inputs.extend(args.source.files());
     let mut kept = Vec::new();
     for ((_, dir), (label, rules, listing)) in folders.iter().zip(listed) {
         let listing = match lists.for_folder(dir) {
             Some(list) => listing.keep(list),
             None => listing,
         };
-        for file in listing.pairs.iter().flat_map(StereoPair::input_files) {
-            inputs.add(&file);
-        }
+        inputs.extend(listing.pairs.iter().flat_map(StereoPair::input_files));
         kept.push(Folder {
             label,
             rules,

@@ -46,7 +46,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     refuse_special_target(&out).context("--out")?;
     let checkpoint = TrainedNetworks::open(&args.run)?;
     let mut inputs = InputFiles::new();
-    checkpoint.files().iter().for_each(|file| inputs.add(file));
+    inputs.extend(checkpoint.files());
     inputs
         .refuse(&out)
         .context("--out would overwrite the checkpoint it exports")?;

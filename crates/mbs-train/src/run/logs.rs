@@ -24,7 +24,7 @@ pub const VAL_LOG: &str = "val.jsonl";
 /// Keeps the lines of a JSONL log whose `step` is at most `steps` (and
 /// drops a torn last line), rewriting the file atomically.
 pub(crate) fn truncate_log(path: &Path, steps: usize) -> Result<(), TrainError> {
-    let Some(text) = read_if_present(path)? else {
+    let Some(text) = mbs_core::regular::read_text_if_present(path)? else {
         return Ok(());
     };
     let kept: String = text
@@ -43,21 +43,11 @@ pub(crate) fn truncate_log(path: &Path, steps: usize) -> Result<(), TrainError> 
 /// The lines of a JSONL log (a missing file has none; torn lines are
 /// skipped).
 pub fn read_log(path: &Path) -> Result<Vec<Value>, TrainError> {
-    Ok(read_if_present(path)?
+    Ok(mbs_core::regular::read_text_if_present(path)?
         .unwrap_or_default()
         .lines()
         .filter_map(|l| serde_json::from_str(l).ok())
         .collect())
-}
-
-/// The text of the log `path`, `None` when there is none; a FIFO, device
-/// or folder under its name is an error naming it (a read would block or
-/// make no sense).
-fn read_if_present(path: &Path) -> Result<Option<String>, TrainError> {
-    if fs::symlink_metadata(path).is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound) {
-        return Ok(None);
-    }
-    Ok(Some(mbs_core::regular::read_text(path)?))
 }
 
 pub(crate) fn open_log(path: &Path) -> Result<fs::File, TrainError> {
