@@ -165,53 +165,10 @@ impl DatasetSpec {
 
     /// The manifest of the whole dataset (files must exist when checksums are on).
     pub fn manifest(&self, root: &Path) -> Result<Manifest, DatasetError> {
-        let n = self.rig.num_views;
         let mut samples = Vec::new();
         for frame in self.frames() {
             for &weather in &self.weathers {
-                let id = self.sample_id(&frame, weather);
-                let town = &self.towns[frame.town];
-                let ground_truth = (0..n)
-                    .flat_map(|r| (0..n).filter(move |&t| t != r).map(move |t| (r, t)))
-                    .map(|(r, t)| PairGroundTruth {
-                        reference: r,
-                        target: t,
-                        disparity: format!("{id}/{}", disparity_file(r)),
-                        scale: r.abs_diff(t) as f64,
-                        occlusion: Some(format!("{id}/{}", occlusion_file(r, t))),
-                    })
-                    .collect();
-                let mut sha256 = BTreeMap::new();
-                if self.checksums {
-                    for file in self.sample_files() {
-                        let rel = format!("{id}/{file}");
-                        let digest =
-                            sha256_file(&root.join(&rel)).map_err(|source| DatasetError::Io {
-                                path: root.join(&rel),
-                                source,
-                            })?;
-                        sha256.insert(rel, digest);
-                    }
-                }
-                samples.push(Sample {
-                    views: (0..n)
-                        .map(|k| format!("{id}/{}", mbs20k::view_file(k)))
-                        .collect(),
-                    depth: Some(format!("{id}/{}", mbs20k::DEPTH_FILE)),
-                    split: if self.test_towns.contains(town) {
-                        Split::Test
-                    } else {
-                        Split::Train
-                    },
-                    town: Some(town.clone()),
-                    weather: Some(weather.name().to_string()),
-                    sequence: None,
-                    ground_truth,
-                    synthesized_masks: Vec::new(),
-                    sha256,
-                    image_size: None,
-                    id,
-                });
+                samples.push(self.manifest_sample(root, &frame, weather)?);
             }
         }
         Ok(Manifest {
@@ -232,6 +189,74 @@ impl DatasetSpec {
             }),
         })
     }
+
+    /// The manifest's entry for one frame under one weather.
+    fn manifest_sample(
+        &self,
+        root: &Path,
+        frame: &Frame,
+        weather: Weather,
+    ) -> Result<Sample, DatasetError> {
+        let n = self.rig.num_views;
+        let id = self.sample_id(frame, weather);
+        let town = &self.towns[frame.town];
+        Ok(Sample {
+            views: (0..n)
+                .map(|k| format!("{id}/{}", mbs20k::view_file(k)))
+                .collect(),
+            depth: Some(format!("{id}/{}", mbs20k::DEPTH_FILE)),
+            split: if self.test_towns.contains(town) {
+                Split::Test
+            } else {
+                Split::Train
+            },
+            town: Some(town.clone()),
+            weather: Some(weather.name().to_string()),
+            sequence: None,
+            ground_truth: pair_ground_truth(n, &id),
+            synthesized_masks: Vec::new(),
+            sha256: self.sample_checksums(root, &id)?,
+            image_size: None,
+            id,
+        })
+    }
+
+    /// The SHA-256 of each of sample `id`'s files under `root`, by path
+    /// relative to it; empty when checksums are off.
+    fn sample_checksums(
+        &self,
+        root: &Path,
+        id: &str,
+    ) -> Result<BTreeMap<String, String>, DatasetError> {
+        let mut sha256 = BTreeMap::new();
+        if self.checksums {
+            for file in self.sample_files() {
+                let rel = format!("{id}/{file}");
+                let digest = sha256_file(&root.join(&rel)).map_err(|source| DatasetError::Io {
+                    path: root.join(&rel),
+                    source,
+                })?;
+                sha256.insert(rel, digest);
+            }
+        }
+        Ok(sha256)
+    }
+}
+
+/// The ground truth of every ordered pair of an `n`-view sample `id`: the
+/// reference view's disparity scaled by the baseline ratio, and the pair's
+/// occlusion mask.
+fn pair_ground_truth(n: usize, id: &str) -> Vec<PairGroundTruth> {
+    (0..n)
+        .flat_map(|r| (0..n).filter(move |&t| t != r).map(move |t| (r, t)))
+        .map(|(r, t)| PairGroundTruth {
+            reference: r,
+            target: t,
+            disparity: format!("{id}/{}", disparity_file(r)),
+            scale: r.abs_diff(t) as f64,
+            occlusion: Some(format!("{id}/{}", occlusion_file(r, t))),
+        })
+        .collect()
 }
 
 fn copy_ground_truth(from: &Path, to: &Path, spec: &DatasetSpec) -> Result<(), DatasetError> {

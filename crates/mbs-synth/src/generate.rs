@@ -125,133 +125,188 @@ fn cuboid(min: [f64; 3], max: [f64; 3], material: Material) -> Object {
     }
 }
 
-impl Scene {
-    /// A street scene generated from `seed` (ChaCha8: the same on every
-    /// machine). Nothing is placed nearer than `min_depth_m` on the road.
-    pub fn generate(seed: u64, config: &SceneConfig) -> Scene {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let c = config.centre_x_m;
-        let gy = config.camera_height_m;
-        let half = config.street_width_m / 2.0;
-        let road_half = (half - config.sidewalk_width_m).max(0.5);
-        let mut objects = Vec::new();
+/// The street's layout in the scene's frame, derived from a [`SceneConfig`].
+struct Street<'a> {
+    /// The configuration it was derived from.
+    config: &'a SceneConfig,
+    /// x of the street's centre line.
+    centre_x: f64,
+    /// y of the ground (the cameras look down +y).
+    ground_y: f64,
+    /// Half the distance between the facades.
+    half_width: f64,
+    /// Half the road's width (at least 0.5 m).
+    road_half: f64,
+}
 
-        if config.side_buildings {
-            for side in [-1.0, 1.0] {
-                let mut z = -10.0;
-                while z < config.max_depth_m {
-                    let len = uniform(&mut rng, 8.0, 22.0);
-                    let gap = if rng.random::<f64>() < 0.3 {
-                        uniform(&mut rng, 2.0, 5.0)
-                    } else {
-                        0.0
-                    };
-                    let face = c + side * (half + uniform(&mut rng, 0.0, 1.5));
-                    let back = face + side * 12.0;
-                    let height = uniform(&mut rng, 6.0, 28.0);
-                    let material = facade(&mut rng);
-                    objects.push(cuboid(
-                        [face.min(back), gy - height, z],
-                        [face.max(back), gy, z + len],
-                        material,
-                    ));
-                    z += len + gap;
-                }
+impl Street<'_> {
+    /// Facades along both sides of the street, block after block up to
+    /// `max_depth_m`, some with gaps between them.
+    fn side_buildings(&self, rng: &mut ChaCha8Rng, objects: &mut Vec<Object>) {
+        let (c, gy, half) = (self.centre_x, self.ground_y, self.half_width);
+        for side in [-1.0, 1.0] {
+            let mut z = -10.0;
+            while z < self.config.max_depth_m {
+                let len = uniform(rng, 8.0, 22.0);
+                let gap = if rng.random::<f64>() < 0.3 {
+                    uniform(rng, 2.0, 5.0)
+                } else {
+                    0.0
+                };
+                let face = c + side * (half + uniform(rng, 0.0, 1.5));
+                let back = face + side * 12.0;
+                let height = uniform(rng, 6.0, 28.0);
+                let material = facade(rng);
+                objects.push(cuboid(
+                    [face.min(back), gy - height, z],
+                    [face.max(back), gy, z + len],
+                    material,
+                ));
+                z += len + gap;
             }
         }
+    }
 
-        if config.back_buildings {
-            let z_back = config.max_depth_m + uniform(&mut rng, 5.0, 25.0);
-            let mut x = c - 90.0;
-            while x < c + 90.0 {
-                let width = uniform(&mut rng, 10.0, 30.0);
-                if rng.random::<f64>() < 0.85 {
-                    let z0 = z_back + uniform(&mut rng, 0.0, 15.0);
-                    let height = uniform(&mut rng, 10.0, 50.0);
-                    let material = facade(&mut rng);
-                    objects.push(cuboid(
-                        [x, gy - height, z0],
-                        [x + width, gy, z0 + 15.0],
-                        material,
-                    ));
-                }
-                x += width;
+    /// A row of buildings beyond `max_depth_m` closing the street, with
+    /// occasional gaps.
+    fn back_buildings(&self, rng: &mut ChaCha8Rng, objects: &mut Vec<Object>) {
+        let (c, gy) = (self.centre_x, self.ground_y);
+        let z_back = self.config.max_depth_m + uniform(rng, 5.0, 25.0);
+        let mut x = c - 90.0;
+        while x < c + 90.0 {
+            let width = uniform(rng, 10.0, 30.0);
+            if rng.random::<f64>() < 0.85 {
+                let z0 = z_back + uniform(rng, 0.0, 15.0);
+                let height = uniform(rng, 10.0, 50.0);
+                let material = facade(rng);
+                objects.push(cuboid(
+                    [x, gy - height, z0],
+                    [x + width, gy, z0 + 15.0],
+                    material,
+                ));
             }
+            x += width;
         }
+    }
 
-        let mut boxes: Vec<([f64; 3], [f64; 3])> = Vec::new();
-        for _ in 0..config.boxes {
+    /// `config.boxes` car- or crate-sized boxes on the road, each tried up
+    /// to 20 times at random places until it keeps 0.5 m from the others
+    /// (a box that never fits is left out).
+    fn boxes(&self, rng: &mut ChaCha8Rng, objects: &mut Vec<Object>) {
+        let mut placed: Vec<([f64; 3], [f64; 3])> = Vec::new();
+        for _ in 0..self.config.boxes {
             for _attempt in 0..20 {
                 let crate_like = rng.random::<f64>() < 0.3;
-                let (w, h, l) = if crate_like {
-                    let s = uniform(&mut rng, 0.6, 1.5);
-                    (s, s * uniform(&mut rng, 0.8, 1.2), s)
-                } else {
-                    (
-                        uniform(&mut rng, 1.6, 2.2),
-                        uniform(&mut rng, 1.2, 2.4),
-                        uniform(&mut rng, 3.5, 5.0),
-                    )
-                };
-                let x0 = c + uniform(&mut rng, -road_half, road_half - w);
-                let z0 = uniform(&mut rng, config.min_depth_m, 0.7 * config.max_depth_m);
-                let (min, max) = ([x0, gy - h, z0], [x0 + w, gy, z0 + l]);
-                let clear = boxes.iter().all(|(a, b)| {
+                let (min, max) = self.random_box(rng, crate_like);
+                let clear = placed.iter().all(|(a, b)| {
                     max[0] + 0.5 < a[0]
                         || b[0] + 0.5 < min[0]
                         || max[2] + 0.5 < a[2]
                         || b[2] + 0.5 < min[2]
                 });
                 if clear {
-                    boxes.push((min, max));
-                    let material = Material {
-                        pattern: if crate_like {
-                            Pattern::Bands {
-                                period_m: uniform(&mut rng, 0.2, 0.5),
-                            }
-                        } else {
-                            Pattern::Plain
-                        },
-                        base: pick(&mut rng, &PAINTS),
-                        accent: pick(&mut rng, &PAINTS),
-                        detail_period_m: uniform(&mut rng, 0.5, 2.0),
-                        seed: rng.random(),
-                    };
-                    objects.push(cuboid(min, max, material));
+                    placed.push((min, max));
+                    objects.push(cuboid(min, max, box_paint(rng, crate_like)));
                     break;
                 }
             }
         }
+    }
 
+    /// The corners of a box at a random place on the road: a crate (a
+    /// rough cube) or a car.
+    fn random_box(&self, rng: &mut ChaCha8Rng, crate_like: bool) -> ([f64; 3], [f64; 3]) {
+        let (w, h, l) = if crate_like {
+            let s = uniform(rng, 0.6, 1.5);
+            (s, s * uniform(rng, 0.8, 1.2), s)
+        } else {
+            (
+                uniform(rng, 1.6, 2.2),
+                uniform(rng, 1.2, 2.4),
+                uniform(rng, 3.5, 5.0),
+            )
+        };
+        let gy = self.ground_y;
+        let x0 = self.centre_x + uniform(rng, -self.road_half, self.road_half - w);
+        let z0 = uniform(rng, self.config.min_depth_m, 0.7 * self.config.max_depth_m);
+        ([x0, gy - h, z0], [x0 + w, gy, z0 + l])
+    }
+
+    /// `config.poles` banded poles on the sidewalks, on either side.
+    fn poles(&self, rng: &mut ChaCha8Rng, objects: &mut Vec<Object>) {
+        let config = self.config;
         for _ in 0..config.poles {
             let side = if rng.random::<bool>() { 1.0 } else { -1.0 };
-            let offset = uniform(&mut rng, 0.4, (config.sidewalk_width_m - 0.4).max(0.4));
+            let offset = uniform(rng, 0.4, (config.sidewalk_width_m - 0.4).max(0.4));
             let material = Material {
                 pattern: Pattern::Bands {
-                    period_m: uniform(&mut rng, 0.4, 1.5),
+                    period_m: uniform(rng, 0.4, 1.5),
                 },
-                base: pick(&mut rng, &[[0.45, 0.47, 0.50], [0.20, 0.30, 0.22]]),
-                accent: pick(&mut rng, &[[0.85, 0.75, 0.15], [0.85, 0.85, 0.85]]),
-                detail_period_m: uniform(&mut rng, 0.5, 1.5),
+                base: pick(rng, &[[0.45, 0.47, 0.50], [0.20, 0.30, 0.22]]),
+                accent: pick(rng, &[[0.85, 0.75, 0.15], [0.85, 0.85, 0.85]]),
+                detail_period_m: uniform(rng, 0.5, 1.5),
                 seed: rng.random(),
             };
-            let height = uniform(&mut rng, 2.5, 8.0);
+            let height = uniform(rng, 2.5, 8.0);
             objects.push(Object {
                 shape: Shape::Cylinder {
-                    centre_x: c + side * (road_half + offset),
-                    centre_z: uniform(&mut rng, config.min_depth_m, 0.8 * config.max_depth_m),
-                    radius: uniform(&mut rng, 0.08, 0.25),
-                    top_y: gy - height,
-                    bottom_y: gy,
+                    centre_x: self.centre_x + side * (self.road_half + offset),
+                    centre_z: uniform(rng, config.min_depth_m, 0.8 * config.max_depth_m),
+                    radius: uniform(rng, 0.08, 0.25),
+                    top_y: self.ground_y - height,
+                    bottom_y: self.ground_y,
                 },
                 material,
             });
         }
+    }
+}
 
+/// A box's paint: banded for a crate, plain for a car.
+fn box_paint(rng: &mut ChaCha8Rng, crate_like: bool) -> Material {
+    Material {
+        pattern: if crate_like {
+            Pattern::Bands {
+                period_m: uniform(rng, 0.2, 0.5),
+            }
+        } else {
+            Pattern::Plain
+        },
+        base: pick(rng, &PAINTS),
+        accent: pick(rng, &PAINTS),
+        detail_period_m: uniform(rng, 0.5, 2.0),
+        seed: rng.random(),
+    }
+}
+
+impl Scene {
+    /// A street scene generated from `seed` (ChaCha8: the same on every
+    /// machine). Nothing is placed nearer than `min_depth_m` on the road.
+    pub fn generate(seed: u64, config: &SceneConfig) -> Scene {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let half_width = config.street_width_m / 2.0;
+        let street = Street {
+            config,
+            centre_x: config.centre_x_m,
+            ground_y: config.camera_height_m,
+            half_width,
+            road_half: (half_width - config.sidewalk_width_m).max(0.5),
+        };
+        // The parts draw from one generator in this order, so a seed gives
+        // the same scene as it always has.
+        let mut objects = Vec::new();
+        if config.side_buildings {
+            street.side_buildings(&mut rng, &mut objects);
+        }
+        if config.back_buildings {
+            street.back_buildings(&mut rng, &mut objects);
+        }
+        street.boxes(&mut rng, &mut objects);
+        street.poles(&mut rng, &mut objects);
         let ground = Ground {
-            y: gy,
-            road_centre_x: c,
-            road_half_width_m: road_half,
+            y: street.ground_y,
+            road_centre_x: street.centre_x,
+            road_half_width_m: street.road_half,
             seed: rng.random(),
         };
         Scene::new(Some(ground), objects, rng.random())
