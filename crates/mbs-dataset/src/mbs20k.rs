@@ -264,44 +264,7 @@ pub fn scan(root: &Path, options: &ScanOptions) -> Result<Manifest, DatasetError
     }
     let samples = frames
         .iter()
-        .map(|frame| {
-            let weather_dir = frame.parent().unwrap_or(root);
-            let town = name_of(weather_dir.parent().unwrap_or(root));
-            let weather = name_of(weather_dir);
-            let id = format!("{town}/{weather}/{}", name_of(frame));
-            // Ids and paths are confined names (mbs_core::confine).
-            mbs_core::confine::check_name(&id).map_err(|why| DatasetError::Layout {
-                path: frame.clone(),
-                message: format!(
-                    "the sample id {id:?} made of its folder names {why}: rename the folder"
-                ),
-            })?;
-            let views = (0..options.rig.num_views)
-                .map(|k| format!("{id}/{}", view_file(k)))
-                .collect();
-            let depth = frame
-                .join(DEPTH_FILE)
-                .is_file()
-                .then(|| format!("{id}/{DEPTH_FILE}"));
-            let split = if options.test_towns.contains(&town) {
-                Split::Test
-            } else {
-                Split::Train
-            };
-            Ok(Sample {
-                id,
-                split,
-                town: Some(town),
-                weather: Some(weather),
-                sequence: None,
-                views,
-                depth,
-                ground_truth: Vec::new(),
-                synthesized_masks: Vec::new(),
-                sha256: BTreeMap::new(),
-                image_size: None,
-            })
-        })
+        .map(|frame| frame_sample(root, frame, options))
         .collect::<Result<Vec<_>, DatasetError>>()?;
     let has_depth = samples.iter().any(|s| s.depth.is_some());
     Ok(Manifest {
@@ -323,6 +286,45 @@ pub fn scan(root: &Path, options: &ScanOptions) -> Result<Manifest, DatasetError
             version: env!("CARGO_PKG_VERSION").into(),
             settings: serde_json::json!({ "test_towns": options.test_towns }),
         }),
+    })
+}
+
+/// The sample of the frame folder `frame` (`<root>/<Town>/<Weather>/<frame>`),
+/// its id made of the three folder names.
+fn frame_sample(root: &Path, frame: &Path, options: &ScanOptions) -> Result<Sample, DatasetError> {
+    let weather_dir = frame.parent().unwrap_or(root);
+    let town = name_of(weather_dir.parent().unwrap_or(root));
+    let weather = name_of(weather_dir);
+    let id = format!("{town}/{weather}/{}", name_of(frame));
+    // Ids and paths are confined names (mbs_core::confine).
+    mbs_core::confine::check_name(&id).map_err(|why| DatasetError::Layout {
+        path: frame.to_path_buf(),
+        message: format!("the sample id {id:?} made of its folder names {why}: rename the folder"),
+    })?;
+    let views = (0..options.rig.num_views)
+        .map(|k| format!("{id}/{}", view_file(k)))
+        .collect();
+    let depth = frame
+        .join(DEPTH_FILE)
+        .is_file()
+        .then(|| format!("{id}/{DEPTH_FILE}"));
+    let split = if options.test_towns.contains(&town) {
+        Split::Test
+    } else {
+        Split::Train
+    };
+    Ok(Sample {
+        id,
+        split,
+        town: Some(town),
+        weather: Some(weather),
+        sequence: None,
+        views,
+        depth,
+        ground_truth: Vec::new(),
+        synthesized_masks: Vec::new(),
+        sha256: BTreeMap::new(),
+        image_size: None,
     })
 }
 

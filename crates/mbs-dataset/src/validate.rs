@@ -138,10 +138,7 @@ pub fn validate_manifest(
         files_checked: 0,
         problems: Vec::new(),
     };
-    let mut document: serde_json::Value = match mbs_core::regular::read_text(manifest_path)
-        .map_err(|e| e.to_string())
-        .and_then(|text| serde_json::from_str(&text).map_err(|e| format!("not valid JSON: {e}")))
-    {
+    let mut document = match read_document(manifest_path) {
         Ok(doc) => doc,
         Err(message) => {
             report
@@ -155,32 +152,7 @@ pub fn validate_manifest(
     integral_numbers_as_integers(&mut document);
     let raw_samples = document["samples"].as_array().cloned().unwrap_or_default();
     report.samples = raw_samples.len();
-    let id_at = |i: usize| {
-        raw_samples
-            .get(i)
-            .and_then(|s| s["id"].as_str())
-            .map(str::to_string)
-    };
-
-    let schema_issues = manifest_schema_issues(&document);
-    let bad_indices: BTreeSet<usize> = schema_issues
-        .iter()
-        .filter_map(|i| i.sample_index())
-        .collect();
-    for issue in &schema_issues {
-        let sample = issue.sample_index().and_then(id_at);
-        let pointer = if issue.pointer.is_empty() {
-            "/"
-        } else {
-            &issue.pointer
-        };
-        report.problems.push(problem(
-            sample.as_deref(),
-            Some(pointer),
-            ProblemKind::Schema,
-            format!("schema: {}", issue.message),
-        ));
-    }
+    let bad_indices = report_schema_issues(&document, &raw_samples, &mut report.problems);
     let Ok(rig) = serde_json::from_value::<Rig>(document["rig"].clone()) else {
         // Without a rig nothing on disk can be judged; the schema problem says why.
         report.problems.push(problem(
@@ -194,44 +166,8 @@ pub fn validate_manifest(
         ));
         return report;
     };
-
-    // Every sample is either checked on disk or reported as not checked.
-    let mut samples: Vec<Sample> = Vec::with_capacity(raw_samples.len());
-    for (i, raw) in raw_samples.iter().enumerate() {
-        let label = id_at(i).unwrap_or_else(|| format!("#{i}"));
-        let reason = if bad_indices.contains(&i) {
-            "it breaks the schema (see above)".to_string()
-        } else {
-            match serde_json::from_value(raw.clone()) {
-                Ok(sample) => {
-                    samples.push(sample);
-                    continue;
-                }
-                Err(e) => format!("it cannot be read: {e}"),
-            }
-        };
-        report.problems.push(problem(
-            Some(&label),
-            Some(&format!("/samples/{i}")),
-            ProblemKind::Unchecked,
-            format!("files not checked: {reason}"),
-        ));
-    }
-
-    let mut seen: HashMap<&str, usize> = HashMap::new();
-    for s in &samples {
-        let count = seen.entry(s.id.as_str()).or_insert(0);
-        *count += 1;
-        if *count == 2 {
-            report.problems.push(problem(
-                Some(&s.id),
-                None,
-                ProblemKind::DuplicateId,
-                "duplicate sample id",
-            ));
-        }
-    }
-
+    let samples = readable_samples(&raw_samples, &bad_indices, &mut report.problems);
+    report_duplicate_ids(&samples, &mut report.problems);
     progress.start(samples.len());
     let per_sample: Vec<(usize, Vec<Problem>)> = samples
         .par_iter()
@@ -248,6 +184,100 @@ pub fn validate_manifest(
     report
 }
 
+/// The manifest's JSON, or why it cannot be had (unreadable, not JSON).
+fn read_document(manifest_path: &Path) -> Result<serde_json::Value, String> {
+    mbs_core::regular::read_text(manifest_path)
+        .map_err(|e| e.to_string())
+        .and_then(|text| serde_json::from_str(&text).map_err(|e| format!("not valid JSON: {e}")))
+}
+
+/// The id of the `i`-th raw sample, when it has one.
+fn raw_sample_id(raw_samples: &[serde_json::Value], i: usize) -> Option<String> {
+    raw_samples
+        .get(i)
+        .and_then(|s| s["id"].as_str())
+        .map(str::to_string)
+}
+
+/// Adds a problem for each way `document` breaks the schema; returns the
+/// indices of the samples that break it.
+fn report_schema_issues(
+    document: &serde_json::Value,
+    raw_samples: &[serde_json::Value],
+    problems: &mut Vec<Problem>,
+) -> BTreeSet<usize> {
+    let schema_issues = manifest_schema_issues(document);
+    for issue in &schema_issues {
+        let sample = issue
+            .sample_index()
+            .and_then(|i| raw_sample_id(raw_samples, i));
+        let pointer = if issue.pointer.is_empty() {
+            "/"
+        } else {
+            &issue.pointer
+        };
+        problems.push(problem(
+            sample.as_deref(),
+            Some(pointer),
+            ProblemKind::Schema,
+            format!("schema: {}", issue.message),
+        ));
+    }
+    schema_issues
+        .iter()
+        .filter_map(|i| i.sample_index())
+        .collect()
+}
+
+/// The samples whose files can be checked on disk. Every other sample (one
+/// that breaks the schema or cannot be read) gets a problem saying its
+/// files were not checked, so that none goes unmentioned.
+fn readable_samples(
+    raw_samples: &[serde_json::Value],
+    bad_indices: &BTreeSet<usize>,
+    problems: &mut Vec<Problem>,
+) -> Vec<Sample> {
+    let mut samples: Vec<Sample> = Vec::with_capacity(raw_samples.len());
+    for (i, raw) in raw_samples.iter().enumerate() {
+        let label = raw_sample_id(raw_samples, i).unwrap_or_else(|| format!("#{i}"));
+        let reason = if bad_indices.contains(&i) {
+            "it breaks the schema (see above)".to_string()
+        } else {
+            match serde_json::from_value(raw.clone()) {
+                Ok(sample) => {
+                    samples.push(sample);
+                    continue;
+                }
+                Err(e) => format!("it cannot be read: {e}"),
+            }
+        };
+        problems.push(problem(
+            Some(&label),
+            Some(&format!("/samples/{i}")),
+            ProblemKind::Unchecked,
+            format!("files not checked: {reason}"),
+        ));
+    }
+    samples
+}
+
+/// Adds one problem for each id that two or more samples share.
+fn report_duplicate_ids(samples: &[Sample], problems: &mut Vec<Problem>) {
+    let mut seen: HashMap<&str, usize> = HashMap::new();
+    for s in samples {
+        let count = seen.entry(s.id.as_str()).or_insert(0);
+        *count += 1;
+        if *count == 2 {
+            problems.push(problem(
+                Some(&s.id),
+                None,
+                ProblemKind::DuplicateId,
+                "duplicate sample id",
+            ));
+        }
+    }
+}
+
 /// Checks one sample's structure and files; returns the files checked and the problems.
 fn check_sample(
     manifest_path: &Path,
@@ -255,6 +285,47 @@ fn check_sample(
     sample: &Sample,
     options: ValidateOptions,
 ) -> (usize, Vec<Problem>) {
+    let id = Some(sample.id.as_str());
+    let mut problems = structure_problems(rig, sample);
+    let mut checked = BTreeSet::new();
+    for (role, rel) in sample.files() {
+        if checked.insert(rel) {
+            problems.extend(check_file(
+                manifest_path,
+                sample.size(rig),
+                id,
+                role,
+                rel,
+                options,
+            ));
+        }
+    }
+    for (rel, expected) in &sample.sha256 {
+        let path = resolve(manifest_path, rel);
+        match sha256_file(&path) {
+            Ok(actual) if actual == *expected => {}
+            Ok(actual) => problems.push(problem(
+                id,
+                Some(rel),
+                ProblemKind::ChecksumMismatch,
+                format!("sha256 is {actual}, the manifest says {expected}"),
+            )),
+            Err(_) if checked.contains(rel.as_str()) => {} // already reported as missing
+            Err(e) => problems.push(problem(
+                id,
+                Some(rel),
+                ProblemKind::MissingFile,
+                e.to_string(),
+            )),
+        }
+    }
+    (checked.len(), problems)
+}
+
+/// A sample's problems that need no file: its number of views and of
+/// synthesized masks against the rig's, and pairs that are not two
+/// distinct cameras of the rig.
+fn structure_problems(rig: &Rig, sample: &Sample) -> Vec<Problem> {
     let id = Some(sample.id.as_str());
     let mut problems = Vec::new();
     if sample.views.len() != rig.num_views {
@@ -296,39 +367,7 @@ fn check_sample(
             ));
         }
     }
-    let mut checked = BTreeSet::new();
-    for (role, rel) in sample.files() {
-        if checked.insert(rel) {
-            problems.extend(check_file(
-                manifest_path,
-                sample.size(rig),
-                id,
-                role,
-                rel,
-                options,
-            ));
-        }
-    }
-    for (rel, expected) in &sample.sha256 {
-        let path = resolve(manifest_path, rel);
-        match sha256_file(&path) {
-            Ok(actual) if actual == *expected => {}
-            Ok(actual) => problems.push(problem(
-                id,
-                Some(rel),
-                ProblemKind::ChecksumMismatch,
-                format!("sha256 is {actual}, the manifest says {expected}"),
-            )),
-            Err(_) if checked.contains(rel.as_str()) => {} // already reported as missing
-            Err(e) => problems.push(problem(
-                id,
-                Some(rel),
-                ProblemKind::MissingFile,
-                e.to_string(),
-            )),
-        }
-    }
-    (checked.len(), problems)
+    problems
 }
 
 fn check_file(
