@@ -6,11 +6,11 @@ use std::path::Path;
 use image::imageops::{self, FilterType};
 use mbs_core::{FloatImage, MaskImage, RgbImage};
 
-use super::card::{ColorOrder, ElementType, Layout, ModelCard, SizePolicy, Task};
+use super::card::{ColorOrder, ElementType, ModelCard, SizePolicy, Task};
 use super::error::{OnnxError, Result};
 use super::model::Model;
 use super::runtime::{Device, RuntimeOptions};
-use super::tensor::{Element, OutputMaps, Padding, Source, write_item};
+use super::tensor::{Element, OutputMaps, Padding, Source, input_shape, write_item};
 use crate::inpaint::{InpaintError, Inpainter, check_inputs};
 
 /// Context kept around the holes when they do not fit a fixed-size model.
@@ -100,12 +100,9 @@ impl OnnxInpainter {
             }
             SizePolicy::Fixed { .. } => (Default::default(), Padding::default()),
         };
-        let (pw, ph) = pad.padded(size.0, size.1);
-        let plane = pw as usize * ph as usize;
-        let shape = |c: i64| match card.layout {
-            Layout::Nchw => vec![1, c, i64::from(ph), i64::from(pw)],
-            Layout::Nhwc => vec![1, i64::from(ph), i64::from(pw), c],
-        };
+        let padded = pad.padded(size.0, size.1);
+        let plane = padded.0 as usize * padded.1 as usize;
+        let shape = |c: i64| input_shape(card.layout, 1, padded, c);
         let mut image_data = vec![T::default(); 3 * plane];
         write_item(
             &mut image_data,
@@ -124,27 +121,12 @@ impl OnnxInpainter {
             fill,
             card.layout,
         );
-        let order = match card.color_order {
-            ColorOrder::Rgb => [0, 1, 2],
-            ColorOrder::Bgr => [2, 1, 0],
-        };
-        let read = |dims: &[i64], data: &[T]| {
-            let maps = OutputMaps::locate(dims, 1, (pw, ph))
-                .filter(|m| m.channels() == 3)
-                .ok_or_else(|| {
-                    self.model.run_error(format!(
-                        "output {:?} has shape {dims:?}; expected one 3-channel {pw}x{ph} image",
-                        card.output.name
-                    ))
-                })?;
-            Ok(order.map(|c| maps.crop(data, (0, c), pw, pad, size)))
-        };
         let planes = self.model.run::<T, _>(
             vec![
                 (image_name, shape(3), image_data),
                 (mask_name, shape(1), mask_data),
             ],
-            read,
+            |dims, data| self.colour_planes(dims, data, pad, size),
         )?;
         let scale = card.output.scale;
         Ok(RgbImage::from_fn(size.0, size.1, |x, y| {
@@ -152,6 +134,32 @@ impl OnnxInpainter {
                 u8::from_f32(planes[c].get_pixel(x, y).0[0] * scale)
             }))
         }))
+    }
+
+    /// The red, green and blue planes of an output tensor of shape `dims`
+    /// holding one image of `size` padded by `pad`, padding removed.
+    fn colour_planes<T: Element>(
+        &self,
+        dims: &[i64],
+        data: &[T],
+        pad: Padding,
+        size: (u32, u32),
+    ) -> Result<[FloatImage; 3]> {
+        let card = self.model.card();
+        let (pw, ph) = pad.padded(size.0, size.1);
+        let order = match card.color_order {
+            ColorOrder::Rgb => [0, 1, 2],
+            ColorOrder::Bgr => [2, 1, 0],
+        };
+        let maps = OutputMaps::locate(dims, 1, (pw, ph))
+            .filter(|m| m.channels() == 3)
+            .ok_or_else(|| {
+                self.model.run_error(format!(
+                    "output {:?} has shape {dims:?}; expected one 3-channel {pw}x{ph} image",
+                    card.output.name
+                ))
+            })?;
+        Ok(order.map(|c| maps.crop(data, (0, c), pw, pad, size)))
     }
 
     /// The window the model sees for holes within `bbox` in an image of

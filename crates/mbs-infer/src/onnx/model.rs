@@ -118,13 +118,6 @@ impl Model {
 /// The first disagreement between the session and the card, or the batch
 /// size the model fixes (`None` = dynamic).
 fn check(session: &Session, card: &ModelCard) -> std::result::Result<Option<usize>, String> {
-    let names = |outlets: &[Outlet]| {
-        outlets
-            .iter()
-            .map(|o| o.name().to_string())
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
     for input in session.inputs() {
         if !card.inputs.values().any(|n| n == input.name()) {
             return Err(format!(
@@ -146,51 +139,85 @@ fn check(session: &Session, card: &ModelCard) -> std::result::Result<Option<usiz
             .ok_or_else(|| {
                 format!(
                     "the card's {role} input {name:?} is not an input of the model (its inputs: {})",
-                    names(session.inputs())
+                    outlet_names(session.inputs())
                 )
             })?;
         let dims = tensor_dims(outlet, dtype)?;
-        let channels = match role.as_str() {
-            "stacked" => 6,
-            "mask" => 1,
-            _ => 3,
-        };
-        let (c, h, w) = match (card.layout, dims.as_slice()) {
-            (Layout::Nchw, [_, c, h, w]) => (*c, *h, *w),
-            (Layout::Nhwc, [_, h, w, c]) => (*c, *h, *w),
-            _ => {
-                return Err(format!(
-                    "input {name:?} has shape {dims:?}; the card expects rank 4 ({:?})",
-                    card.layout
-                ));
-            }
-        };
-        if c >= 0 && c != channels {
-            return Err(format!(
-                "input {name:?} has {c} channels ({:?} shape {dims:?}); the card's {role} input has {channels}",
-                card.layout
-            ));
-        }
-        match card.size {
-            SizePolicy::Fixed { width, height } => {
-                let fits = |d: i64, n: u32| d < 0 || d == i64::from(n);
-                if !fits(w, width) || !fits(h, height) {
-                    return Err(format!(
-                        "input {name:?} is {w}x{h} (width x height); the card says {width}x{height}"
-                    ));
-                }
-            }
-            SizePolicy::Dynamic { .. } if w >= 0 || h >= 0 => {
-                return Err(format!(
-                    "input {name:?} has a fixed size ({w}x{h}); the card says dynamic (use size.mode = fixed)"
-                ));
-            }
-            SizePolicy::Dynamic { .. } => {}
-        }
+        check_input_dims(card, role, name, &dims)?;
+        // The last input with a fixed batch dimension sets the batch size.
         if let Ok(n) = usize::try_from(dims[0]) {
             batch = Some(n);
         }
     }
+    check_output(session, card, dtype)?;
+    Ok(batch)
+}
+
+/// The outlets' names, comma-separated, for messages.
+fn outlet_names(outlets: &[Outlet]) -> String {
+    outlets
+        .iter()
+        .map(|o| o.name().to_string())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Whether the declared dimensions `dims` of the card's `role` input
+/// `name` agree with the card: rank 4 in its layout, the role's number of
+/// channels, and its size policy.
+fn check_input_dims(
+    card: &ModelCard,
+    role: &str,
+    name: &str,
+    dims: &[i64],
+) -> std::result::Result<(), String> {
+    let channels = match role {
+        "stacked" => 6,
+        "mask" => 1,
+        _ => 3,
+    };
+    let (c, h, w) = match (card.layout, dims) {
+        (Layout::Nchw, [_, c, h, w]) => (*c, *h, *w),
+        (Layout::Nhwc, [_, h, w, c]) => (*c, *h, *w),
+        _ => {
+            return Err(format!(
+                "input {name:?} has shape {dims:?}; the card expects rank 4 ({:?})",
+                card.layout
+            ));
+        }
+    };
+    if c >= 0 && c != channels {
+        return Err(format!(
+            "input {name:?} has {c} channels ({:?} shape {dims:?}); the card's {role} input has {channels}",
+            card.layout
+        ));
+    }
+    match card.size {
+        SizePolicy::Fixed { width, height } => {
+            let fits = |d: i64, n: u32| d < 0 || d == i64::from(n);
+            if !fits(w, width) || !fits(h, height) {
+                return Err(format!(
+                    "input {name:?} is {w}x{h} (width x height); the card says {width}x{height}"
+                ));
+            }
+        }
+        SizePolicy::Dynamic { .. } if w >= 0 || h >= 0 => {
+            return Err(format!(
+                "input {name:?} has a fixed size ({w}x{h}); the card says dynamic (use size.mode = fixed)"
+            ));
+        }
+        SizePolicy::Dynamic { .. } => {}
+    }
+    Ok(())
+}
+
+/// Whether the model has the card's output, of element type `dtype` and
+/// rank 2 to 4.
+fn check_output(
+    session: &Session,
+    card: &ModelCard,
+    dtype: TensorElementType,
+) -> std::result::Result<(), String> {
     let output = &card.output.name;
     let outlet = session
         .outputs()
@@ -199,7 +226,7 @@ fn check(session: &Session, card: &ModelCard) -> std::result::Result<Option<usiz
         .ok_or_else(|| {
             format!(
                 "the card's output {output:?} is not an output of the model (its outputs: {})",
-                names(session.outputs())
+                outlet_names(session.outputs())
             )
         })?;
     let dims = tensor_dims(outlet, dtype)?;
@@ -208,7 +235,7 @@ fn check(session: &Session, card: &ModelCard) -> std::result::Result<Option<usiz
             "output {output:?} has shape {dims:?}; expected rank 2 to 4"
         ));
     }
-    Ok(batch)
+    Ok(())
 }
 
 /// The declared dimensions of a tensor outlet of element type `dtype`

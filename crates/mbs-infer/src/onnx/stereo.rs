@@ -6,12 +6,12 @@ use image::imageops::{self, FilterType};
 use mbs_core::{FloatImage, MaskImage, RgbImage};
 use rayon::prelude::*;
 
-use super::card::{ElementType, Layout, ModelCard, SizePolicy, Task};
+use super::card::{ElementType, ModelCard, SizePolicy, Task};
 use super::error::Result;
 use super::model::Model;
 use super::resize::resize_bilinear;
 use super::runtime::{Device, RuntimeOptions};
-use super::tensor::{Element, OutputMaps, Padding, Source, write_item};
+use super::tensor::{Element, OutputMaps, Padding, Source, input_shape, write_item};
 use crate::error::InferError;
 use crate::matcher::{Disparity, StereoMatcher, check_same_size};
 
@@ -122,46 +122,8 @@ impl OnnxStereo {
         pad: Padding,
     ) -> Result<Vec<FloatImage>> {
         let card = self.model.card();
-        let fill = match card.size {
-            SizePolicy::Dynamic { fill, .. } => fill,
-            SizePolicy::Fixed { .. } => Default::default(),
-        };
         let (pw, ph) = pad.padded(size.0, size.1);
-        let plane = pw as usize * ph as usize;
-        let shape = |channels: i64| {
-            let (n, h, w) = (pairs.len() as i64, i64::from(ph), i64::from(pw));
-            match card.layout {
-                Layout::Nchw => vec![n, channels, h, w],
-                Layout::Nhwc => vec![n, h, w, channels],
-            }
-        };
-        // One tensor from the views `which` picks of each pair (true = left).
-        let fill_tensor = |which: &[bool]| {
-            let channels = 3 * which.len();
-            let mut data = vec![T::default(); pairs.len() * channels * plane];
-            for (item, (l, r)) in data.chunks_mut(channels * plane).zip(pairs) {
-                let sources: Vec<Source<'_>> = which
-                    .iter()
-                    .map(|&left| Source::rgb(if left { l } else { r }, card))
-                    .collect();
-                write_item(item, &sources, size, pad, fill, card.layout);
-            }
-            data
-        };
-        let inputs = if let Some(name) = card.input("stacked") {
-            vec![(name, shape(6), fill_tensor(&[true, false]))]
-        } else {
-            let missing = || {
-                self.model
-                    .run_error("the card names neither stacked nor left and right inputs")
-            };
-            let left = card.input("left").ok_or_else(missing)?;
-            let right = card.input("right").ok_or_else(missing)?;
-            vec![
-                (left, shape(3), fill_tensor(&[true])),
-                (right, shape(3), fill_tensor(&[false])),
-            ]
-        };
+        let inputs = self.inputs::<T>(pairs, size, pad)?;
         let read = |dims: &[i64], data: &[T]| {
             let maps = OutputMaps::locate(dims, pairs.len(), (pw, ph)).ok_or_else(|| {
                 self.model.run_error(format!(
@@ -184,7 +146,55 @@ impl OnnxStereo {
         };
         self.model.run::<T, _>(inputs, read)
     }
+
+    /// The model's input tensors (name, shape, values) for `pairs` of
+    /// `size` padded by `pad`: one stacked 6-channel tensor, or a left and
+    /// a right 3-channel one, as the card names them.
+    fn inputs<T: Element>(
+        &self,
+        pairs: &[(&RgbImage, &RgbImage)],
+        size: (u32, u32),
+        pad: Padding,
+    ) -> Result<Vec<Input<'_, T>>> {
+        let card = self.model.card();
+        let fill = match card.size {
+            SizePolicy::Dynamic { fill, .. } => fill,
+            SizePolicy::Fixed { .. } => Default::default(),
+        };
+        let padded = pad.padded(size.0, size.1);
+        let plane = padded.0 as usize * padded.1 as usize;
+        let shape = |channels: i64| input_shape(card.layout, pairs.len(), padded, channels);
+        // One tensor from the views `which` picks of each pair (true = left).
+        let fill_tensor = |which: &[bool]| {
+            let channels = 3 * which.len();
+            let mut data = vec![T::default(); pairs.len() * channels * plane];
+            for (item, (l, r)) in data.chunks_mut(channels * plane).zip(pairs) {
+                let sources: Vec<Source<'_>> = which
+                    .iter()
+                    .map(|&left| Source::rgb(if left { l } else { r }, card))
+                    .collect();
+                write_item(item, &sources, size, pad, fill, card.layout);
+            }
+            data
+        };
+        if let Some(name) = card.input("stacked") {
+            return Ok(vec![(name, shape(6), fill_tensor(&[true, false]))]);
+        }
+        let missing = || {
+            self.model
+                .run_error("the card names neither stacked nor left and right inputs")
+        };
+        let left = card.input("left").ok_or_else(missing)?;
+        let right = card.input("right").ok_or_else(missing)?;
+        Ok(vec![
+            (left, shape(3), fill_tensor(&[true])),
+            (right, shape(3), fill_tensor(&[false])),
+        ])
+    }
 }
+
+/// One input tensor for [`Model::run`]: its name, shape and values.
+type Input<'a, T> = (&'a str, Vec<i64>, Vec<T>);
 
 /// Scales a raw output map and marks negative or non-finite values invalid.
 fn to_disparity(mut map: FloatImage, scale: f32) -> Disparity {

@@ -151,10 +151,48 @@ pub fn write_item<T: Element>(
     layout: Layout,
 ) {
     let (pw, ph) = pad.padded(width, height);
-    let (pw, ph, w) = (pw as usize, ph as usize, width as usize);
-    // Per tensor channel: its source, the source's channel, the lookup table
-    // and the padding value.
-    let planes: Vec<(&Source<'_>, usize, [T; 256], T)> = sources
+    let (pw, ph) = (pw as usize, ph as usize);
+    let planes = tensor_planes::<T>(sources);
+    let framing = Framing {
+        width: width as usize,
+        height,
+        pad,
+        fill,
+    };
+    match layout {
+        Layout::Nchw => out.par_chunks_mut(pw).enumerate().for_each(|(i, dst)| {
+            framing.write_nchw_row(dst, &planes[i / ph], i % ph);
+        }),
+        Layout::Nhwc => out
+            .par_chunks_mut(pw * planes.len())
+            .enumerate()
+            .for_each(|(y, dst)| framing.write_nhwc_row(dst, &planes, y)),
+    }
+}
+
+/// The shape of an input tensor of `batch` items with `channels` channels
+/// of `width` x `height` (padded) pixels each, in `layout`.
+pub fn input_shape(
+    layout: Layout,
+    batch: usize,
+    (width, height): (u32, u32),
+    channels: i64,
+) -> Vec<i64> {
+    let (n, h, w) = (batch as i64, i64::from(height), i64::from(width));
+    match layout {
+        Layout::Nchw => vec![n, channels, h, w],
+        Layout::Nhwc => vec![n, h, w, channels],
+    }
+}
+
+/// One tensor channel: its source, the source's channel, the lookup table
+/// (level -> tensor value) and the padding value.
+type Plane<'s, 'a, T> = (&'s Source<'a>, usize, [T; 256], T);
+
+/// The tensor channels of `sources`, one after the other, with their
+/// lookup tables in the tensor's element type.
+fn tensor_planes<'s, 'a, T: Element>(sources: &'s [Source<'a>]) -> Vec<Plane<'s, 'a, T>> {
+    sources
         .iter()
         .flat_map(|s| {
             s.maps.iter().map(move |(raw_channel, map)| {
@@ -162,60 +200,82 @@ pub fn write_item<T: Element>(
                 (s, *raw_channel, lut, T::from_f32(s.zero))
             })
         })
-        .collect();
-    let channels = planes.len();
-    // Source row of every padded row; None = zero padding.
-    let source_row = |y: usize| -> Option<usize> {
-        let y = y as i64 - i64::from(pad.top);
-        match fill {
-            PadMode::Replicate => Some(y.clamp(0, i64::from(height) - 1) as usize),
-            PadMode::Zero => (0..i64::from(height)).contains(&y).then_some(y as usize),
+        .collect()
+}
+
+/// Where an item's pixels sit in its padded frame, and how the padding is
+/// filled.
+struct Framing {
+    /// The item's width, in pixels.
+    width: usize,
+    /// The item's height, in pixels.
+    height: u32,
+    /// The padding around it.
+    pad: Padding,
+    /// How the padding is filled.
+    fill: PadMode,
+}
+
+impl Framing {
+    /// The source row of padded row `y`; `None` = zero padding.
+    #[inline]
+    fn source_row(&self, y: usize) -> Option<usize> {
+        let y = y as i64 - i64::from(self.pad.top);
+        match self.fill {
+            PadMode::Replicate => Some(y.clamp(0, i64::from(self.height) - 1) as usize),
+            PadMode::Zero => (0..i64::from(self.height))
+                .contains(&y)
+                .then_some(y as usize),
         }
-    };
-    let left = pad.left as usize;
-    match layout {
-        Layout::Nchw => out.par_chunks_mut(pw).enumerate().for_each(|(i, dst)| {
-            let (source, raw_channel, lut, zero) = &planes[i / ph];
-            let Some(sy) = source_row(i % ph) else {
-                dst.fill(*zero);
-                return;
-            };
+    }
+
+    /// Writes padded row `y` of one channel `plane` into `dst` (NCHW: one
+    /// channel's row is contiguous).
+    #[inline]
+    fn write_nchw_row<T: Element>(&self, dst: &mut [T], plane: &Plane<'_, '_, T>, y: usize) {
+        let (source, raw_channel, lut, zero) = plane;
+        let w = self.width;
+        let Some(sy) = self.source_row(y) else {
+            dst.fill(*zero);
+            return;
+        };
+        let stride = source.channels;
+        let row = &source.raw[sy * w * stride..][..w * stride];
+        let (before, rest) = dst.split_at_mut(self.pad.left as usize);
+        let (middle, after) = rest.split_at_mut(w);
+        for (d, px) in middle.iter_mut().zip(row.chunks_exact(stride)) {
+            *d = lut[usize::from(px[*raw_channel])];
+        }
+        let (first, last) = match self.fill {
+            PadMode::Replicate => (middle[0], middle[w - 1]),
+            PadMode::Zero => (*zero, *zero),
+        };
+        before.fill(first);
+        after.fill(last);
+    }
+
+    /// Writes padded row `y` of every channel in `planes` into `dst` (NHWC:
+    /// the channels of a pixel are interleaved).
+    #[inline]
+    fn write_nhwc_row<T: Element>(&self, dst: &mut [T], planes: &[Plane<'_, '_, T>], y: usize) {
+        let (w, left, channels) = (self.width, self.pad.left as usize, planes.len());
+        for (c, (source, raw_channel, lut, zero)) in planes.iter().enumerate() {
             let stride = source.channels;
-            let row = &source.raw[sy * w * stride..][..w * stride];
-            let (before, rest) = dst.split_at_mut(left);
-            let (middle, after) = rest.split_at_mut(w);
-            for (d, px) in middle.iter_mut().zip(row.chunks_exact(stride)) {
-                *d = lut[usize::from(px[*raw_channel])];
+            let row = self
+                .source_row(y)
+                .map(|sy| &source.raw[sy * w * stride..][..w * stride]);
+            for (x, d) in dst.iter_mut().skip(c).step_by(channels).enumerate() {
+                let sx = x as i64 - left as i64;
+                let sx = match self.fill {
+                    PadMode::Replicate => Some(sx.clamp(0, w as i64 - 1) as usize),
+                    PadMode::Zero => (0..w as i64).contains(&sx).then_some(sx as usize),
+                };
+                *d = match (row, sx) {
+                    (Some(row), Some(sx)) => lut[usize::from(row[sx * stride + raw_channel])],
+                    _ => *zero,
+                };
             }
-            let (first, last) = match fill {
-                PadMode::Replicate => (middle[0], middle[w - 1]),
-                PadMode::Zero => (*zero, *zero),
-            };
-            before.fill(first);
-            after.fill(last);
-        }),
-        Layout::Nhwc => out
-            .par_chunks_mut(pw * channels)
-            .enumerate()
-            .for_each(|(y, dst)| {
-                for (c, (source, raw_channel, lut, zero)) in planes.iter().enumerate() {
-                    let stride = source.channels;
-                    let row = source_row(y).map(|sy| &source.raw[sy * w * stride..][..w * stride]);
-                    for (x, d) in dst.iter_mut().skip(c).step_by(channels).enumerate() {
-                        let sx = x as i64 - left as i64;
-                        let sx = match fill {
-                            PadMode::Replicate => Some(sx.clamp(0, w as i64 - 1) as usize),
-                            PadMode::Zero => (0..w as i64).contains(&sx).then_some(sx as usize),
-                        };
-                        *d = match (row, sx) {
-                            (Some(row), Some(sx)) => {
-                                lut[usize::from(row[sx * stride + raw_channel])]
-                            }
-                            _ => *zero,
-                        };
-                    }
-                }
-            }),
+        }
     }
 }
 
