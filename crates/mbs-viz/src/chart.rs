@@ -10,6 +10,7 @@ use std::sync::Once;
 use mbs_core::RgbImage;
 use plotters::coord::Shift;
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
@@ -191,6 +192,28 @@ impl LineChart {
             .y_label_formatter(&|v| format_tick(*v))
             .draw()
             .map_err(err)?;
+        self.draw_curves(&mut chart, curves)?;
+        chart
+            .configure_series_labels()
+            .position(legend)
+            .label_font((FONT, 15))
+            .background_style(WHITE.mix(0.9))
+            .border_style(RGBColor(170, 170, 170))
+            .draw()
+            .map_err(err)
+    }
+
+    /// Draws each series in its colour, as a line or, for a lone point, a
+    /// dot, and gives it its legend entry.
+    fn draw_curves<'a, Y>(
+        &self,
+        chart: &mut ChartContext<'a, BitMapBackend<'a>, Cartesian2d<RangedCoordf64, Y>>,
+        curves: &[Vec<(f64, f64)>],
+    ) -> Result<(), String>
+    where
+        Y: Ranged<ValueType = f64>,
+    {
+        let err = |e: DrawingAreaErrorKind<_>| e.to_string();
         for (index, (series, points)) in self.series.iter().zip(curves).enumerate() {
             let [r, g, b] = series_color(index);
             let style = RGBColor(r, g, b).stroke_width(2);
@@ -212,14 +235,7 @@ impl LineChart {
                 PathElement::new(vec![(x, y), (x + 22, y)], RGBColor(r, g, b).stroke_width(3))
             });
         }
-        chart
-            .configure_series_labels()
-            .position(legend)
-            .label_font((FONT, 15))
-            .background_style(WHITE.mix(0.9))
-            .border_style(RGBColor(170, 170, 170))
-            .draw()
-            .map_err(err)
+        Ok(())
     }
 
     /// Share of the plot's height the legend box takes.

@@ -119,52 +119,18 @@ pub fn labelled_row(panels: &[Panel<'_>], keys: &[Key]) -> Result<RgbImage, VizE
 /// It is an error if there is no panel, or a key cannot be drawn (a colour
 /// bar with a top that is not a finite value above 0).
 pub fn labelled_grid(rows: &[&[Panel<'_>]], keys: &[Key]) -> Result<RgbImage, VizError> {
-    let panels = || rows.iter().flat_map(|row| row.iter());
-    let Some(widest) = panels().map(|p| p.image.width()).max() else {
+    let Some(widest) = rows
+        .iter()
+        .flat_map(|row| row.iter())
+        .map(|p| p.image.width())
+        .max()
+    else {
         return Err(VizError::Input("no panels to put on a sheet".into()));
     };
     let m = Metrics::for_width(widest);
-    let columns = rows.iter().map(|row| row.len()).max().unwrap_or(0);
-    let mut column_width = vec![0u32; columns];
-    for row in rows {
-        for (width, panel) in column_width.iter_mut().zip(row.iter()) {
-            let word = widest_word(panel.caption, m.size)? + 2 * m.pad;
-            *width = (*width).max(panel.image.width()).max(word);
-        }
-    }
-    let column_x: Vec<u32> = column_width
-        .iter()
-        .scan(0, |x, w| {
-            let left = *x;
-            *x += w + m.pad;
-            Some(left)
-        })
-        .collect();
-    let grid_width = column_width.iter().sum::<u32>() + m.pad * (columns as u32 - 1);
-    let captions = rows
-        .iter()
-        .map(|row| {
-            row.iter()
-                .zip(&column_width)
-                .map(|(panel, width)| wrap(panel.caption, width - 2 * m.pad, m.size))
-                .collect::<Result<Vec<_>, _>>()
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    let strips: Vec<u32> = captions
-        .iter()
-        .map(|row| {
-            let lines = row.iter().map(Vec::len).max().unwrap_or(0).max(1);
-            m.pad + lines as u32 * m.line + m.pad / 2
-        })
-        .collect();
-    let grid_height: u32 = rows
-        .iter()
-        .zip(&strips)
-        .map(|(row, strip)| strip + row.iter().map(|p| p.image.height()).max().unwrap_or(0))
-        .sum();
-
+    let grid = Grid::lay_out(rows, &m)?;
     let m = Metrics {
-        bar: m.bar.max(grid_width / BAR_SHARE),
+        bar: m.bar.max(grid.width / BAR_SHARE),
         ..m
     };
     let blocks = keys
@@ -172,37 +138,117 @@ pub fn labelled_grid(rows: &[&[Panel<'_>]], keys: &[Key]) -> Result<RgbImage, Vi
         .map(|key| key.render(&m))
         .collect::<Result<Vec<_>, _>>()?;
     let widest_block = blocks.iter().map(|b| b.width()).max().unwrap_or(0);
-    let width = grid_width.max(widest_block + 2 * m.pad);
+    let width = grid.width.max(widest_block + 2 * m.pad);
     let (places, keys_height) = place_blocks(&blocks, width, &m);
-    let height = grid_height + keys_height;
+    let height = grid.height + keys_height;
 
     let mut sheet = RgbImage::from_pixel(width, height, Rgb(BACKGROUND));
-    let mut top = 0;
-    for ((row, lines), strip) in rows.iter().zip(&captions).zip(&strips) {
-        for (c, (panel, lines)) in row.iter().zip(lines).enumerate() {
-            let (x, column) = (column_x[c], column_width[c]);
-            // Captions sit on the panel: the last line just above it.
-            let first = top + strip - m.pad / 2 - lines.len() as u32 * m.line;
-            for (i, line) in lines.iter().enumerate() {
-                let left = x + column.saturating_sub(text_width(line, m.size)?) / 2;
-                let line_top = first + i as u32 * m.line;
-                draw_text(
-                    &mut sheet,
-                    line,
-                    (left as i32, line_top as i32),
-                    m.size,
-                    INK,
-                )?;
-            }
-            let left = x + (column - panel.image.width()) / 2;
-            copy(&mut sheet, panel.image, left, top + strip)?;
-        }
-        top += strip + row.iter().map(|p| p.image.height()).max().unwrap_or(0);
-    }
+    grid.draw(&mut sheet, rows, &m)?;
     for (block, (x, y)) in blocks.iter().zip(places) {
-        copy(&mut sheet, block, x, grid_height + y)?;
+        copy(&mut sheet, block, x, grid.height + y)?;
     }
     Ok(sheet)
+}
+
+/// Where the panels of a sheet and their captions go.
+struct Grid {
+    /// Left edge of each column.
+    column_x: Vec<u32>,
+    /// Width of each column.
+    column_width: Vec<u32>,
+    /// Per row, per panel: its caption broken into lines.
+    captions: Vec<Vec<Vec<String>>>,
+    /// Height of each row's caption strip.
+    strips: Vec<u32>,
+    /// Width of the panels and the spaces between their columns.
+    width: u32,
+    /// Height of the rows, caption strips included.
+    height: u32,
+}
+
+impl Grid {
+    /// The columns, captions and strips of `rows` in text of `m`'s size
+    /// (see [`labelled_grid`] for the rules).
+    fn lay_out(rows: &[&[Panel<'_>]], m: &Metrics) -> Result<Grid, VizError> {
+        let columns = rows.iter().map(|row| row.len()).max().unwrap_or(0);
+        let mut column_width = vec![0u32; columns];
+        for row in rows {
+            for (width, panel) in column_width.iter_mut().zip(row.iter()) {
+                let word = widest_word(panel.caption, m.size)? + 2 * m.pad;
+                *width = (*width).max(panel.image.width()).max(word);
+            }
+        }
+        let column_x: Vec<u32> = column_width
+            .iter()
+            .scan(0, |x, w| {
+                let left = *x;
+                *x += w + m.pad;
+                Some(left)
+            })
+            .collect();
+        let width = column_width.iter().sum::<u32>() + m.pad * (columns as u32 - 1);
+        let captions = rows
+            .iter()
+            .map(|row| {
+                row.iter()
+                    .zip(&column_width)
+                    .map(|(panel, width)| wrap(panel.caption, width - 2 * m.pad, m.size))
+                    .collect::<Result<Vec<_>, _>>()
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let strips: Vec<u32> = captions
+            .iter()
+            .map(|row| {
+                let lines = row.iter().map(Vec::len).max().unwrap_or(0).max(1);
+                m.pad + lines as u32 * m.line + m.pad / 2
+            })
+            .collect();
+        let height = rows
+            .iter()
+            .zip(&strips)
+            .map(|(row, strip)| strip + row_height(row))
+            .sum();
+        Ok(Grid {
+            column_x,
+            column_width,
+            captions,
+            strips,
+            width,
+            height,
+        })
+    }
+
+    /// Draws `rows` (the panels laid out) and their captions into the top
+    /// of `sheet`.
+    fn draw(
+        &self,
+        sheet: &mut RgbImage,
+        rows: &[&[Panel<'_>]],
+        m: &Metrics,
+    ) -> Result<(), VizError> {
+        let mut top = 0;
+        for ((row, lines), strip) in rows.iter().zip(&self.captions).zip(&self.strips) {
+            for (c, (panel, lines)) in row.iter().zip(lines).enumerate() {
+                let (x, column) = (self.column_x[c], self.column_width[c]);
+                // Captions sit on the panel: the last line just above it.
+                let first = top + strip - m.pad / 2 - lines.len() as u32 * m.line;
+                for (i, line) in lines.iter().enumerate() {
+                    let left = x + column.saturating_sub(text_width(line, m.size)?) / 2;
+                    let line_top = first + i as u32 * m.line;
+                    draw_text(sheet, line, (left as i32, line_top as i32), m.size, INK)?;
+                }
+                let left = x + (column - panel.image.width()) / 2;
+                copy(sheet, panel.image, left, top + strip)?;
+            }
+            top += strip + row_height(row);
+        }
+        Ok(())
+    }
+}
+
+/// Height of a row's tallest panel.
+fn row_height(row: &[Panel<'_>]) -> u32 {
+    row.iter().map(|p| p.image.height()).max().unwrap_or(0)
 }
 
 /// Copies `tile` into `sheet` with its top left corner at `(x, y)`.
