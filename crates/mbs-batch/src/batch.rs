@@ -127,40 +127,67 @@ pub fn load_share(
             continue;
         }
         let mut redraws = step_rng(seed, step, Stream::Redraw(item));
-        let mut draw = first;
-        let mut draws = 1;
-        let views = loop {
-            let sample = &samples.samples[draw.sample];
-            match decode_item(sample, draw.triplet) {
-                Ok(views) => break views,
-                Err(Unusable::Fatal(error)) => return Err(error),
-                // A file whose header is fine and pixels are not (validate
-                // --deep finds them) costs its items, not the run.
-                Err(Unusable::Undecodable(path, error)) if draws < MAX_DRAWS_PER_ITEM => {
-                    batch.skipped.push((path, error));
-                }
-                Err(Unusable::Undecodable(_, error)) => {
-                    return Err(BatchError::Input(format!(
-                        "{error} ({MAX_DRAWS_PER_ITEM} draws of one item in a row met unusable \
-                         images; check the data with `mbs-tool validate --deep`)"
-                    )));
-                }
-            }
-            draw = Draw::from(samples, (height, width), &mut redraws);
-            draws += 1;
-        };
-        let [reference, student, teacher] = views;
-        append_chw(&draw.window, &reference, &mut batch.reference);
-        append_chw(&draw.window, &student, &mut batch.student_target);
-        append_chw(&draw.window, &teacher, &mut batch.teacher_target);
-        batch.ratios.push(draw.triplet.ratio(&samples.rig));
-        batch.triplets.push(draw.triplet);
-        batch
-            .sample_ids
-            .push(samples.samples[draw.sample].id.clone());
-        batch.windows.push(draw.window);
+        let (draw, views) = decode_or_redraw(
+            samples,
+            (height, width),
+            first,
+            &mut redraws,
+            &mut batch.skipped,
+        )?;
+        batch.push_item(samples, &draw, &views);
     }
     Ok(batch)
+}
+
+/// The images of the item `first` drew, or, while they do not decode, of
+/// the item drawn again from `redraws` (at most [`MAX_DRAWS_PER_ITEM`]
+/// draws in all), with the draw that decoded; each image that did not
+/// decode is added to `skipped`.
+fn decode_or_redraw(
+    samples: &TrainingSamples,
+    crop: (usize, usize),
+    first: Draw,
+    redraws: &mut impl Rng,
+    skipped: &mut Vec<(PathBuf, String)>,
+) -> Result<(Draw, [Arc<RgbImage>; 3]), BatchError> {
+    let mut draw = first;
+    let mut draws = 1;
+    loop {
+        let sample = &samples.samples[draw.sample];
+        match decode_item(sample, draw.triplet) {
+            Ok(views) => return Ok((draw, views)),
+            Err(Unusable::Fatal(error)) => return Err(error),
+            // A file whose header is fine and pixels are not (validate
+            // --deep finds them) costs its items, not the run.
+            Err(Unusable::Undecodable(path, error)) if draws < MAX_DRAWS_PER_ITEM => {
+                skipped.push((path, error));
+            }
+            Err(Unusable::Undecodable(_, error)) => {
+                return Err(BatchError::Input(format!(
+                    "{error} ({MAX_DRAWS_PER_ITEM} draws of one item in a row met unusable \
+                     images; check the data with `mbs-tool validate --deep`)"
+                )));
+            }
+        }
+        draw = Draw::from(samples, crop, redraws);
+        draws += 1;
+    }
+}
+
+impl HostBatch {
+    /// Appends one decoded item: the crops of its reference, student target
+    /// and teacher target views, and what was drawn.
+    fn push_item(&mut self, samples: &TrainingSamples, draw: &Draw, views: &[Arc<RgbImage>; 3]) {
+        let [reference, student, teacher] = views;
+        append_chw(&draw.window, reference, &mut self.reference);
+        append_chw(&draw.window, student, &mut self.student_target);
+        append_chw(&draw.window, teacher, &mut self.teacher_target);
+        self.ratios.push(draw.triplet.ratio(&samples.rig));
+        self.triplets.push(draw.triplet);
+        self.sample_ids
+            .push(samples.samples[draw.sample].id.clone());
+        self.windows.push(draw.window);
+    }
 }
 
 /// The random choices of one item: a sample, a triplet of its views and a

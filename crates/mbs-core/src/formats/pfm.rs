@@ -103,6 +103,48 @@ fn write_pfm_samples(
 
 /// Decodes PFM bytes; the error is a message without the path.
 fn decode_pfm(bytes: &[u8]) -> std::result::Result<Pfm, String> {
+    let (header, header_end) = parse_header(bytes)?;
+    let PfmHeader {
+        channels,
+        width,
+        height,
+        little,
+    } = header;
+    // Exactly one whitespace byte separates the header from the data.
+    let data = bytes.get(header_end + 1..).unwrap_or_default();
+    let count = crate::limits::checked_samples(width.into(), height.into(), channels as u64, 4)?;
+    if data.len() / 4 < count {
+        return Err(format!(
+            "truncated PFM data: {} bytes for {width}x{height}x{channels} floats, expected {}",
+            data.len(),
+            count * 4
+        ));
+    }
+    let samples = top_down_samples(&data[..count * 4], width as usize * channels, little);
+    // The sizes were checked above, so the buffers have the right length.
+    let size_error = || "internal: PFM buffer size".to_string();
+    Ok(if channels == 1 {
+        Pfm::Grey(FloatImage::from_raw(width, height, samples).ok_or_else(size_error)?)
+    } else {
+        Pfm::Rgb(Rgb32FImage::from_raw(width, height, samples).ok_or_else(size_error)?)
+    })
+}
+
+/// What a PFM header says.
+struct PfmHeader {
+    /// 1 (`Pf`, grey) or 3 (`PF`, RGB).
+    channels: usize,
+    /// Width in pixels, above 0.
+    width: u32,
+    /// Height in pixels, above 0.
+    height: u32,
+    /// Whether the floats are little-endian (a negative scale).
+    little: bool,
+}
+
+/// The header at the start of `bytes` and the offset of its last token's
+/// end.
+fn parse_header(bytes: &[u8]) -> std::result::Result<(PfmHeader, usize), String> {
     let mut cursor = 0usize;
     let mut token = || -> std::result::Result<&str, String> {
         while cursor < bytes.len() && bytes[cursor].is_ascii_whitespace() {
@@ -127,34 +169,36 @@ fn decode_pfm(bytes: &[u8]) -> std::result::Result<Pfm, String> {
             ));
         }
     };
-    let parse_dim = |s: &str| -> std::result::Result<u32, String> {
-        s.parse::<u32>()
-            .ok()
-            .filter(|v| *v > 0)
-            .ok_or_else(|| format!("bad PFM dimension {s:?} (expected a positive integer)"))
-    };
-    let width = parse_dim(token()?)?;
-    let height = parse_dim(token()?)?;
+    let width = parse_dimension(token()?)?;
+    let height = parse_dimension(token()?)?;
     let scale_text = token()?;
     let scale: f32 = scale_text
         .parse()
         .ok()
         .filter(|s: &f32| s.is_finite() && *s != 0.0)
         .ok_or_else(|| format!("bad PFM scale {scale_text:?}"))?;
-    let little = scale < 0.0;
-    // Exactly one whitespace byte separates the header from the data.
-    let data = bytes.get(cursor + 1..).unwrap_or_default();
-    let count = crate::limits::checked_samples(width.into(), height.into(), channels as u64, 4)?;
-    if data.len() / 4 < count {
-        return Err(format!(
-            "truncated PFM data: {} bytes for {width}x{height}x{channels} floats, expected {}",
-            data.len(),
-            count * 4
-        ));
-    }
-    let row_len = width as usize * channels;
-    let mut samples = Vec::with_capacity(count);
-    for row in data[..count * 4].chunks_exact(row_len * 4).rev() {
+    let header = PfmHeader {
+        channels,
+        width,
+        height,
+        little: scale < 0.0,
+    };
+    Ok((header, cursor))
+}
+
+/// A header's width or height: a positive integer.
+fn parse_dimension(s: &str) -> std::result::Result<u32, String> {
+    s.parse::<u32>()
+        .ok()
+        .filter(|v| *v > 0)
+        .ok_or_else(|| format!("bad PFM dimension {s:?} (expected a positive integer)"))
+}
+
+/// The floats of `data`, rows of `row_len` floats each, reordered from
+/// PFM's bottom-up rows to top-down.
+fn top_down_samples(data: &[u8], row_len: usize, little: bool) -> Vec<f32> {
+    let mut samples = Vec::with_capacity(data.len() / 4);
+    for row in data.chunks_exact(row_len * 4).rev() {
         samples.extend(row.chunks_exact(4).map(|b| {
             let b = [b[0], b[1], b[2], b[3]];
             if little {
@@ -164,13 +208,7 @@ fn decode_pfm(bytes: &[u8]) -> std::result::Result<Pfm, String> {
             }
         }));
     }
-    // The sizes were checked above, so the buffers have the right length.
-    let size_error = || "internal: PFM buffer size".to_string();
-    Ok(if channels == 1 {
-        Pfm::Grey(FloatImage::from_raw(width, height, samples).ok_or_else(size_error)?)
-    } else {
-        Pfm::Rgb(Rgb32FImage::from_raw(width, height, samples).ok_or_else(size_error)?)
-    })
+    samples
 }
 
 #[cfg(test)]
