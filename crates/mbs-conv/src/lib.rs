@@ -211,20 +211,11 @@ impl Conv {
             depthwise::forward(self, input, weight, &mut output);
             return output;
         }
-        let (rows, plane) = (self.unfolded_rows(), self.output_plane());
         if self.is_pointwise() {
-            // One product per item and group, the input as it is, split
-            // across threads by gemm.
-            for item in 0..self.batch {
-                for group in 0..self.groups {
-                    let x = Matrix::rows(self.group_input(input, item, group), plane);
-                    let w = Matrix::rows(&weight[self.group_weight(group)], rows);
-                    let y = &mut output[self.group_output(item, group)];
-                    matmul(y, plane, w, x, false, true);
-                }
-            }
+            self.forward_pointwise(input, weight, &mut output);
             return output;
         }
+        let (rows, plane) = (self.unfolded_rows(), self.output_plane());
         let width = self.output()[2];
         let block_rows = self.block_rows(budget);
         let cout = self.out_per_group();
@@ -241,18 +232,7 @@ impl Conv {
                     .map(move |(first, count)| (item, group, first, count))
             })
             .collect();
-        let mut pieces: Vec<Vec<&mut [f32]>> = units.iter().map(|_| Vec::new()).collect();
-        let blocks_per_group = self.blocks(budget).count();
-        for (row, mut plane_values) in output.chunks_mut(plane).enumerate() {
-            // Channel planes run item by item, channel by channel, so a
-            // group's blocks are consecutive units.
-            let first_unit = row / cout * blocks_per_group;
-            for (unit, (_, count)) in self.blocks(budget).enumerate() {
-                let (piece, rest) = plane_values.split_at_mut(count * width);
-                pieces[first_unit + unit].push(piece);
-                plane_values = rest;
-            }
-        }
+        let mut pieces = self.block_pieces(&mut output, units.len(), budget);
         let work = self.batch * plane * rows * self.out_channels;
         let parts = parts(units.len(), rayon::current_num_threads(), work);
         let per_part = units.len().div_ceil(parts);
@@ -278,6 +258,46 @@ impl Conv {
         output
     }
 
+    /// The forward pass of a pointwise convolution into `output`: one
+    /// product per item and group, the input as it is, split across
+    /// threads by gemm.
+    fn forward_pointwise(&self, input: &[f32], weight: &[f32], output: &mut [f32]) {
+        let (rows, plane) = (self.unfolded_rows(), self.output_plane());
+        for item in 0..self.batch {
+            for group in 0..self.groups {
+                let x = Matrix::rows(self.group_input(input, item, group), plane);
+                let w = Matrix::rows(&weight[self.group_weight(group)], rows);
+                let y = &mut output[self.group_output(item, group)];
+                matmul(y, plane, w, x, false, true);
+            }
+        }
+    }
+
+    /// `output` cut into the pieces each of `units` blocks (of `budget`
+    /// values, every item and group in turn) writes: per block, one piece
+    /// of each of its group's channel planes.
+    fn block_pieces<'o>(
+        &self,
+        output: &'o mut [f32],
+        units: usize,
+        budget: usize,
+    ) -> Vec<Vec<&'o mut [f32]>> {
+        let (plane, width, cout) = (self.output_plane(), self.output()[2], self.out_per_group());
+        let mut pieces: Vec<Vec<&mut [f32]>> = (0..units).map(|_| Vec::new()).collect();
+        let blocks_per_group = self.blocks(budget).count();
+        for (row, mut plane_values) in output.chunks_mut(plane).enumerate() {
+            // Channel planes run item by item, channel by channel, so a
+            // group's blocks are consecutive units.
+            let first_unit = row / cout * blocks_per_group;
+            for (unit, (_, count)) in self.blocks(budget).enumerate() {
+                let (piece, rest) = plane_values.split_at_mut(count * width);
+                pieces[first_unit + unit].push(piece);
+                plane_values = rest;
+            }
+        }
+        pieces
+    }
+
     /// The gradient of a loss with respect to the weights, given the
     /// input and the gradient with respect to the output.
     pub fn weight_gradient(&self, input: &[f32], output_gradient: &[f32]) -> Vec<f32> {
@@ -298,7 +318,6 @@ impl Conv {
             return gradient;
         }
         let (rows, plane) = (self.unfolded_rows(), self.output_plane());
-        let width = self.output()[2];
         let block_rows = self.block_rows(budget);
         // The items' blocks of output rows, shared among at most PARTS
         // parts, each summing its products into a gradient of its own:
@@ -314,33 +333,12 @@ impl Conv {
         let work = self.batch * plane * rows * self.out_per_group();
         let parts = parts(units.len(), PARTS, work);
         let per_part = units.len().div_ceil(parts);
-        let group_size = self.out_per_group() * rows;
         for group in 0..self.groups {
             let partials: Vec<Vec<f32>> = units
                 .par_chunks(per_part)
                 .map(|units| {
-                    let mut dw = vec![0.0; group_size];
-                    let mut unfolded = match self.is_pointwise() {
-                        true => Vec::new(),
-                        false => vec![0.0; rows * block_rows * width],
-                    };
-                    for (index, &(item, first, count)) in units.iter().enumerate() {
-                        let x = self.group_input(input, item, group);
-                        let dy = &output_gradient[self.group_output(item, group)];
-                        let (at, columns) = (first * width, count * width);
-                        let u = match self.is_pointwise() {
-                            true => Matrix::strided(&x[at..], rows, columns, plane),
-                            false => {
-                                let u = &mut unfolded[..rows * columns];
-                                unfold(self, x, first, count, u);
-                                Matrix::rows(u, columns)
-                            }
-                        };
-                        let dy = Matrix::strided(&dy[at..], self.out_per_group(), columns, plane);
-                        let parallel = parts == 1;
-                        matmul(&mut dw, rows, dy, u.transposed(), index > 0, parallel);
-                    }
-                    dw
+                    let sources = (input, output_gradient);
+                    self.partial_weight_gradient(sources, group, units, block_rows, parts == 1)
                 })
                 .collect();
             let dw = &mut gradient[self.group_weight(group)];
@@ -351,6 +349,43 @@ impl Conv {
             }
         }
         gradient
+    }
+
+    /// One part's sum of `group`'s weight gradient over its `units` (item,
+    /// first output row, rows) of the input and output gradient in
+    /// `sources`, unfolding at most `block_rows` output rows at a time;
+    /// gemm splits each product across threads when `parallel`.
+    fn partial_weight_gradient(
+        &self,
+        (input, output_gradient): (&[f32], &[f32]),
+        group: usize,
+        units: &[(usize, usize, usize)],
+        block_rows: usize,
+        parallel: bool,
+    ) -> Vec<f32> {
+        let (rows, plane) = (self.unfolded_rows(), self.output_plane());
+        let width = self.output()[2];
+        let mut dw = vec![0.0; self.out_per_group() * rows];
+        let mut unfolded = match self.is_pointwise() {
+            true => Vec::new(),
+            false => vec![0.0; rows * block_rows * width],
+        };
+        for (index, &(item, first, count)) in units.iter().enumerate() {
+            let x = self.group_input(input, item, group);
+            let dy = &output_gradient[self.group_output(item, group)];
+            let (at, columns) = (first * width, count * width);
+            let u = match self.is_pointwise() {
+                true => Matrix::strided(&x[at..], rows, columns, plane),
+                false => {
+                    let u = &mut unfolded[..rows * columns];
+                    unfold(self, x, first, count, u);
+                    Matrix::rows(u, columns)
+                }
+            };
+            let dy = Matrix::strided(&dy[at..], self.out_per_group(), columns, plane);
+            matmul(&mut dw, rows, dy, u.transposed(), index > 0, parallel);
+        }
+        dw
     }
 
     /// The gradient of a loss with respect to the input, given the weights

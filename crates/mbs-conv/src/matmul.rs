@@ -81,17 +81,13 @@ pub fn matmul(
         "matmul: the destination is too short"
     );
     if k == 0 {
+        // An empty sum: zero, or nothing to add.
         if !accumulate {
-            for row in 0..m {
-                dst[row * dst_row_stride..row * dst_row_stride + n].fill(0.0);
-            }
+            zero_rows(dst, dst_row_stride, m, n);
         }
         return;
     }
-    let parallelism = match parallel && m * n * k >= PARALLEL_FROM {
-        true => gemm::Parallelism::Rayon(0),
-        false => gemm::Parallelism::None,
-    };
+    let parallelism = parallelism(parallel, m * n * k);
     let stride = |s: usize| s as isize;
     // SAFETY: the assertions above keep every element gemm reads inside
     // `lhs.data` and `rhs.data` and every one it writes inside `dst`
@@ -120,5 +116,22 @@ pub fn matmul(
             false,
             parallelism,
         );
+    }
+}
+
+/// How gemm runs a product of `work` multiply-adds: on rayon's threads
+/// when `parallel` and the product is large enough to gain from them.
+fn parallelism(parallel: bool, work: usize) -> gemm::Parallelism {
+    match parallel && work >= PARALLEL_FROM {
+        true => gemm::Parallelism::Rayon(0),
+        false => gemm::Parallelism::None,
+    }
+}
+
+/// Sets the first `columns` values of `rows` rows of `dst`, `row_stride`
+/// apart, to zero.
+fn zero_rows(dst: &mut [f32], row_stride: usize, rows: usize, columns: usize) {
+    for row in 0..rows {
+        dst[row * row_stride..row * row_stride + columns].fill(0.0);
     }
 }

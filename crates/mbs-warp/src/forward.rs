@@ -126,6 +126,13 @@ fn ceil_index(t: f32) -> i64 {
     }
 }
 
+/// The colour of pixel `i` of an RGB row, as floats.
+#[inline(always)]
+fn pixel_rgb(src: &[u8], i: usize) -> [f32; 3] {
+    let p = &src[i * 3..i * 3 + 3];
+    [f32::from(p[0]), f32::from(p[1]), f32::from(p[2])]
+}
+
 /// Splats one source row into `row`: each valid pixel covers half a pixel
 /// on a free side, and the segment to its right neighbour when both lie on
 /// one surface. (Written with explicit indices: measured faster than the
@@ -136,10 +143,6 @@ fn warp_row(src: &[u8], disp: &[f32], side: Side, row: &mut RowSplat<'_>) {
     let mut here: Option<End> = None;
     let mut x = 0usize;
     let w = disp.len();
-    let rgb = |i: usize| {
-        let p = &src[i * 3..i * 3 + 3];
-        [f32::from(p[0]), f32::from(p[1]), f32::from(p[2])]
-    };
     while x < w {
         let d = disp[x];
         if !d.is_finite() {
@@ -151,7 +154,7 @@ fn warp_row(src: &[u8], disp: &[f32], side: Side, row: &mut RowSplat<'_>) {
             None => {
                 let this = End {
                     t: x as f32 + sign * d,
-                    rgb: rgb(x),
+                    rgb: pixel_rgb(src, x),
                     d,
                 };
                 row.segment(
@@ -173,7 +176,7 @@ fn warp_row(src: &[u8], disp: &[f32], side: Side, row: &mut RowSplat<'_>) {
         if next.is_finite() && (d - next).abs() < SAME_SURFACE_PX {
             let there = End {
                 t: (x + 1) as f32 + sign * next,
-                rgb: rgb(x + 1),
+                rgb: pixel_rgb(src, x + 1),
                 d: next,
             };
             row.segment(this, there, true);
