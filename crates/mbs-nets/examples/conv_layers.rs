@@ -148,6 +148,64 @@ fn time_layer<const D: usize, F: Fn(Tensor<D>) -> Tensor<D>>(
     [forward_ms, grads_ms(false), grads_ms(true)]
 }
 
+/// The timings of a 2-D `layer`, through mbs-conv or, with `burn_only`,
+/// burn's own convolution.
+fn time_2d(rounds: usize, layer: &Layer, burn_only: bool) -> [f64; 3] {
+    let [from, to] = layer.channels;
+    let (k, s, p) = (layer.kernel, layer.stride, layer.kernel / 2);
+    time_layer(
+        rounds,
+        |device| {
+            Tensor::<4>::random(
+                [1, from, layer.height, layer.width],
+                Distribution::Default,
+                device,
+            )
+        },
+        |device| {
+            let conv = Conv2dConfig::new([from, to], [k, k])
+                .with_stride([s, s])
+                .with_padding(PaddingConfig2d::Explicit(p, p, p, p))
+                .with_groups(layer.groups)
+                .init(device);
+            #[allow(clippy::disallowed_methods)] // burn's own, the baseline
+            move |x| match burn_only {
+                true => conv.forward(x),
+                false => conv.convolve(x),
+            }
+        },
+    )
+}
+
+/// The timings of a 3-D `layer`, through mbs-conv or, with `burn_only`,
+/// burn's own convolution.
+fn time_3d(rounds: usize, layer: &Layer, burn_only: bool) -> [f64; 3] {
+    let [from, to] = layer.channels;
+    let (k, s, p) = (layer.kernel, layer.stride, layer.kernel / 2);
+    time_layer(
+        rounds,
+        |device| {
+            Tensor::<5>::random(
+                [1, from, layer.depth, layer.height, layer.width],
+                Distribution::Default,
+                device,
+            )
+        },
+        |device| {
+            let conv = Conv3dConfig::new([from, to], [k, k, k])
+                .with_stride([s, s, s])
+                .with_padding(PaddingConfig3d::Explicit(p, p, p))
+                .with_groups(layer.groups)
+                .init(device);
+            #[allow(clippy::disallowed_methods)] // burn's own, the baseline
+            move |x| match burn_only {
+                true => conv.forward(x),
+                false => conv.convolve(x),
+            }
+        },
+    )
+}
+
 fn main() {
     let rounds: usize = std::env::args()
         .nth(1)
@@ -155,54 +213,10 @@ fn main() {
         .unwrap_or(5);
     let burn_only = std::env::args().any(|a| a == "--burn");
     for layer in &LAYERS {
-        let [from, to] = layer.channels;
-        let (k, s, p) = (layer.kernel, layer.stride, layer.kernel / 2);
         let times = if layer.depth == 0 {
-            time_layer(
-                rounds,
-                |device| {
-                    Tensor::<4>::random(
-                        [1, from, layer.height, layer.width],
-                        Distribution::Default,
-                        device,
-                    )
-                },
-                |device| {
-                    let conv = Conv2dConfig::new([from, to], [k, k])
-                        .with_stride([s, s])
-                        .with_padding(PaddingConfig2d::Explicit(p, p, p, p))
-                        .with_groups(layer.groups)
-                        .init(device);
-                    #[allow(clippy::disallowed_methods)] // burn's own, the baseline
-                    move |x| match burn_only {
-                        true => conv.forward(x),
-                        false => conv.convolve(x),
-                    }
-                },
-            )
+            time_2d(rounds, layer, burn_only)
         } else {
-            time_layer(
-                rounds,
-                |device| {
-                    Tensor::<5>::random(
-                        [1, from, layer.depth, layer.height, layer.width],
-                        Distribution::Default,
-                        device,
-                    )
-                },
-                |device| {
-                    let conv = Conv3dConfig::new([from, to], [k, k, k])
-                        .with_stride([s, s, s])
-                        .with_padding(PaddingConfig3d::Explicit(p, p, p))
-                        .with_groups(layer.groups)
-                        .init(device);
-                    #[allow(clippy::disallowed_methods)] // burn's own, the baseline
-                    move |x| match burn_only {
-                        true => conv.forward(x),
-                        false => conv.convolve(x),
-                    }
-                },
-            )
+            time_3d(rounds, layer, burn_only)
         };
         println!(
             "{{\"name\":\"{}\",\"forward_ms\":{:.3},\"weight_grad_ms\":{:.3},\"both_grads_ms\":{:.3}}}",

@@ -343,67 +343,81 @@ mod tests {
     /// weight and bias gradients agree with burn's own within 1e-4 of the
     /// largest value (float sums in another order).
     #[test]
-    #[allow(clippy::disallowed_methods)] // burn's own is the reference
     fn every_network_shape_agrees_with_burn_in_value_and_gradients() {
         let device = Device::flex().autodiff();
         device.seed(5);
+        // One seed for all cases, drawn in this order.
         for batch in [1, 2] {
-            for ([from, to], kernel, stride, padding, dilation, groups) in CASES_2D {
-                let layer = Conv2dConfig::new([from, to], [kernel, kernel])
-                    .with_stride([stride, stride])
-                    .with_padding(PaddingConfig2d::Explicit(
-                        padding, padding, padding, padding,
-                    ))
-                    .with_dilation([dilation, dilation])
-                    .with_groups(groups)
-                    .init(&device);
-                let input =
-                    Tensor::<4>::random([batch, from, 11, 13], Distribution::Default, &device);
-                let output_shape = layer.forward(input.clone()).dims();
-                let seeds = Tensor::<4>::random(output_shape, Distribution::Default, &device);
-                let parameters = (&layer.weight, layer.bias.as_ref());
-                // The networks' tensors take mbs-conv's path, with and without autodiff.
-                let routed = |t: Tensor<4>| route(&t.into_dispatch());
-                assert_eq!(
-                    routed(input.clone().require_grad()),
-                    Some(Route::AutodiffFlex)
-                );
-                assert_eq!(routed(layer.weight.val()), Some(Route::AutodiffFlex));
-                assert_eq!(routed(input.clone().inner()), Some(Route::Flex));
-                let ours = outcome(|x| layer.convolve(x), &input, &seeds, parameters);
-                let burns = outcome(|x| layer.forward(x), &input, &seeds, parameters);
-                let what = format!(
-                    "2-D {from}->{to} k{kernel} s{stride} p{padding} d{dilation} g{groups} b{batch}"
-                );
-                assert_agree(what, ours, burns);
-                // Without autodiff (inference, the teacher).
-                let plain = layer.valid();
-                let x = input.clone().inner();
-                let (a, b) = (values(plain.convolve(x.clone())), values(plain.forward(x)));
-                assert_eq!(a.len(), b.len());
-                assert!(
-                    a.iter()
-                        .zip(&b)
-                        .all(|(x, y)| (x - y).abs() <= 1e-4 * (1.0 + y.abs()))
-                );
+            for case in CASES_2D {
+                check_2d_case(&device, batch, case);
             }
-            for ([from, to], kernel, stride, padding, dilation, groups) in CASES_3D {
-                let layer = Conv3dConfig::new([from, to], [kernel; 3])
-                    .with_stride([stride; 3])
-                    .with_padding(PaddingConfig3d::Explicit(padding, padding, padding))
-                    .with_dilation([dilation; 3])
-                    .with_groups(groups)
-                    .init(&device);
-                let input =
-                    Tensor::<5>::random([batch, from, 5, 7, 9], Distribution::Default, &device);
-                let output_shape = layer.forward(input.clone()).dims();
-                let seeds = Tensor::<5>::random(output_shape, Distribution::Default, &device);
-                let parameters = (&layer.weight, layer.bias.as_ref());
-                let ours = outcome(|x| layer.convolve(x), &input, &seeds, parameters);
-                let burns = outcome(|x| layer.forward(x), &input, &seeds, parameters);
-                let what = format!("3-D {from}->{to} k{kernel} s{stride} p{padding} b{batch}");
-                assert_agree(what, ours, burns);
+            for case in CASES_3D {
+                check_3d_case(&device, batch, case);
             }
         }
+    }
+
+    /// One 2-D case of [`every_network_shape_agrees_with_burn_in_value_and_gradients`]:
+    /// the tensors take mbs-conv's path, and agree with burn's with and
+    /// without autodiff.
+    #[allow(clippy::disallowed_methods)] // burn's own is the reference
+    fn check_2d_case(device: &Device, batch: usize, case: Case) {
+        let ([from, to], kernel, stride, padding, dilation, groups) = case;
+        let layer = Conv2dConfig::new([from, to], [kernel, kernel])
+            .with_stride([stride, stride])
+            .with_padding(PaddingConfig2d::Explicit(
+                padding, padding, padding, padding,
+            ))
+            .with_dilation([dilation, dilation])
+            .with_groups(groups)
+            .init(device);
+        let input = Tensor::<4>::random([batch, from, 11, 13], Distribution::Default, device);
+        let output_shape = layer.forward(input.clone()).dims();
+        let seeds = Tensor::<4>::random(output_shape, Distribution::Default, device);
+        let parameters = (&layer.weight, layer.bias.as_ref());
+        // The networks' tensors take mbs-conv's path, with and without autodiff.
+        let routed = |t: Tensor<4>| route(&t.into_dispatch());
+        assert_eq!(
+            routed(input.clone().require_grad()),
+            Some(Route::AutodiffFlex)
+        );
+        assert_eq!(routed(layer.weight.val()), Some(Route::AutodiffFlex));
+        assert_eq!(routed(input.clone().inner()), Some(Route::Flex));
+        let ours = outcome(|x| layer.convolve(x), &input, &seeds, parameters);
+        let burns = outcome(|x| layer.forward(x), &input, &seeds, parameters);
+        let what = format!(
+            "2-D {from}->{to} k{kernel} s{stride} p{padding} d{dilation} g{groups} b{batch}"
+        );
+        assert_agree(what, ours, burns);
+        // Without autodiff (inference, the teacher).
+        let plain = layer.valid();
+        let x = input.clone().inner();
+        let (a, b) = (values(plain.convolve(x.clone())), values(plain.forward(x)));
+        assert_eq!(a.len(), b.len());
+        assert!(
+            a.iter()
+                .zip(&b)
+                .all(|(x, y)| (x - y).abs() <= 1e-4 * (1.0 + y.abs()))
+        );
+    }
+
+    /// One 3-D case of [`every_network_shape_agrees_with_burn_in_value_and_gradients`].
+    #[allow(clippy::disallowed_methods)] // burn's own is the reference
+    fn check_3d_case(device: &Device, batch: usize, case: Case) {
+        let ([from, to], kernel, stride, padding, dilation, groups) = case;
+        let layer = Conv3dConfig::new([from, to], [kernel; 3])
+            .with_stride([stride; 3])
+            .with_padding(PaddingConfig3d::Explicit(padding, padding, padding))
+            .with_dilation([dilation; 3])
+            .with_groups(groups)
+            .init(device);
+        let input = Tensor::<5>::random([batch, from, 5, 7, 9], Distribution::Default, device);
+        let output_shape = layer.forward(input.clone()).dims();
+        let seeds = Tensor::<5>::random(output_shape, Distribution::Default, device);
+        let parameters = (&layer.weight, layer.bias.as_ref());
+        let ours = outcome(|x| layer.convolve(x), &input, &seeds, parameters);
+        let burns = outcome(|x| layer.forward(x), &input, &seeds, parameters);
+        let what = format!("3-D {from}->{to} k{kernel} s{stride} p{padding} b{batch}");
+        assert_agree(what, ours, burns);
     }
 }

@@ -98,28 +98,8 @@ impl IgevStereoConfig {
         self.validate()?;
         let hidden = self.hidden_dim;
         let instance = NormKind::Instance;
-        let stem = |from: usize, to: usize, stride: usize| Stem {
-            conv_in: BasicConv2d::new(
-                from,
-                to,
-                instance,
-                ConvSpec {
-                    stride,
-                    ..ConvSpec::same(3)
-                },
-                device,
-            ),
-            conv: feature::conv(to, to, 3, 1, 1, device),
-            norm: Norm::new(instance, to, 0, device),
-        };
-        let spx = || {
-            vec![
-                ConvTranspose2dConfig::new([64, 9], [4, 4])
-                    .with_stride([2, 2])
-                    .with_padding([1, 1])
-                    .init(device),
-            ]
-        };
+        let stem = |from: usize, to: usize, stride: usize| Stem::new(from, to, stride, device);
+        let spx = || upsampling_weights_head(device);
         Ok(IgevStereo {
             cnet: ContextEncoder::new(hidden, NormKind::Batch, 2, device),
             update_block: UpdateBlock::new(
@@ -168,6 +148,26 @@ pub struct Stem {
 }
 
 impl Stem {
+    /// A stem from `from` to `to` channels whose first convolution has
+    /// stride `stride`.
+    fn new(from: usize, to: usize, stride: usize, device: &Device) -> Stem {
+        let instance = NormKind::Instance;
+        Stem {
+            conv_in: BasicConv2d::new(
+                from,
+                to,
+                instance,
+                ConvSpec {
+                    stride,
+                    ..ConvSpec::same(3)
+                },
+                device,
+            ),
+            conv: feature::conv(to, to, 3, 1, 1, device),
+            norm: Norm::new(instance, to, 0, device),
+        }
+    }
+
     fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         relu(
             self.norm
@@ -204,6 +204,17 @@ pub struct IgevStereo {
     test_iters: usize,
 }
 
+/// The official `spx` and `spx_gru`: a transposed convolution from 64
+/// channels to the 9 weights of each pixel's convex upsampling.
+fn upsampling_weights_head(device: &Device) -> Vec<ConvTranspose2d> {
+    vec![
+        ConvTranspose2dConfig::new([64, 9], [4, 4])
+            .with_stride([2, 2])
+            .with_padding([1, 1])
+            .init(device),
+    ]
+}
+
 /// Splits a batch of `2 batch` items into its two halves.
 fn halves(x: Tensor<4>, batch: usize) -> (Tensor<4>, Tensor<4>) {
     (x.clone().narrow(0, 0, batch), x.narrow(0, batch, batch))
@@ -231,41 +242,78 @@ impl IgevStereo {
     ) -> IgevOutput {
         let batch = reference.dims()[0];
         let images = Tensor::cat(vec![reference, target], 0) * 2.0 - 1.0;
+        let features = self.pair_features(images.clone(), batch);
+        let (geometry, init) = self.initial_estimate(&features);
+        let initial = initial.then(|| {
+            let x = self.spx_2.forward(
+                self.spx_4.forward(features.left[0].clone()),
+                features.stem_2x.clone(),
+            );
+            let weights = softmax(self.spx[0].forward(x), 1);
+            context_upsample(init.clone() * 4.0, weights)
+        });
+        let image1 = images.narrow(0, 0, batch);
+        IgevOutput {
+            initial,
+            iterations: self.refine(image1, features, geometry, init, iterations),
+        }
+    }
+
+    /// The features of the `batch` pairs stacked in `images` (references
+    /// first) that the later stages use.
+    fn pair_features(&self, images: Tensor<4>, batch: usize) -> PairFeatures {
         let [f4, f8, f16, f32] = self.feature.forward(images.clone());
-        let stem_2 = self.stem_2.forward(images.clone());
+        let stem_2 = self.stem_2.forward(images);
         let stem_4 = self.stem_4.forward(stem_2.clone());
         let f4 = Tensor::cat(vec![f4, stem_4], 1);
         let (matching_left, matching_right) =
             halves(self.desc.convolve(self.conv.forward(f4.clone())), batch);
         let left = |x: Tensor<4>| x.narrow(0, 0, batch);
-        let left_features = [left(f4), left(f8), left(f16), left(f32)];
-        let stem_2x = left(stem_2);
+        PairFeatures {
+            matching_left,
+            matching_right,
+            left: [left(f4), left(f8), left(f16), left(f32)],
+            stem_2x: left(stem_2),
+        }
+    }
 
+    /// The geometry encoding volume and the initial disparity regressed
+    /// from it (quarter resolution).
+    fn initial_estimate(&self, features: &PairFeatures) -> (Tensor<5>, Tensor<4>) {
         let volume = group_correlation_volume(
-            matching_left.clone(),
-            matching_right.clone(),
+            features.matching_left.clone(),
+            features.matching_right.clone(),
             self.candidates,
             GROUPS,
         );
         let volume = self.corr_stem.forward(volume);
         let volume = self
             .corr_feature_att
-            .forward(volume, left_features[0].clone());
-        let geometry = self.cost_agg.forward(volume, &left_features);
+            .forward(volume, features.left[0].clone());
+        let geometry = self.cost_agg.forward(volume, &features.left);
         let logits = self.classifier.convolve(geometry.clone());
         let [b, _, d, h, w] = logits.dims();
         let init = regress_disparity(logits.reshape([b, d, h, w]));
+        (geometry, init)
+    }
 
-        let initial = initial.then(|| {
-            let x = self.spx_2.forward(
-                self.spx_4.forward(left_features[0].clone()),
-                stem_2x.clone(),
-            );
-            let weights = softmax(self.spx[0].forward(x), 1);
-            context_upsample(init.clone() * 4.0, weights)
-        });
-
-        let image1 = images.narrow(0, 0, batch);
+    /// The full-resolution disparity after each of `iterations` updates of
+    /// `init` by the recurrent block, with the context of the references
+    /// `image1`.
+    fn refine(
+        &self,
+        image1: Tensor<4>,
+        features: PairFeatures,
+        geometry: Tensor<5>,
+        init: Tensor<4>,
+        iterations: usize,
+    ) -> Vec<Tensor<4>> {
+        let PairFeatures {
+            matching_left,
+            matching_right,
+            stem_2x,
+            ..
+        } = features;
         let mut state = GruState::from_context(
             self.cnet.forward(image1, self.gru_levels),
             &self.context_zqr_convs,
@@ -295,11 +343,21 @@ impl IgevStereo {
             let weights = softmax(self.spx_gru[0].forward(x), 1);
             outputs.push(context_upsample(disparity.clone() * 4.0, weights));
         }
-        IgevOutput {
-            initial,
-            iterations: outputs,
-        }
+        outputs
     }
+}
+
+/// The features of a batch of pairs that the stages after the feature
+/// network use.
+struct PairFeatures {
+    /// The references' matching descriptors (quarter resolution).
+    matching_left: Tensor<4>,
+    /// The targets' matching descriptors.
+    matching_right: Tensor<4>,
+    /// The references' features at 1/4, 1/8, 1/16 and 1/32 resolution.
+    left: [Tensor<4>; 4],
+    /// The references' half-resolution stem.
+    stem_2x: Tensor<4>,
 }
 
 impl Backbone for IgevStereo {
