@@ -7,8 +7,8 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use mbs_batch::{
-    AugmentConfig, HostBatch, MAX_BATCH_SIZE, MIN_CROP_SIDE, Stream, TrainingSamples, load_batch,
-    step_rng,
+    AugmentConfig, HostBatch, MAX_BATCH_SIZE, MIN_CROP_SIDE, Stream, TrainingSamples, Triplet,
+    load_batch, step_rng,
 };
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
@@ -189,30 +189,11 @@ impl HostBatches {
         out.set_item("student_target", array(student_target, &images)?)?;
         out.set_item("teacher_target", array(teacher_target, &images)?)?;
         out.set_item("ratios", PyArray1::from_vec(py, ratios))?;
-        let views: Vec<i64> = triplets
-            .iter()
-            .flat_map(|t| [t.reference, t.student, t.teacher].map(|v| v as i64))
-            .collect();
-        out.set_item(
-            "triplets",
-            PyArray1::from_vec(py, views).reshape([items, 3])?,
-        )?;
         let corners: Vec<i64> = windows
             .iter()
             .flat_map(|w| [w.top as i64, w.left as i64])
             .collect();
-        out.set_item(
-            "windows",
-            PyArray1::from_vec(py, corners).reshape([items, 2])?,
-        )?;
-        let side = |side: mbs_core::Side| match side {
-            mbs_core::Side::Left => "left",
-            mbs_core::Side::Right => "right",
-        };
-        let student: Vec<&str> = triplets.iter().map(|t| side(t.student_side())).collect();
-        let teacher: Vec<&str> = triplets.iter().map(|t| side(t.teacher_side())).collect();
-        out.set_item("student_sides", student)?;
-        out.set_item("teacher_sides", teacher)?;
+        set_triplets_and_windows(&out, &triplets, corners)?;
         out.set_item("sample_ids", sample_ids)?;
         let skipped: Vec<(String, String)> = skipped
             .into_iter()
@@ -225,4 +206,37 @@ impl HostBatches {
         out.set_item("occlusion", array(draws.occlusion, &[1, height, width])?)?;
         Ok(out)
     }
+}
+
+/// Sets `triplets` (the views of each item, `[B, 3]`), `windows` (each
+/// crop's top left corner, `[B, 2]`, from `corners`), `student_sides` and
+/// `teacher_sides` in a batch's dict `out`, in that order.
+fn set_triplets_and_windows(
+    out: &Bound<'_, PyDict>,
+    triplets: &[Triplet],
+    corners: Vec<i64>,
+) -> PyResult<()> {
+    let py = out.py();
+    let items = triplets.len();
+    let views: Vec<i64> = triplets
+        .iter()
+        .flat_map(|t| [t.reference, t.student, t.teacher].map(|v| v as i64))
+        .collect();
+    out.set_item(
+        "triplets",
+        PyArray1::from_vec(py, views).reshape([items, 3])?,
+    )?;
+    out.set_item(
+        "windows",
+        PyArray1::from_vec(py, corners).reshape([items, 2])?,
+    )?;
+    let side = |side: mbs_core::Side| match side {
+        mbs_core::Side::Left => "left",
+        mbs_core::Side::Right => "right",
+    };
+    let student: Vec<&str> = triplets.iter().map(|t| side(t.student_side())).collect();
+    let teacher: Vec<&str> = triplets.iter().map(|t| side(t.teacher_side())).collect();
+    out.set_item("student_sides", student)?;
+    out.set_item("teacher_sides", teacher)?;
+    Ok(())
 }

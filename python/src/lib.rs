@@ -577,31 +577,8 @@ fn extrapolate<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let max_disparity = self::max_disparity(max_disparity)?;
     let dilate_radius = dilate_radius.within("dilate_radius", 0..=MAX_SIDE as i128)?;
-    let dilation = match dilation {
-        "none" => Dilation::None,
-        "square" => Dilation::Square(dilate_radius),
-        "ellipse" => Dilation::Ellipse(dilate_radius),
-        "background-side" => Dilation::BackgroundSide(dilate_radius),
-        "foreground-side" => Dilation::ForegroundSide(dilate_radius),
-        other => {
-            return Err(value_error(
-                "dilation",
-                format!(
-                    "{other:?} is not none, square, ellipse, background-side or foreground-side"
-                ),
-            ));
-        }
-    };
-    let inpainter: Box<dyn Inpainter> = match inpaint {
-        "background" => Box::new(BackgroundFill::default()),
-        "isotropic" => Box::new(IsotropicFill),
-        other => {
-            return Err(value_error(
-                "inpaint",
-                format!("{other:?} is not background or isotropic"),
-            ));
-        }
-    };
+    let dilation = parse_dilation(dilation, dilate_radius)?;
+    let inpainter = parse_inpainter(inpaint)?;
     let (left, right) = (rgb_image("left", left)?, rgb_image("right", right)?);
     check_same_size(&left, &right)?;
     let given = |name: &str, value: Option<&Bound<'py, PyAny>>| {
@@ -641,6 +618,36 @@ fn extrapolate<'py>(
     out.set_item("disparity_2", to_numpy(py, disparities.left)?)?;
     out.set_item("disparity_3", to_numpy(py, disparities.right)?)?;
     Ok(out)
+}
+
+/// The `dilation` argument of [`extrapolate`] with its radius.
+fn parse_dilation(dilation: &str, radius: u32) -> PyResult<Dilation> {
+    match dilation {
+        "none" => Ok(Dilation::None),
+        "square" => Ok(Dilation::Square(radius)),
+        "ellipse" => Ok(Dilation::Ellipse(radius)),
+        "background-side" => Ok(Dilation::BackgroundSide(radius)),
+        "foreground-side" => Ok(Dilation::ForegroundSide(radius)),
+        other => Err(value_error(
+            "dilation",
+            format!("{other:?} is not none, square, ellipse, background-side or foreground-side"),
+        )),
+    }
+}
+
+/// The `inpaint` argument of [`extrapolate`].
+fn parse_inpainter(inpaint: &str) -> PyResult<Box<dyn Inpainter>> {
+    let inpainter: Box<dyn Inpainter> = match inpaint {
+        "background" => Box::new(BackgroundFill::default()),
+        "isotropic" => Box::new(IsotropicFill),
+        other => {
+            return Err(value_error(
+                "inpaint",
+                format!("{other:?} is not background or isotropic"),
+            ));
+        }
+    };
+    Ok(inpainter)
 }
 
 /// Loads a manifest, checked against the schema and the confinement rule.

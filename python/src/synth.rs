@@ -3,7 +3,7 @@
 
 use image::RgbImage;
 use mbs_core::{FloatImage, Rig};
-use mbs_synth::{RenderOptions, Scene, SceneConfig, one_step_disparity, render};
+use mbs_synth::{RenderOptions, Scene, SceneConfig, Weather, one_step_disparity, render};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -88,32 +88,8 @@ pub fn synth_scene<'py>(
     let width: usize = width.within("width", 8..=MAX_VIEW_SIDE as i128)?;
     let height: usize = height.within("height", 8..=MAX_VIEW_SIDE as i128)?;
     let supersample: u32 = supersample.within("supersample", 1..=4)?;
-    if views * width * height > MAX_TOTAL_PIXELS {
-        return Err(value_error(
-            "views",
-            format!(
-                "{views} views of {width}x{height} are {} pixels, more than the {MAX_TOTAL_PIXELS} \
-                 one call renders; render fewer or smaller views",
-                views * width * height
-            ),
-        ));
-    }
-    for (name, value) in [("focal", focal), ("baseline", baseline)] {
-        if !(value.is_finite() && value > 0.0) {
-            return Err(value_error(
-                name,
-                format!("{value}: expected a positive number"),
-            ));
-        }
-    }
-    let weather = serde_json::from_value(serde_json::Value::from(weather)).map_err(|_| {
-        value_error(
-            "weather",
-            format!(
-                "{weather:?} is not ClearNoon, ClearNight, ClearSunset, CloudyNoon or MidRainyNoon"
-            ),
-        )
-    })?;
+    check_size_and_optics(views, (width, height), focal, baseline)?;
+    let weather = parse_weather(weather)?;
     let rig = Rig::centred(views, baseline, focal, width as u32, height as u32);
     let options = RenderOptions {
         supersample,
@@ -143,4 +119,45 @@ pub fn synth_scene<'py>(
     out.set_item("depth", maps(rendered.depth)?)?;
     out.set_item("disparity", maps(disparity)?)?;
     Ok(out)
+}
+
+/// Refuses more pixels than one call renders, and a focal length or
+/// baseline that is not a positive number.
+fn check_size_and_optics(
+    views: usize,
+    (width, height): (usize, usize),
+    focal: f64,
+    baseline: f64,
+) -> PyResult<()> {
+    if views * width * height > MAX_TOTAL_PIXELS {
+        return Err(value_error(
+            "views",
+            format!(
+                "{views} views of {width}x{height} are {} pixels, more than the {MAX_TOTAL_PIXELS} \
+                 one call renders; render fewer or smaller views",
+                views * width * height
+            ),
+        ));
+    }
+    for (name, value) in [("focal", focal), ("baseline", baseline)] {
+        if !(value.is_finite() && value > 0.0) {
+            return Err(value_error(
+                name,
+                format!("{value}: expected a positive number"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The `weather` argument: one of MBS20K's weather names.
+fn parse_weather(weather: &str) -> PyResult<Weather> {
+    serde_json::from_value(serde_json::Value::from(weather)).map_err(|_| {
+        value_error(
+            "weather",
+            format!(
+                "{weather:?} is not ClearNoon, ClearNight, ClearSunset, CloudyNoon or MidRainyNoon"
+            ),
+        )
+    })
 }
