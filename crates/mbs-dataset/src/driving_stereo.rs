@@ -13,7 +13,7 @@ use mbs_core::Side;
 use crate::DatasetError;
 use crate::ground_truth::GroundTruthFile;
 use crate::kitti::png_stems;
-use crate::pairs::StereoPair;
+use crate::stereo_pair::StereoPair;
 
 /// The image sizes DrivingStereo ships, largest first: the full-size
 /// folders are read when a weather folder holds both.
@@ -64,6 +64,7 @@ pub fn driving_stereo_pairs(dir: &Path) -> Result<Vec<StereoPair>, DatasetError>
                     noc: None,
                 }),
                 disparity_bound: None,
+                calibration: None,
                 id: frame,
             }
         })

@@ -4,7 +4,11 @@
 
 use std::path::{Path, PathBuf};
 
+use mbs_core::Side;
+
 use crate::error::DatasetError;
+use crate::ground_truth::{GroundTruthFile, NocSource};
+use crate::stereo_pair::StereoPair;
 
 /// Which KITTI benchmark a folder belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -152,6 +156,100 @@ impl KittiVersion {
             KittiVersion::Kitti2012 => ("disp_occ", "disp_noc"),
         }
     }
+}
+
+/// Which frames of a KITTI folder are pairs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum KittiFrames {
+    /// Every frame of the left view folder.
+    All,
+    /// The `*_10` frames: those the benchmark's ground truth covers.
+    Benchmark,
+}
+
+/// The benchmark's frames of the KITTI folder `dir` (its `*_10` frames,
+/// those the ground truth covers) as pairs.
+pub fn benchmark_pairs(dir: &Path) -> Result<Vec<StereoPair>, DatasetError> {
+    view_pairs(&KittiFolder::open(dir)?, KittiFrames::Benchmark)
+}
+
+/// The ground truth of a KITTI frame, from the folder names of `version`
+/// under `dir`, when the all-pixels map exists.
+fn frame_truth(dir: &Path, version: KittiVersion, frame: &str) -> Option<GroundTruthFile> {
+    let (occ, noc) = version.gt_dirs();
+    let file = format!("{frame}.png");
+    let disparity = dir.join(occ).join(&file);
+    let noc = dir.join(noc).join(&file);
+    disparity.is_file().then(|| GroundTruthFile {
+        disparity,
+        scale: 1.0,
+        noc: noc.is_file().then_some(NocSource::Map(noc)),
+    })
+}
+
+/// The frames of a KITTI folder's view folders as pairs.
+pub fn view_pairs(
+    folder: &KittiFolder,
+    frames: KittiFrames,
+) -> Result<Vec<StereoPair>, DatasetError> {
+    let pairs: Vec<StereoPair> = folder
+        .frames
+        .iter()
+        .filter(|f| frames == KittiFrames::All || f.ends_with("_10"))
+        .map(|f| StereoPair {
+            id: f.clone(),
+            cameras: (0, 1),
+            reference: folder.left(f),
+            target: folder.right(f),
+            side: Side::Right,
+            truth: frame_truth(&folder.root, folder.version, f),
+            disparity_bound: None,
+            calibration: None,
+        })
+        .collect();
+    if pairs.is_empty() {
+        return Err(DatasetError::Layout {
+            path: folder.root.join(folder.version.view_dirs().0),
+            message: "no *_10.png frames".into(),
+        });
+    }
+    Ok(pairs)
+}
+
+/// The frames of a KITTI 2015 (`disp_occ_0`, `disp_noc_0`) or 2012
+/// (`disp_occ`, `disp_noc`) training folder that have ground truth, sorted
+/// by name. The views' paths are where KITTI keeps them; they are not
+/// checked.
+pub fn truth_pairs(dir: &Path) -> Result<Vec<StereoPair>, DatasetError> {
+    let version = KittiVersion::of_ground_truth(dir).ok_or_else(|| DatasetError::Layout {
+        path: dir.to_path_buf(),
+        message: "no KITTI ground truth (expected disp_occ_0 or disp_occ)".into(),
+    })?;
+    let occ = dir.join(version.gt_dirs().0);
+    let names = png_stems(&occ)?;
+    if names.is_empty() {
+        return Err(DatasetError::Layout {
+            path: occ,
+            message: "no ground-truth PNGs".into(),
+        });
+    }
+    let (left, right) = version.view_dirs();
+    Ok(names
+        .into_iter()
+        .map(|stem| {
+            let file = format!("{stem}.png");
+            StereoPair {
+                cameras: (0, 1),
+                reference: dir.join(left).join(&file),
+                target: dir.join(right).join(&file),
+                side: Side::Right,
+                truth: frame_truth(dir, version, &stem),
+                disparity_bound: None,
+                calibration: None,
+                id: stem,
+            }
+        })
+        .collect())
 }
 
 #[cfg(test)]

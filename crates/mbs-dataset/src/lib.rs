@@ -14,12 +14,14 @@ pub mod pairs;
 pub mod probe;
 pub mod scene_flow;
 pub mod schema;
+pub mod stereo_pair;
 pub mod submission;
 pub mod two_view;
 pub mod validate;
 
 pub use error::DatasetError;
 pub use manifest::{Manifest, PairGroundTruth, Provenance, Sample, Split};
+pub use stereo_pair::StereoPair;
 
 /// The file name of `path` as text; a name that is not UTF-8 is an error
 /// naming it, since samples and outputs are named after files.

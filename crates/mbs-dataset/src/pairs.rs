@@ -7,73 +7,13 @@
 use std::path::{Path, PathBuf};
 
 use mbs_core::Side;
-use mbs_core::inputs::InputFiles;
 
 use crate::DatasetError;
 use crate::benchmark::Benchmark;
-use crate::driving_stereo::driving_stereo_pairs;
 use crate::ground_truth::{GroundTruthFile, NocSource};
-use crate::kitti::{KittiFolder, KittiVersion, png_stems};
+use crate::kitti::{self, KittiFolder, KittiFrames};
 use crate::manifest::{Manifest, Sample, Split, resolve};
-use crate::scene_flow::scene_flow_pairs;
-use crate::two_view::two_view_pairs;
-
-/// One rectified pair: the views, the side of the target and the
-/// reference view's ground truth, if any.
-#[derive(Debug, Clone, PartialEq)]
-pub struct StereoPair {
-    /// The sample id (manifests), frame name (KITTI, e.g. `000000_10`) or
-    /// the left view's file stem (one pair): outputs are named after it.
-    pub id: String,
-    /// Camera indices of the reference and target (KITTI and one pair: 0 and 1).
-    pub cameras: (usize, usize),
-    /// The reference view (the disparity lives on its grid).
-    pub reference: PathBuf,
-    /// The target view.
-    pub target: PathBuf,
-    /// Which side of the reference the target lies on.
-    pub side: Side,
-    /// The reference view's ground truth, when the dataset has it.
-    pub truth: Option<GroundTruthFile>,
-    /// The dataset's bound on the pair's disparities, when it states one:
-    /// they lie in `0..n` (Middlebury's and ETH3D's `calib.txt` `ndisp`).
-    pub disparity_bound: Option<u32>,
-}
-
-impl StereoPair {
-    /// Every file the pair is read from: the views, the ground truth and
-    /// its mask, and the `calib.txt` beside the views that bounds the
-    /// disparities.
-    pub fn input_files(&self) -> Vec<PathBuf> {
-        let mut files = vec![self.reference.clone(), self.target.clone()];
-        if let Some(truth) = &self.truth {
-            files.push(truth.disparity.clone());
-            if let Some(noc) = &truth.noc {
-                files.push(noc.path().to_path_buf());
-            }
-        }
-        if self.disparity_bound.is_some() {
-            files.push(self.reference.with_file_name(crate::two_view::CALIBRATION));
-        }
-        files
-    }
-}
-
-/// Every input file of `pairs`, for refusing outputs that would replace one.
-pub fn input_files<'a>(pairs: impl IntoIterator<Item = &'a StereoPair>) -> InputFiles {
-    let mut inputs = InputFiles::new();
-    inputs.extend(pairs.into_iter().flat_map(StereoPair::input_files));
-    inputs
-}
-
-/// Which frames of a KITTI folder are pairs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum KittiFrames {
-    /// Every frame of the left view folder.
-    All,
-    /// The `*_10` frames: those the benchmark's ground truth covers.
-    Benchmark,
-}
+use crate::stereo_pair::StereoPair;
 
 /// Where a command's pairs come from.
 #[derive(Debug, Clone, PartialEq)]
@@ -129,18 +69,12 @@ impl PairSource {
                 side: Side::Right,
                 truth: None,
                 disparity_bound: None,
+                calibration: None,
             }]),
             PairSource::Kitti { dir, frames } => {
-                kitti_view_pairs(&KittiFolder::open(dir)?, *frames)
+                kitti::view_pairs(&KittiFolder::open(dir)?, *frames)
             }
-            PairSource::Benchmark { benchmark, dir } => match benchmark {
-                Benchmark::Kitti => {
-                    kitti_view_pairs(&KittiFolder::open(dir)?, KittiFrames::Benchmark)
-                }
-                Benchmark::Middlebury | Benchmark::Eth3d => two_view_pairs(dir, *benchmark),
-                Benchmark::DrivingStereo => driving_stereo_pairs(dir),
-                Benchmark::SceneFlow => scene_flow_pairs(dir),
-            },
+            PairSource::Benchmark { benchmark, dir } => (benchmark.layout().pairs)(dir),
             PairSource::Manifest {
                 path,
                 cameras,
@@ -159,13 +93,11 @@ impl PairSource {
     pub fn scored_pairs(&self) -> Result<Vec<StereoPair>, DatasetError> {
         let (pairs, path, none) = match self {
             PairSource::Single { left, .. } => (Vec::new(), left, "no ground truth".to_string()),
-            PairSource::Kitti { dir, .. }
-            | PairSource::Benchmark {
-                benchmark: Benchmark::Kitti,
-                dir,
-            } => (kitti_truth_pairs(dir)?, dir, "no ground truth".to_string()),
+            PairSource::Kitti { dir, .. } => {
+                (kitti::truth_pairs(dir)?, dir, "no ground truth".to_string())
+            }
             PairSource::Benchmark { benchmark, dir } => (
-                self.pairs()?,
+                (benchmark.layout().scored_pairs)(dir)?,
                 dir,
                 format!("no frame has {benchmark}'s ground truth"),
             ),
@@ -233,6 +165,7 @@ pub fn sample_pair(
         },
         truth,
         disparity_bound: None,
+        calibration: None,
     })
 }
 
@@ -276,83 +209,6 @@ pub fn check_cameras(
         }),
         None => Ok(()),
     }
-}
-
-/// The ground truth of a KITTI frame, from the folder names of `version`
-/// under `dir`, when the all-pixels map exists.
-fn kitti_truth(dir: &Path, version: KittiVersion, frame: &str) -> Option<GroundTruthFile> {
-    let (occ, noc) = version.gt_dirs();
-    let file = format!("{frame}.png");
-    let disparity = dir.join(occ).join(&file);
-    let noc = dir.join(noc).join(&file);
-    disparity.is_file().then(|| GroundTruthFile {
-        disparity,
-        scale: 1.0,
-        noc: noc.is_file().then_some(NocSource::Map(noc)),
-    })
-}
-
-/// The frames of a KITTI folder's view folders as pairs.
-fn kitti_view_pairs(
-    folder: &KittiFolder,
-    frames: KittiFrames,
-) -> Result<Vec<StereoPair>, DatasetError> {
-    let pairs: Vec<StereoPair> = folder
-        .frames
-        .iter()
-        .filter(|f| frames == KittiFrames::All || f.ends_with("_10"))
-        .map(|f| StereoPair {
-            id: f.clone(),
-            cameras: (0, 1),
-            reference: folder.left(f),
-            target: folder.right(f),
-            side: Side::Right,
-            truth: kitti_truth(&folder.root, folder.version, f),
-            disparity_bound: None,
-        })
-        .collect();
-    if pairs.is_empty() {
-        return Err(DatasetError::Layout {
-            path: folder.root.join(folder.version.view_dirs().0),
-            message: "no *_10.png frames".into(),
-        });
-    }
-    Ok(pairs)
-}
-
-/// The frames of a KITTI 2015 (`disp_occ_0`, `disp_noc_0`) or 2012
-/// (`disp_occ`, `disp_noc`) training folder that have ground truth, sorted
-/// by name. The views' paths are where KITTI keeps them; they are not
-/// checked.
-fn kitti_truth_pairs(dir: &Path) -> Result<Vec<StereoPair>, DatasetError> {
-    let version = KittiVersion::of_ground_truth(dir).ok_or_else(|| DatasetError::Layout {
-        path: dir.to_path_buf(),
-        message: "no KITTI ground truth (expected disp_occ_0 or disp_occ)".into(),
-    })?;
-    let occ = dir.join(version.gt_dirs().0);
-    let names = png_stems(&occ)?;
-    if names.is_empty() {
-        return Err(DatasetError::Layout {
-            path: occ,
-            message: "no ground-truth PNGs".into(),
-        });
-    }
-    let (left, right) = version.view_dirs();
-    Ok(names
-        .into_iter()
-        .map(|stem| {
-            let file = format!("{stem}.png");
-            StereoPair {
-                cameras: (0, 1),
-                reference: dir.join(left).join(&file),
-                target: dir.join(right).join(&file),
-                side: Side::Right,
-                truth: kitti_truth(dir, version, &stem),
-                disparity_bound: None,
-                id: stem,
-            }
-        })
-        .collect())
 }
 
 #[cfg(test)]

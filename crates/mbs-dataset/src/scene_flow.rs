@@ -16,7 +16,7 @@ use mbs_core::Side;
 use crate::DatasetError;
 use crate::ground_truth::GroundTruthFile;
 use crate::kitti::png_stems;
-use crate::pairs::StereoPair;
+use crate::stereo_pair::StereoPair;
 
 /// The render passes, in the order a dataset folder is searched: the
 /// final pass (motion blur, depth of field) is the one usually scored.
@@ -81,6 +81,7 @@ pub fn scene_flow_pairs(dir: &Path) -> Result<Vec<StereoPair>, DatasetError> {
                     noc: None,
                 }),
                 disparity_bound: None,
+                calibration: None,
             });
         }
     }

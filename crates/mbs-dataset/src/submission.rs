@@ -29,7 +29,8 @@ use mbs_core::formats::pfm::{Endian, write_pfm_grey};
 use mbs_core::formats::png16::write_kitti_disparity;
 
 use crate::DatasetError;
-use crate::kitti::KittiVersion;
+use crate::benchmark::Benchmark;
+use crate::kitti::{KittiFolder, KittiVersion};
 
 /// The method name MiddEval3's own ground truth is stored under
 /// (`disp0GT.pfm`): a submission named so would overwrite it.
@@ -56,6 +57,46 @@ pub enum SubmissionLayout {
 }
 
 impl SubmissionLayout {
+    /// The benchmarks whose evaluation servers take submissions.
+    pub const SERVERS: [Benchmark; 3] = [Benchmark::Kitti, Benchmark::Middlebury, Benchmark::Eth3d];
+
+    /// The layout of a submission of `benchmark`'s test folder `dir`:
+    /// KITTI's year from the folder's view folders; Middlebury's split
+    /// from the folder's name (resolved, so `.` names it) and the
+    /// `method`'s name, which it needs ([`SubmissionLayout::middlebury`]).
+    /// A benchmark without a server is an error.
+    pub fn for_folder(
+        benchmark: Benchmark,
+        dir: &Path,
+        method: Option<&str>,
+        sparse: bool,
+    ) -> Result<Self, DatasetError> {
+        let refused = |message: String| DatasetError::Layout {
+            path: dir.to_path_buf(),
+            message,
+        };
+        match benchmark {
+            Benchmark::Kitti => Ok(SubmissionLayout::Kitti(KittiFolder::open(dir)?.version)),
+            Benchmark::Eth3d => Ok(SubmissionLayout::Eth3d),
+            Benchmark::Middlebury => {
+                let method = method.ok_or_else(|| {
+                    refused("a Middlebury submission needs the method's name".into())
+                })?;
+                let split = dir.canonicalize().map_err(|source| DatasetError::Io {
+                    path: dir.to_path_buf(),
+                    source,
+                })?;
+                let split = split.file_name().ok_or_else(|| {
+                    refused("is not a MiddEval3 split folder (testH, trainingQ, ...)".into())
+                })?;
+                Self::middlebury(method, &split.to_string_lossy(), sparse).map_err(refused)
+            }
+            Benchmark::DrivingStereo | Benchmark::SceneFlow => Err(refused(format!(
+                "{benchmark} has no evaluation server taking submissions"
+            ))),
+        }
+    }
+
     /// Middlebury's layout for `method` and the split folder `split`
     /// (`sparse` maps take the `_s` name); a name with anything but ASCII
     /// letters and digits is refused, since MiddEval3's scripts read it

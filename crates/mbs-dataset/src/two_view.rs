@@ -19,9 +19,8 @@ use std::path::{Path, PathBuf};
 use mbs_core::Side;
 
 use crate::DatasetError;
-use crate::benchmark::Benchmark;
 use crate::ground_truth::{GroundTruthFile, NocSource};
-use crate::pairs::StereoPair;
+use crate::stereo_pair::StereoPair;
 
 /// The views of a scene.
 const VIEWS: [&str; 2] = ["im0.png", "im1.png"];
@@ -30,7 +29,7 @@ const DISPARITY: &str = "disp0GT.pfm";
 /// The left view's occlusion mask.
 const MASK: &str = "mask0nocc.png";
 /// The scene's calibration, with its disparity bound.
-pub(crate) const CALIBRATION: &str = "calib.txt";
+const CALIBRATION: &str = "calib.txt";
 
 /// The `ndisp` of the scene folder `scene`'s `calib.txt` (lines of
 /// `key=value`): `None` without the file or the key; a value that is not
@@ -71,12 +70,43 @@ fn disparity_bound(scene: &Path) -> Result<Option<u32>, DatasetError> {
     }
 }
 
+/// The two benchmarks of this layout.
+#[derive(Debug, Clone, Copy)]
+enum TwoView {
+    /// Middlebury 2014 / MiddEval3: the ground truth beside the views.
+    Middlebury,
+    /// ETH3D two-view: the ground truth in a sibling `_gt` folder.
+    Eth3d,
+}
+
+impl TwoView {
+    /// The benchmark's name, as messages spell it.
+    fn name(self) -> &'static str {
+        match self {
+            TwoView::Middlebury => "Middlebury",
+            TwoView::Eth3d => "ETH3D",
+        }
+    }
+}
+
+/// Every scene of a Middlebury 2014 / MiddEval3 folder as a pair (see
+/// [`two_view_pairs`]).
+pub fn middlebury_pairs(root: &Path) -> Result<Vec<StereoPair>, DatasetError> {
+    two_view_pairs(root, TwoView::Middlebury)
+}
+
+/// Every scene of an ETH3D two-view folder as a pair, its ground truth
+/// from the sibling `<folder>_gt` (see [`two_view_pairs`]).
+pub fn eth3d_pairs(root: &Path) -> Result<Vec<StereoPair>, DatasetError> {
+    two_view_pairs(root, TwoView::Eth3d)
+}
+
 /// Where the ground truth of `scene` under `root` lies: the scene's own
 /// folder (Middlebury) or the sibling `<root>_gt` folder (ETH3D; `root`
 /// made absolute first, so that `.` or `..` name their folder).
-fn truth_dir(benchmark: Benchmark, root: &Path, scene: &str) -> PathBuf {
+fn truth_dir(benchmark: TwoView, root: &Path, scene: &str) -> PathBuf {
     match benchmark {
-        Benchmark::Eth3d => {
+        TwoView::Eth3d => {
             let root = std::path::absolute(root).unwrap_or_else(|_| root.to_path_buf());
             let root = match root.file_name() {
                 Some(_) => root,
@@ -86,16 +116,16 @@ fn truth_dir(benchmark: Benchmark, root: &Path, scene: &str) -> PathBuf {
             name.push("_gt");
             root.with_file_name(name).join(scene)
         }
-        _ => root.join(scene),
+        TwoView::Middlebury => root.join(scene),
     }
 }
 
 /// Every scene of `root` (a folder of scene folders, each with `im0.png`
 /// and `im1.png`) as a right-side pair named after its folder, in name
 /// order, with its ground truth where the benchmark has it and its
-/// `calib.txt`'s disparity bound (`benchmark`: Middlebury or ETH3D). A
-/// folder with no scene is a layout error naming what was expected.
-pub fn two_view_pairs(root: &Path, benchmark: Benchmark) -> Result<Vec<StereoPair>, DatasetError> {
+/// `calib.txt`'s disparity bound. A folder with no scene is a layout
+/// error naming what was expected.
+fn two_view_pairs(root: &Path, benchmark: TwoView) -> Result<Vec<StereoPair>, DatasetError> {
     let entries = std::fs::read_dir(root).map_err(|e| DatasetError::Layout {
         path: root.to_path_buf(),
         message: format!(
@@ -126,8 +156,10 @@ pub fn two_view_pairs(root: &Path, benchmark: Benchmark) -> Result<Vec<StereoPai
             let truth = truth_dir(benchmark, root, &scene);
             let disparity = truth.join(DISPARITY);
             let mask = truth.join(MASK);
+            let calibration = root.join(&scene).join(CALIBRATION);
             Ok(StereoPair {
                 disparity_bound: disparity_bound(&root.join(&scene))?,
+                calibration: calibration.exists().then_some(calibration),
                 cameras: (0, 1),
                 reference: root.join(&scene).join(VIEWS[0]),
                 target: root.join(&scene).join(VIEWS[1]),
@@ -172,7 +204,7 @@ mod tests {
         scene(&root.join("Motorcycle"), Some(&root.join("Motorcycle")));
         scene(&root.join("Adirondack"), Some(&root.join("Adirondack")));
         std::fs::create_dir_all(root.join("not-a-scene")).unwrap();
-        let pairs = two_view_pairs(&root, Benchmark::Middlebury).unwrap();
+        let pairs = middlebury_pairs(&root).unwrap();
         let ids: Vec<&str> = pairs.iter().map(|p| p.id.as_str()).collect();
         assert_eq!(ids, ["Adirondack", "Motorcycle"]);
         let pair = &pairs[0];
@@ -195,7 +227,7 @@ mod tests {
             Some(&gt.join("delivery_area_1l")),
         );
         scene(&root.join("forest_1s"), None);
-        let pairs = two_view_pairs(&root, Benchmark::Eth3d).unwrap();
+        let pairs = eth3d_pairs(&root).unwrap();
         assert_eq!(pairs.len(), 2);
         let truth = pairs[0].truth.as_ref().unwrap();
         assert_eq!(truth.disparity, gt.join("delivery_area_1l").join(DISPARITY));
@@ -221,25 +253,21 @@ mod tests {
         )
         .unwrap();
         std::fs::write(root.join("Jadeplant").join(CALIBRATION), calib).unwrap();
-        let pairs = two_view_pairs(&root, Benchmark::Middlebury).unwrap();
+        let pairs = middlebury_pairs(&root).unwrap();
         let bounds: Vec<Option<u32>> = pairs.iter().map(|p| p.disparity_bound).collect();
         // Piano has no calib.txt, Jadeplant's has no ndisp.
         assert_eq!(bounds, [Some(145), None, None]);
 
         let bad = root.join("Piano").join(CALIBRATION);
         std::fs::write(&bad, "ndisp=-3\n").unwrap();
-        let err = two_view_pairs(&root, Benchmark::Middlebury)
-            .unwrap_err()
-            .to_string();
+        let err = middlebury_pairs(&root).unwrap_err().to_string();
         assert!(
             err.contains(&bad.display().to_string()) && err.contains("ndisp=-3"),
             "{err}"
         );
         // Two ndisp lines used to take the first without a word.
         std::fs::write(&bad, "ndisp=64\nndisp=128\n").unwrap();
-        let err = two_view_pairs(&root, Benchmark::Middlebury)
-            .unwrap_err()
-            .to_string();
+        let err = middlebury_pairs(&root).unwrap_err().to_string();
         assert!(err.contains("2 ndisp lines (64, 128)"), "{err}");
     }
 
@@ -254,7 +282,7 @@ mod tests {
         std::fs::create_dir_all(&gt).unwrap();
         std::fs::write(gt.join(DISPARITY), b"Pf").unwrap();
         let dotted = root.join(".");
-        let pairs = two_view_pairs(&dotted, Benchmark::Eth3d).unwrap();
+        let pairs = eth3d_pairs(&dotted).unwrap();
         assert_eq!(
             pairs[0].truth.as_ref().map(|t| t.disparity.clone()),
             Some(std::path::absolute(&gt).unwrap().join(DISPARITY))
@@ -264,17 +292,13 @@ mod tests {
     #[test]
     fn a_folder_without_scenes_names_what_was_expected() {
         let dir = tempfile::tempdir().unwrap();
-        let err = two_view_pairs(dir.path(), Benchmark::Middlebury)
-            .unwrap_err()
-            .to_string();
+        let err = middlebury_pairs(dir.path()).unwrap_err().to_string();
         assert!(
             err.contains("no Middlebury scene") && err.contains("im0.png"),
             "{err}"
         );
         let missing = dir.path().join("nowhere");
-        let err = two_view_pairs(&missing, Benchmark::Eth3d)
-            .unwrap_err()
-            .to_string();
+        let err = eth3d_pairs(&missing).unwrap_err().to_string();
         assert!(
             err.contains("nowhere") && err.contains("expected a ETH3D folder"),
             "{err}"

@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 use mbs_core::atomic::link_or_copy;
 use mbs_core::formats::pfm::{Endian, write_pfm_grey};
 use mbs_core::formats::rgb::{read_rgb, write_mask_png, write_rgb_png};
+use mbs_dataset::StereoPair;
 use mbs_dataset::ground_truth::find_map;
-use mbs_dataset::pairs::StereoPair;
 use mbs_viz::extrapolation_sheet;
 
 use crate::{Disparities, DisparitySource, ExtrapolateError, Extrapolator, FourViewFiles};

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use mbs_infer::onnx::{Device, RuntimeOptions};
+use mbs_nets::device::DeviceName;
 
 /// Where and with which library ONNX models run.
 #[derive(clap::Args, Debug, Clone)]
@@ -12,7 +13,7 @@ pub struct OnnxArgs {
     /// --weights). CUDA needs a build with `--features cuda`, and for ONNX
     /// models the onnxruntime-gpu library (tools/setup-ort.sh --gpu).
     #[arg(long, default_value = "cpu", value_parser = crate::cli::values::device)]
-    pub device: String,
+    pub device: DeviceName,
     /// The ONNX Runtime library [default: $ORT_DYLIB_PATH, then
     /// .ort/onnxruntime/capi/libonnxruntime.so.* above the current folder or
     /// the executable, installed by tools/setup-ort.sh].
@@ -26,11 +27,16 @@ pub struct OnnxArgs {
 impl OnnxArgs {
     /// The device of ONNX models.
     fn onnx_device(&self) -> anyhow::Result<Device> {
-        self.device.parse().map_err(|e| {
-            anyhow::anyhow!(
-                "--device: {e} (ONNX models run on cpu or cuda; vulkan is for trained networks)"
-            )
-        })
+        match self.device {
+            DeviceName::Cpu => Ok(Device::Cpu),
+            DeviceName::Cuda(index) => u32::try_from(index)
+                .map(Device::Cuda)
+                .map_err(|_| anyhow::anyhow!("--device {}: no such CUDA device", self.device)),
+            DeviceName::Vulkan(_) => anyhow::bail!(
+                "--device {}: ONNX models run on cpu or cuda; vulkan is for trained networks",
+                self.device
+            ),
+        }
     }
 
     /// The runtime options these flags ask for.

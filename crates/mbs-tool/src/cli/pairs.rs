@@ -9,46 +9,25 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 
 use mbs_dataset::Split;
-use mbs_dataset::benchmark::Benchmark;
-use mbs_dataset::pairs::{KittiFrames, PairSource};
+use mbs_dataset::pairs::PairSource;
 use serde_json::Value;
+
+use super::folders::{self, AnyOne, BenchmarkFolders};
 
 /// The flags that choose the pairs.
 #[derive(clap::Args)]
 pub struct PairArgs {
     /// Left (reference) view of a single pair.
-    #[arg(long, requires = "right", conflicts_with_all = ["kitti", "middlebury", "eth3d", "drivingstereo", "sceneflow", "manifest"])]
+    #[arg(long, requires = "right", conflicts_with_all = [folders::GROUP, "manifest"])]
     pub left: Option<PathBuf>,
     /// Right (target) view of a single pair.
     #[arg(long, requires = "left")]
     pub right: Option<PathBuf>,
-    /// A KITTI 2015 (image_2, image_3, disp_occ_0, disp_noc_0) or 2012
-    /// (colored_0, colored_1, disp_occ, disp_noc) training or testing
-    /// folder; its *_10.png frames are the pairs.
-    #[arg(long, conflicts_with_all = ["middlebury", "eth3d", "drivingstereo", "sceneflow", "manifest"])]
-    pub kitti: Option<PathBuf>,
-    /// A Middlebury 2014 / MiddEval3 folder of scenes (e.g.
-    /// MiddEval3/trainingQ: <Scene>/im0.png, im1.png, disp0GT.pfm,
-    /// mask0nocc.png); each scene is a pair.
-    #[arg(long, value_name = "DIR", conflicts_with_all = ["eth3d", "drivingstereo", "sceneflow", "manifest"])]
-    pub middlebury: Option<PathBuf>,
-    /// An ETH3D two-view folder of scenes (two_view_training, its ground
-    /// truth read from the sibling two_view_training_gt); each scene is a pair.
-    #[arg(long, value_name = "DIR", conflicts_with_all = ["drivingstereo", "sceneflow", "manifest"])]
-    pub eth3d: Option<PathBuf>,
-    /// A DrivingStereo weather folder (e.g. sunny: left-image-full-size,
-    /// right-image-full-size, disparity-map-full-size, or the -half-size
-    /// ones); each frame is a pair. No occlusion mask: only ALL is scored.
-    #[arg(long, value_name = "DIR", conflicts_with_all = ["sceneflow", "manifest"])]
-    pub drivingstereo: Option<PathBuf>,
-    /// A SceneFlow folder (FlyingThings3D, Driving or Monkaa) holding
-    /// frames_finalpass or frames_cleanpass with disparity/ beside it, or a
-    /// folder inside a pass (e.g. frames_finalpass/TEST); each left/right
-    /// frame is a pair.
-    #[arg(long, value_name = "DIR", conflicts_with = "manifest")]
-    pub sceneflow: Option<PathBuf>,
+    /// A benchmark's folder (one).
+    #[command(flatten)]
+    pub folders: BenchmarkFolders<AnyOne>,
     /// A dataset manifest: every sample's --pair.
-    #[arg(long)]
+    #[arg(long, conflicts_with = folders::GROUP)]
     pub manifest: Option<PathBuf>,
     /// Camera pair of manifest samples, REFERENCE:TARGET; a target left of
     /// the reference is handled by mirroring.
@@ -63,47 +42,25 @@ impl PairArgs {
     /// The pairs the flags name (a single pair's views must be files), or
     /// `None` when no flag names any.
     pub fn source(&self) -> anyhow::Result<Option<PairSource>> {
-        Ok(
-            if let (Some(left), Some(right)) = (&self.left, &self.right) {
-                super::require_file(left, "left view")?;
-                super::require_file(right, "right view")?;
-                Some(PairSource::Single {
-                    left: left.clone(),
-                    right: right.clone(),
-                })
-            } else if let Some(dir) = &self.kitti {
-                Some(PairSource::Kitti {
-                    dir: dir.clone(),
-                    frames: KittiFrames::Benchmark,
-                })
-            } else if let Some((benchmark, dir)) = self.benchmark_folder() {
-                Some(PairSource::Benchmark {
-                    benchmark,
-                    dir: dir.clone(),
-                })
-            } else {
-                self.manifest.as_ref().map(|path| PairSource::Manifest {
-                    path: path.clone(),
-                    cameras: self.pair,
-                    split: self.split,
-                })
-            },
-        )
-    }
-}
-
-impl PairArgs {
-    /// The benchmark folder other than KITTI's the flags name, with its
-    /// benchmark.
-    fn benchmark_folder(&self) -> Option<(Benchmark, &PathBuf)> {
-        [
-            (Benchmark::Middlebury, &self.middlebury),
-            (Benchmark::Eth3d, &self.eth3d),
-            (Benchmark::DrivingStereo, &self.drivingstereo),
-            (Benchmark::SceneFlow, &self.sceneflow),
-        ]
-        .into_iter()
-        .find_map(|(benchmark, dir)| Some((benchmark, dir.as_ref()?)))
+        if let (Some(left), Some(right)) = (&self.left, &self.right) {
+            super::require_file(left, "left view")?;
+            super::require_file(right, "right view")?;
+            return Ok(Some(PairSource::Single {
+                left: left.clone(),
+                right: right.clone(),
+            }));
+        }
+        if let Some((benchmark, dir)) = self.folders.first() {
+            return Ok(Some(PairSource::Benchmark {
+                benchmark,
+                dir: dir.clone(),
+            }));
+        }
+        Ok(self.manifest.as_ref().map(|path| PairSource::Manifest {
+            path: path.clone(),
+            cameras: self.pair,
+            split: self.split,
+        }))
     }
 }
 

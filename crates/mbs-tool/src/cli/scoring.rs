@@ -11,10 +11,10 @@ use anyhow::bail;
 use mbs_core::FloatImage;
 use mbs_core::formats::{read_disparity, rgb};
 use mbs_core::metrics::{Dataset, Frame, ImageScore, ProtocolError, Rules};
+use mbs_dataset::StereoPair;
 use mbs_dataset::benchmark::Benchmark;
 use mbs_dataset::ground_truth::{GroundTruthFile, find_map};
-use mbs_dataset::kitti::KittiVersion;
-use mbs_dataset::pairs::{PairSource, StereoPair};
+use mbs_dataset::pairs::PairSource;
 
 use crate::cli::batch;
 use crate::cli::pairs::FrameList;
@@ -127,20 +127,9 @@ fn unscored_line(label: &str, unscored: &[String]) -> Option<String> {
 /// The dataset whose rules score `source`'s pairs: the benchmark (KITTI
 /// with its year), or other data for manifests and single pairs.
 pub fn dataset_of(source: &PairSource) -> Dataset {
-    let kitti = |dir: &Path| match KittiVersion::of_ground_truth(dir) {
-        Some(KittiVersion::Kitti2012) => Dataset::Kitti2012,
-        Some(KittiVersion::Kitti2015) => Dataset::Kitti2015,
-        None => Dataset::Other,
-    };
     match source {
-        PairSource::Kitti { dir, .. } => kitti(dir),
-        PairSource::Benchmark { benchmark, dir } => match benchmark {
-            Benchmark::Kitti => kitti(dir),
-            Benchmark::Middlebury => Dataset::Middlebury,
-            Benchmark::Eth3d => Dataset::Eth3d,
-            Benchmark::DrivingStereo => Dataset::DrivingStereo,
-            Benchmark::SceneFlow => Dataset::SceneFlow,
-        },
+        PairSource::Kitti { dir, .. } => (Benchmark::Kitti.layout().dataset)(dir),
+        PairSource::Benchmark { benchmark, dir } => (benchmark.layout().dataset)(dir),
         PairSource::Single { .. } | PairSource::Manifest { .. } => Dataset::Other,
     }
 }

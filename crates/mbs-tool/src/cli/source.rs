@@ -11,9 +11,10 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::ValueEnum;
 use mbs_core::RgbImage;
-use mbs_dataset::pairs::StereoPair;
+use mbs_dataset::StereoPair;
 use mbs_infer::onnx::{ModelCard, OnnxStereo};
 use mbs_infer::{Disparity, InferError, Sgm, SgmConfig, SgmPaths, StereoMatcher};
+use mbs_nets::device::DeviceName;
 use mbs_nets::{BackboneKind, NetworkConfig, NetworkMatcher};
 
 use crate::cli::onnx::OnnxArgs;
@@ -116,7 +117,7 @@ impl StereoSourceArgs {
             return Ok(StereoSource::Network(Box::new(stereo)));
         }
         if let Some(path) = &self.checkpoint {
-            let device = mbs_nets::device::open_device(&self.runtime.device)?;
+            let device = self.runtime.device.open()?;
             return Ok(StereoSource::Network(Box::new(NetworkMatcher::open(
                 path, device,
             )?)));
@@ -124,7 +125,7 @@ impl StereoSourceArgs {
         if let (Some(weights), Some(backbone)) = (&self.weights, self.backbone) {
             let config = NetworkConfig::with_overrides(backbone, &self.set)
                 .context("the network settings (--set)")?;
-            let device = mbs_nets::device::open_device(&self.runtime.device)?;
+            let device = self.runtime.device.open()?;
             return Ok(StereoSource::Network(Box::new(
                 NetworkMatcher::with_weights(&config, weights, device)?,
             )));
@@ -145,7 +146,7 @@ impl StereoSourceArgs {
     /// runs on the CPU. For commands whose `--device` serves only the
     /// disparity source (`extrapolate`'s also serves an ONNX inpainter).
     pub fn refuse_unused_device(&self) -> anyhow::Result<()> {
-        if !self.uses_network() && self.runtime.device != "cpu" {
+        if !self.uses_network() && self.runtime.device != DeviceName::Cpu {
             anyhow::bail!(
                 "--device {}: the built-in matcher runs on the CPU; --device is for networks \
                  (--model, --checkpoint, --weights)",

@@ -41,11 +41,11 @@ pub fn sgm_disparities(text: &str) -> Result<u32, String> {
 }
 
 /// A device name some network can run on (see
-/// [`mbs_nets::device::DeviceName`]), checked before any work starts.
-pub fn device(text: &str) -> Result<String, String> {
-    text.parse::<mbs_nets::device::DeviceName>()
-        .map(|_| text.to_string())
-        .map_err(|e| e.to_string())
+/// [`mbs_nets::device::DeviceName`]), parsed before any work starts.
+pub fn device(text: &str) -> Result<mbs_nets::device::DeviceName, String> {
+    text.trim()
+        .parse()
+        .map_err(|e: mbs_nets::NetError| e.to_string())
 }
 
 /// A network, as [`BackboneKind`] spells it.

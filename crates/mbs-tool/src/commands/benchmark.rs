@@ -11,12 +11,13 @@ use clap::Parser;
 use mbs_core::atomic::{refuse_special_target, write_bytes_atomic};
 use mbs_core::inputs::InputFiles;
 use mbs_core::metrics::{Protocol, ProtocolReport, Region, Rules};
+use mbs_dataset::StereoPair;
 use mbs_dataset::benchmark::Benchmark;
-use mbs_dataset::kitti::KittiVersion;
-use mbs_dataset::pairs::{PairSource, StereoPair};
+use mbs_dataset::pairs::PairSource;
 use mbs_infer::SgmConfig;
 use serde_json::{Value, json};
 
+use crate::cli::folders::{BenchmarkFolders, Every};
 use crate::cli::pairs::FrameList;
 use crate::cli::scoring::{Listing, check_listed, dataset_of, items, score_all};
 use crate::cli::source::StereoSourceArgs;
@@ -49,24 +50,10 @@ pub struct Args {
     /// What predicts the pairs.
     #[command(flatten)]
     pub source: StereoSourceArgs,
-    /// KITTI 2015 or 2012 training folders (their *_10 frames).
-    #[arg(long, value_name = "DIR")]
-    pub kitti: Vec<PathBuf>,
-    /// Middlebury 2014 / MiddEval3 folders of scenes (e.g. trainingH, the
-    /// paper's half resolution).
-    #[arg(long, value_name = "DIR")]
-    pub middlebury: Vec<PathBuf>,
-    /// ETH3D two_view_training folders (ground truth from the sibling
-    /// two_view_training_gt).
-    #[arg(long, value_name = "DIR")]
-    pub eth3d: Vec<PathBuf>,
-    /// DrivingStereo weather folders (sunny, cloudy, foggy, rainy).
-    #[arg(long, value_name = "DIR")]
-    pub drivingstereo: Vec<PathBuf>,
-    /// SceneFlow folders (a dataset folder or one inside a pass, e.g.
-    /// frames_finalpass/TEST).
-    #[arg(long, value_name = "DIR")]
-    pub sceneflow: Vec<PathBuf>,
+    /// The benchmark folders scored, each a column (each flag may be
+    /// repeated).
+    #[command(flatten)]
+    pub folders: BenchmarkFolders<Every>,
     /// Out-x threshold in pixels for every benchmark instead of each one's
     /// customary one.
     #[arg(long, value_name = "PX", value_parser = crate::cli::values::positive_f32)]
@@ -194,10 +181,10 @@ struct Folder {
 /// protocol without rules for it or a listed frame that is nowhere stops
 /// the command at once.
 fn list_folders(args: &Args) -> anyhow::Result<(Vec<Folder>, InputFiles)> {
-    let folders = folders(args)?;
-    let lists = FrameLists::read(&args.frames, &folders)?;
+    let folders = &args.folders.folders;
+    let lists = FrameLists::read(&args.frames, folders)?;
     let mut listed = Vec::new();
-    for &(benchmark, dir) in &folders {
+    for &(benchmark, ref dir) in folders {
         let source = PairSource::Benchmark {
             benchmark,
             dir: dir.clone(),
@@ -208,9 +195,9 @@ fn list_folders(args: &Args) -> anyhow::Result<(Vec<Folder>, InputFiles)> {
         }
         let listing = Listing::of(&source)
             .with_context(|| format!("{benchmark} folder {}", dir.display()))?;
-        listed.push((label(benchmark, dir), rules, listing));
+        listed.push((benchmark.label(dir), rules, listing));
     }
-    lists.check(&folders, &listed)?;
+    lists.check(folders, &listed)?;
     let mut inputs = InputFiles::new();
     inputs.extend(lists.bound.iter().map(|(_, list)| &list.path));
     inputs.extend(lists.shared.iter().map(|list| &list.path));
@@ -231,27 +218,6 @@ fn list_folders(args: &Args) -> anyhow::Result<(Vec<Folder>, InputFiles)> {
     Ok((kept, inputs))
 }
 
-/// The folders the flags give, in flag order, with their benchmarks.
-fn folders(args: &Args) -> anyhow::Result<Vec<(Benchmark, &PathBuf)>> {
-    let folders: Vec<(Benchmark, &PathBuf)> = [
-        (Benchmark::Kitti, &args.kitti),
-        (Benchmark::Middlebury, &args.middlebury),
-        (Benchmark::Eth3d, &args.eth3d),
-        (Benchmark::DrivingStereo, &args.drivingstereo),
-        (Benchmark::SceneFlow, &args.sceneflow),
-    ]
-    .into_iter()
-    .flat_map(|(benchmark, dirs)| dirs.iter().map(move |dir| (benchmark, dir)))
-    .collect();
-    if folders.is_empty() {
-        bail!(
-            "no benchmark folder: give --kitti, --middlebury, --eth3d, --drivingstereo or \
-             --sceneflow DIR (each may be repeated)"
-        );
-    }
-    Ok(folders)
-}
-
 /// The `--frames` lists: those bound to a folder (`DIR=FILE`) and the
 /// one for every other folder (`FILE`).
 struct FrameLists {
@@ -263,7 +229,7 @@ impl FrameLists {
     /// Reads the `specs` against the `folders` given: `DIR=FILE` when DIR
     /// is one of them, else FILE; two lists for one folder, or two shared
     /// lists, are an error.
-    fn read(specs: &[String], folders: &[(Benchmark, &PathBuf)]) -> anyhow::Result<FrameLists> {
+    fn read(specs: &[String], folders: &[(Benchmark, PathBuf)]) -> anyhow::Result<FrameLists> {
         let mut lists = FrameLists {
             bound: Vec::new(),
             shared: None,
@@ -304,7 +270,7 @@ impl FrameLists {
     /// applies to has.
     fn check(
         &self,
-        folders: &[(Benchmark, &PathBuf)],
+        folders: &[(Benchmark, PathBuf)],
         listed: &[(String, Rules, Listing)],
     ) -> anyhow::Result<()> {
         let lists = self
@@ -322,19 +288,6 @@ impl FrameLists {
             check_listed(list, &listings, &names.join(" or "))?;
         }
         Ok(())
-    }
-}
-
-/// A folder's column name: the benchmark (KITTI with its year) and the
-/// folder's name, e.g. `KITTI 2015 training` or `DrivingStereo rainy`.
-fn label(benchmark: Benchmark, dir: &Path) -> String {
-    let name = dir.file_name().map_or_else(
-        || dir.display().to_string(),
-        |n| n.to_string_lossy().into_owned(),
-    );
-    match KittiVersion::of_ground_truth(dir).filter(|_| benchmark == Benchmark::Kitti) {
-        Some(version) => format!("{} {name}", version.name()),
-        None => format!("{benchmark} {name}"),
     }
 }
 

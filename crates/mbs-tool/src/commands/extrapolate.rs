@@ -6,8 +6,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};
+use mbs_dataset::kitti::KittiFrames;
 use mbs_dataset::kitti::KittiVersion;
-use mbs_dataset::pairs::{KittiFrames, PairSource};
+use mbs_dataset::pairs::PairSource;
 use mbs_extrapolate::disparity::warping_sgm_config;
 use mbs_extrapolate::{
     DisparitySource, Extrapolator, Frame, four_view_manifest, kitti_frames, pair_frame,

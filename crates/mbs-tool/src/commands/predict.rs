@@ -10,7 +10,7 @@ use clap::Parser;
 use mbs_core::confine::join_confined;
 use mbs_core::formats::{DisparityFormat, rgb};
 use mbs_core::inputs::InputFiles;
-use mbs_dataset::pairs::StereoPair;
+use mbs_dataset::StereoPair;
 use mbs_infer::SgmConfig;
 use mbs_viz::colormap::{colorize_disparity, disparity_scale};
 
@@ -76,7 +76,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     };
     let pairs = source.pairs()?;
-    let inputs = mbs_dataset::pairs::input_files(&pairs);
+    let inputs = mbs_dataset::stereo_pair::input_files(&pairs);
     let pairs = match args.shard {
         Some(shard) => shard.select(pairs),
         None => pairs,

@@ -6,16 +6,18 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, anyhow, bail};
+use anyhow::anyhow;
 use clap::Parser;
 use mbs_core::formats::rgb;
+use mbs_dataset::StereoPair;
 use mbs_dataset::benchmark::Benchmark;
-use mbs_dataset::kitti::KittiFolder;
-use mbs_dataset::pairs::{PairSource, StereoPair};
+use mbs_dataset::pairs::PairSource;
 use mbs_dataset::submission::SubmissionLayout;
 use mbs_infer::SgmConfig;
 
+use crate::cli::UsageError;
 use crate::cli::batch::{self, Outcome};
+use crate::cli::folders::{BenchmarkFolders, OneWithServer};
 use crate::cli::source::{PairMatcher, StereoSourceArgs};
 
 /// Arguments of `submit`.
@@ -45,15 +47,9 @@ pub struct Args {
     /// What predicts the pairs.
     #[command(flatten)]
     pub source: StereoSourceArgs,
-    /// A KITTI 2015 or 2012 testing folder (its *_10 frames).
-    #[arg(long, value_name = "DIR", conflicts_with_all = ["middlebury", "eth3d"], required_unless_present_any = ["middlebury", "eth3d"])]
-    pub kitti: Option<PathBuf>,
-    /// A MiddEval3 split folder (testF, testH, testQ or a training one).
-    #[arg(long, value_name = "DIR", requires = "name", conflicts_with = "eth3d")]
-    pub middlebury: Option<PathBuf>,
-    /// An ETH3D two_view_test folder.
-    #[arg(long, value_name = "DIR")]
-    pub eth3d: Option<PathBuf>,
+    /// The benchmark's test folder (KITTI, Middlebury or ETH3D).
+    #[command(flatten)]
+    pub folders: BenchmarkFolders<OneWithServer>,
     /// The method's name in Middlebury's file names (letters and digits).
     #[arg(long, value_name = "NAME")]
     pub name: Option<String>,
@@ -75,7 +71,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     .pairs()?;
     args.source.refuse_unused_device()?;
     let ids: Vec<String> = pairs.iter().map(|p| p.id.clone()).collect();
-    let inputs = mbs_dataset::pairs::input_files(&pairs);
+    let inputs = mbs_dataset::stereo_pair::input_files(&pairs);
     for output in layout.outputs(&args.out, &ids) {
         inputs.refuse(&output)?;
     }
@@ -111,33 +107,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The benchmark, folder and submission layout the flags name.
+/// The benchmark, folder and submission layout the flags name; Middlebury
+/// without `--name` is a usage error.
 fn layout(args: &Args) -> anyhow::Result<(Benchmark, PathBuf, SubmissionLayout)> {
-    if let Some(dir) = &args.kitti {
-        let version = KittiFolder::open(dir)?.version;
-        return Ok((
-            Benchmark::Kitti,
-            dir.clone(),
-            SubmissionLayout::Kitti(version),
-        ));
+    let (benchmark, dir) = args.folders.first().ok_or_else(|| {
+        UsageError("nothing to submit: give --kitti, --middlebury or --eth3d DIR".into())
+    })?;
+    if benchmark == Benchmark::Middlebury && args.name.is_none() {
+        return Err(UsageError(
+            "--middlebury needs --name NAME, the method's name in the file names".into(),
+        )
+        .into());
     }
-    if let Some(dir) = &args.middlebury {
-        let split = dir
-            .canonicalize()
-            .with_context(|| format!("the Middlebury folder {}", dir.display()))?;
-        let split = split
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .ok_or_else(|| anyhow!("{}: not a MiddEval3 split folder", dir.display()))?;
-        let method = args.name.as_deref().unwrap_or_default();
-        let layout = SubmissionLayout::middlebury(method, &split, args.source.no_fill)
-            .map_err(|e| anyhow!(e))?;
-        return Ok((Benchmark::Middlebury, dir.clone(), layout));
-    }
-    match &args.eth3d {
-        Some(dir) => Ok((Benchmark::Eth3d, dir.clone(), SubmissionLayout::Eth3d)),
-        None => bail!("nothing to submit: give --kitti, --middlebury or --eth3d DIR"),
-    }
+    let layout =
+        SubmissionLayout::for_folder(benchmark, dir, args.name.as_deref(), args.source.no_fill)?;
+    Ok((benchmark, dir.clone(), layout))
 }
 
 /// Predicts one pair and writes its files, or skips it when they are
