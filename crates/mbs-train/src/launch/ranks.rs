@@ -90,3 +90,36 @@ pub fn settle(
     );
     processes.abort(1)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An error wrapping another, as a front end's context does.
+    #[derive(Debug)]
+    struct Context(Box<dyn Error + 'static>);
+
+    impl std::fmt::Display for Context {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str("while training")
+        }
+    }
+
+    impl Error for Context {
+        fn source(&self) -> Option<&(dyn Error + 'static)> {
+            Some(self.0.as_ref())
+        }
+    }
+
+    #[test]
+    fn shared_errors_are_found_anywhere_in_the_chain_and_others_are_not() {
+        let disagree = || TrainError::Distributed("the ranks disagree".into());
+        assert!(met_by_every_rank(&Context(Box::new(disagree()))));
+        assert!(met_by_every_rank(&LaunchError::Run(disagree())));
+        assert!(met_by_every_rank(&Stopped { steps: 2, total: 4 }));
+        assert!(met_by_every_rank(&ReportedByRankZero));
+        let alone = TrainError::Input("rank 1's disk is full".into());
+        assert!(!met_by_every_rank(&Context(Box::new(alone))));
+        assert!(!met_by_every_rank(&LaunchError::Usage("no device".into())));
+    }
+}

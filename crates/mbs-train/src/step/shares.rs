@@ -111,26 +111,12 @@ impl<B: Backbone> S3Trainer<B> {
         batch: StepBatch,
         sharing: &Sharing<'_, B>,
     ) -> Result<Vec<ShareResult<B>>, TrainError> {
-        let geometry_weight = self.geometry_weight();
-        let scale = self.scale();
         let weight_of = |share: &StepBatch| share.reference.dims()[0] as f64 / sharing.items as f64;
         if let [_] = sharing.devices {
             let weight = weight_of(&batch);
-            let (grads, values) = self.objective.gradients(
-                &self.teacher,
-                &self.student,
-                batch,
-                weight * scale,
-                geometry_weight,
-            )?;
-            let replica = self.student.clone();
-            let gradients = ShareGradients { grads, replica };
-            return Ok(vec![ShareResult {
-                gradients,
-                values,
-                weight,
-            }]);
+            return Ok(vec![self.own_share(batch, weight)?]);
         }
+        let (geometry_weight, scale) = (self.geometry_weight(), self.scale());
         let shares = batch.split(sharing.devices.len());
         let objective = &self.objective;
         std::thread::scope(|scope| {
@@ -164,6 +150,24 @@ impl<B: Backbone> S3Trainer<B> {
                 .zip(sharing.devices)
                 .map(|(worker, device)| worker.join().unwrap_or_else(|_| Err(panicked(device))))
                 .collect()
+        })
+    }
+
+    /// The gradients and loss values of `batch`, whose loss weighs
+    /// `weight`, computed by the student itself.
+    fn own_share(&self, batch: StepBatch, weight: f64) -> Result<ShareResult<B>, TrainError> {
+        let (grads, values) = self.objective.gradients(
+            &self.teacher,
+            &self.student,
+            batch,
+            weight * self.scale(),
+            self.geometry_weight(),
+        )?;
+        let replica = self.student.clone();
+        Ok(ShareResult {
+            gradients: ShareGradients { grads, replica },
+            values,
+            weight,
         })
     }
 

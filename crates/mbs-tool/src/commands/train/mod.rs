@@ -259,26 +259,7 @@ fn train(
             restart: args.restart,
         },
     };
-    let Launched {
-        run: mut training,
-        start,
-        warnings,
-        removed_partials,
-    } = launch.open().map_err(|e| match e {
-        // Settings the devices cannot run (more sharers than batch items,
-        // no device) are usage errors.
-        LaunchError::Usage(message) => anyhow::Error::new(crate::cli::UsageError(message)),
-        LaunchError::Run(e) => e.into(),
-    })?;
-    for warning in warnings {
-        eprintln!("warning: {warning}");
-    }
-    if removed_partials > 0 {
-        eprintln!(
-            "removed {removed_partials} temporary file(s) left in {} by a killed run",
-            out.display()
-        );
-    }
+    let (mut training, start) = launch_run(launch)?;
     let writer = training.is_writer();
     let total = training.config().steps();
     if let Start::Resumed(steps) = start
@@ -312,6 +293,33 @@ fn train(
             Ok(())
         }
     }
+}
+
+/// Opens the run `launch` describes and prints what the launcher found
+/// (warnings, the temporary files of a killed run it removed).
+fn launch_run(launch: Launch<'_>) -> anyhow::Result<(TrainingRun, Start)> {
+    let out = launch.out;
+    let Launched {
+        run,
+        start,
+        warnings,
+        removed_partials,
+    } = launch.open().map_err(|e| match e {
+        // Settings the devices cannot run (more sharers than batch items,
+        // no device) are usage errors.
+        LaunchError::Usage(message) => anyhow::Error::new(crate::cli::UsageError(message)),
+        LaunchError::Run(e) => e.into(),
+    })?;
+    for warning in warnings {
+        eprintln!("warning: {warning}");
+    }
+    if removed_partials > 0 {
+        eprintln!(
+            "removed {removed_partials} temporary file(s) left in {} by a killed run",
+            out.display()
+        );
+    }
+    Ok((run, start))
 }
 
 /// The flag that Ctrl-C, SIGTERM and SIGUSR1 set to stop the run with a
