@@ -1,7 +1,7 @@
 //! Time of the gradient all-reduce of a data-parallel step: the sum over
 //! the ranks of a buffer as long as RAFT-Stereo's and IGEV-Stereo's
 //! gradients (their official configurations' parameter counts), as
-//! `S3Trainer::step_distributed` makes it, plus the flattening of a real
+//! `S3Trainer::step_shared` makes it, plus the flattening of a real
 //! set of gradients into that buffer and back.
 //!
 //! ```bash

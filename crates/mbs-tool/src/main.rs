@@ -89,7 +89,9 @@ fn main() -> std::process::ExitCode {
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         // Rank 0 of the MPI job printed it.
-        Err(e) if e.is::<cli::processes::ReportedByRankZero>() => std::process::ExitCode::FAILURE,
+        Err(e) if e.is::<mbs_train::launch::ReportedByRankZero>() => {
+            std::process::ExitCode::FAILURE
+        }
         Err(e) => {
             eprintln!("error: {}", cli::report_error::describe(&e));
             std::process::ExitCode::from(cli::exit_status(&e))

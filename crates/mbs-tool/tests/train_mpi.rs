@@ -59,13 +59,20 @@ fn train_args(manifest: &str, out: &Path, steps: usize) -> Vec<String> {
 
 /// Trains into `out` on `ranks` processes (1: without mpirun).
 fn train(ranks: usize, manifest: &str, out: &Path, steps: usize) -> Output {
+    train_with(ranks, manifest, out, steps, &[])
+}
+
+/// [`train`] with `extra` flags after the common ones.
+fn train_with(ranks: usize, manifest: &str, out: &Path, steps: usize, extra: &[&str]) -> Output {
     let output = match ranks {
         1 => common::mbs_tool()
             .args(train_args(manifest, out, steps))
+            .args(extra)
             .output(),
         _ => common::mpirun(ranks, &out.with_extension("ompi"))
             .arg(env!("CARGO_BIN_EXE_mbs-tool"))
             .args(train_args(manifest, out, steps))
+            .args(extra)
             .output(),
     }
     .expect("the run starts (tools/test.sh installs Open MPI's mpirun)");
@@ -232,6 +239,31 @@ fn two_and_three_ranks_train_what_one_process_trains_and_resume_on_any_count() {
         let worst = weight_difference(&run("one"), &run(name), 4);
         assert!(worst <= WEIGHT_TOLERANCE, "{name}: {worst}");
     }
+}
+
+/// Ranks of two CPU devices each train what one process trains: a batch of
+/// 5 is dealt 3 + 2 to the ranks and split again 2 + 1 and 1 + 1 over
+/// their devices, each share weighted by its part of the 5 items; the
+/// devices' gradients are summed in the rank, then over the ranks.
+#[test]
+fn ranks_of_two_devices_each_train_what_one_process_trains() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let manifest = synth(&dir.path().join("data"));
+    let run = |name: &str| dir.path().join(name);
+    let batch = ["--set", "data.batch_size=5"];
+    train_with(1, &manifest, &run("one"), 4, &batch);
+    let devices = ["--set", "data.batch_size=5", "--device", "cpu,cpu"];
+    let two = train_with(2, &manifest, &run("two-by-two"), 4, &devices);
+    assert!(
+        String::from_utf8_lossy(&two.stderr).contains("on 2 processes"),
+        "{}",
+        text(&two)
+    );
+    let worst = weight_difference(&run("one"), &run("two-by-two"), 4);
+    println!("2 ranks of 2 devices: weights within {worst} of one process's");
+    assert!(worst <= WEIGHT_TOLERANCE, "{worst}");
+    assert_same_losses(&run("one"), &run("two-by-two"));
+    assert_eq!(files(&run("one")), files(&run("two-by-two")));
 }
 
 /// The processes whose command lines train into `out` (mpirun's too).

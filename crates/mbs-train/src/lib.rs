@@ -3,9 +3,10 @@
 //! Everything runs on burn's run-time selected device (`Device::flex()` on
 //! CPU, Vulkan or CUDA through [`mbs_nets::device::open_device`],
 //! `.autodiff()` for training; [`step::S3Trainer::step_parallel`] shares a
-//! step among several, [`step::S3Trainer::step_distributed`] among processes
-//! through a [`distributed::Collective`]); see `docs/design.md` for the
-//! choice of burn.
+//! step among several, [`step::S3Trainer::step_shared`] among processes
+//! through a [`distributed::Collective`] as well, each placement a
+//! [`run::Strategy`]); [`launch::Launch`] opens a run on them for any front
+//! end. See `docs/design.md` for the choice of burn.
 //!
 //! One step, as [`step::S3Trainer::step`] runs it:
 //!
@@ -28,6 +29,7 @@ pub mod data;
 pub mod distributed;
 pub mod ema;
 pub mod error;
+pub mod launch;
 pub mod losses;
 pub mod mask;
 pub mod memory;

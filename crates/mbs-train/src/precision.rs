@@ -156,6 +156,61 @@ impl LossScale {
     }
 }
 
+/// f16 steps skipped in a row after which a run counts as diverged: each
+/// skip halves the loss scale (down to 1), so by then the gradients
+/// overflow at any scale.
+pub const MAX_SKIPPED_STEPS: usize = 30;
+
+/// The loss scaling of an f16 run: the [`LossScale`] (what a checkpoint
+/// keeps) and the overflowing steps skipped in a row since the last step
+/// taken (what tells a diverged run from one still finding its scale).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LossScaling {
+    scale: LossScale,
+    skipped_in_a_row: usize,
+}
+
+impl LossScaling {
+    /// Scaling from `scale`, with no step skipped yet.
+    pub fn starting_at(scale: f64) -> Self {
+        Self {
+            scale: LossScale::starting_at(scale),
+            skipped_in_a_row: 0,
+        }
+    }
+
+    /// The current scale and its count of good steps.
+    pub fn scale(&self) -> LossScale {
+        self.scale
+    }
+
+    /// Puts back the scale a checkpoint saved.
+    pub fn restore(&mut self, saved: LossScale) {
+        self.scale = saved;
+    }
+
+    /// Records a step whose gradient norm (of the scaled gradients,
+    /// unscaled) is `grad_norm`: `Ok(true)` when its gradients overflowed,
+    /// so that the step is skipped and the scale halved; an error, saying
+    /// what happened, once [`MAX_SKIPPED_STEPS`] steps in a row did.
+    pub fn record(&mut self, grad_norm: f64) -> Result<bool, String> {
+        let overflowed = !grad_norm.is_finite();
+        self.scale.update(!overflowed);
+        self.skipped_in_a_row = match overflowed {
+            true => self.skipped_in_a_row + 1,
+            false => 0,
+        };
+        if self.skipped_in_a_row >= MAX_SKIPPED_STEPS {
+            return Err(format!(
+                "the f16 gradients overflowed {MAX_SKIPPED_STEPS} steps in a row \
+                 (loss scale now {})",
+                self.scale.scale
+            ));
+        }
+        Ok(overflowed)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

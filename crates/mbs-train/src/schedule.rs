@@ -1,4 +1,5 @@
-//! Schedules: one-cycle learning rate and the cosine EMA momentum.
+//! Schedules: one-cycle learning rate, the cosine EMA momentum and the
+//! geometry term's ramp.
 
 use std::f64::consts::PI;
 
@@ -129,6 +130,45 @@ impl CosineMomentum {
         }
         let progress = step.min(self.total_steps) as f64 / self.total_steps as f64;
         1.0 - (1.0 - self.base) * ((PI * progress).cos() + 1.0) / 2.0
+    }
+}
+
+/// The geometry term's weight over a run: 0 before its start, then rising
+/// linearly from 0 over its warm-up, then 1. A schedule like the learning
+/// rate's: the trainer passes its value to each step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GeometryRamp {
+    /// Steps before the term is on.
+    start_steps: usize,
+    /// Steps of the warm-up after that.
+    warmup_steps: usize,
+}
+
+impl GeometryRamp {
+    /// The ramp of a run of `total_steps` that switches the term on after
+    /// the share `start` of its steps and warms it up over the share
+    /// `warmup` after that (`None`: 0). Rounded at the start and at the end
+    /// of the warm-up, so that the term reaches its full weight within the
+    /// run.
+    pub fn new(total_steps: usize, start: Option<f64>, warmup: Option<f64>) -> Self {
+        let step_at = |share: f64| (share * total_steps as f64).round() as usize;
+        let start = start.unwrap_or(0.0);
+        let warmup_end = step_at(start + warmup.unwrap_or(0.0));
+        Self {
+            start_steps: step_at(start),
+            warmup_steps: warmup_end - step_at(start),
+        }
+    }
+
+    /// The weight at step `step` (0-based).
+    pub fn at(&self, step: usize) -> f64 {
+        let Some(since) = step.checked_sub(self.start_steps) else {
+            return 0.0;
+        };
+        match self.warmup_steps {
+            0 => 1.0,
+            steps => (since as f64 / steps as f64).min(1.0),
+        }
     }
 }
 

@@ -58,17 +58,3 @@ fn join_mpi(launched: usize) -> anyhow::Result<Option<Rc<dyn Collective>>> {
          Debian: apt-get install libopenmpi-dev libclang-dev), or run one process"
     )
 }
-
-/// An error every rank met alike (the ranks disagree, a rank's device
-/// failed, the run stopped), which rank 0 has printed: every rank ends
-/// with a failure and prints nothing more.
-#[derive(Debug)]
-pub struct ReportedByRankZero;
-
-impl std::fmt::Display for ReportedByRankZero {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str("reported by rank 0")
-    }
-}
-
-impl std::error::Error for ReportedByRankZero {}

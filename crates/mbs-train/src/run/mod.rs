@@ -17,7 +17,6 @@
 //! uninterrupted run (see [`crate::data::step_rng`]).
 
 use std::path::{Path, PathBuf};
-use std::rc::Rc;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 
@@ -29,8 +28,8 @@ use crate::config::RunConfig;
 use crate::data::StepBatch;
 use crate::data::validation::{ValidationMetrics, ValidationPair};
 use crate::data::{TrainingSamples, ValidationSet};
-use crate::distributed::{Collective, check_same_weights};
 use crate::error::TrainError;
+use crate::launch::{Launch, LaunchError};
 use crate::step::{S3Trainer, StepReport};
 use mbs_nets::StereoNetwork;
 use mbs_nets::checkpoint::TrainedNetworks;
@@ -38,7 +37,7 @@ use mbs_nets::host::image_tensor;
 use mbs_nets::official::StateDict;
 
 mod logs;
-mod open;
+pub(crate) mod open;
 mod placement;
 mod report;
 mod resume;
@@ -46,7 +45,7 @@ mod steps;
 
 pub use logs::{TRAIN_LOG, VAL_LOG, read_log, validation_json};
 use logs::{open_log, write_line};
-pub use placement::Placement;
+pub use placement::{Devices, OneDevice, Ranks, Strategy, place};
 use report::RunReport;
 pub use report::{LOSS_PLOT, TENSORBOARD_DIR, VAL_PLOT, VISUALS_DIR};
 pub use resume::computing_differences;
@@ -145,14 +144,6 @@ pub fn initial_weights(path: &Path) -> Result<StateDict, TrainError> {
     }
 }
 
-/// What every process of a distributed run must hold alike: the settings
-/// and the manifest's digest.
-pub fn run_identity(config: &RunConfig, manifest: &Path) -> Result<serde_json::Value, TrainError> {
-    let digest =
-        mbs_dataset::checksum::sha256_file(manifest).map_err(|e| TrainError::data(manifest, e))?;
-    Ok(serde_json::json!({"settings": config.to_json()?, "manifest_sha256": digest}))
-}
-
 /// A training run in an output folder.
 pub struct TrainingRun {
     out: PathBuf,
@@ -160,10 +151,9 @@ pub struct TrainingRun {
     samples: Arc<TrainingSamples>,
     validation: ValidationSet,
     trainer: S3Trainer<StereoNetwork>,
-    /// The first device holds the weights; all share each step's batch.
-    devices: Vec<Device>,
-    /// The processes the run is spread over (`None`: this one alone).
-    processes: Option<Rc<dyn Collective>>,
+    /// Where it trains: this process's devices (the first holds the
+    /// weights) and the processes it is spread over.
+    strategy: Box<dyn Strategy<StereoNetwork>>,
     report: RunReport,
 }
 
@@ -179,97 +169,63 @@ pub struct Beginning<'a> {
 }
 
 impl TrainingRun {
-    /// Opens the run in `out` on the training data of `manifest`, on the CPU
-    /// (see [`TrainingRun::open_on`]).
+    /// Opens the run in `out` on the training data of `manifest`, on the
+    /// CPU, in this process alone (see [`Launch`] for the devices, the
+    /// processes and the first weights): resumes from the newest
+    /// checkpoint there, or starts fresh. Resuming with a configuration
+    /// that changes what is computed is refused.
     pub fn open(
         manifest: &Path,
         out: &Path,
         config: RunConfig,
     ) -> Result<(Self, Start), TrainError> {
-        let placement = Placement::cpu(&config)?;
-        Self::open_on(manifest, out, config, placement, Beginning::default())
+        let devices = "cpu".parse()?;
+        let launch = Launch {
+            manifest,
+            out,
+            config,
+            devices: &devices,
+            processes: None,
+            beginning: Beginning::default(),
+        };
+        match launch.open() {
+            Ok(launched) => Ok((launched.run, launched.start)),
+            Err(LaunchError::Usage(message)) => Err(TrainError::Config(message)),
+            Err(LaunchError::Run(e)) => Err(e),
+        }
     }
 
-    /// Opens the run in `out` on the training data of `manifest`, training on
-    /// the devices of `placement` (checked with this `config`; data
-    /// parallel when there are several, see [`S3Trainer::step_parallel`];
-    /// the weights live on the first, and a checkpoint resumes on any
-    /// number of devices): resumes from the newest checkpoint there, or
-    /// starts fresh, from the weights of `beginning.init` when given (see
-    /// [`initial_weights`]; a resumed run ignores it). With
-    /// `beginning.restart` the checkpoints there are ignored and, once
-    /// every check has passed and the first weights are loaded, removed
-    /// (a refused run removes nothing). Resuming with a configuration that
-    /// changes what is computed is refused.
-    ///
-    /// With the placement's processes, the run is one rank of a
-    /// data-parallel run over several processes (an MPI job, see
-    /// [`S3Trainer::step_distributed`]), each on one device: the ranks
-    /// first [`agree`] on the settings, the manifest and the checkpoint
-    /// they found (before any file is written), then rank 0 alone writes
-    /// the run's files and validates.
-    pub fn open_on(
-        manifest: &Path,
+    /// The run the launcher opened: in `out`, with `config`, on `data`
+    /// (the training samples and the validation pairs), with `trainer`'s
+    /// weights, trained as `strategy` places it.
+    pub(crate) fn assemble(
         out: &Path,
         config: RunConfig,
-        placement: Placement,
-        beginning: Beginning<'_>,
-    ) -> Result<(Self, Start), TrainError> {
-        config.validate()?;
-        let Placement { devices, processes } = placement;
-        let Beginning { init, restart } = beginning;
-        let device = devices[0].clone();
-        let (samples, validation) = open::load_data(manifest, &config)?;
-        let train_device = device.clone().autodiff();
-        let latest = (!restart).then(|| Checkpoint::latest(out)).transpose()?;
-        let latest = latest.flatten();
-        if let Some(processes) = &processes {
-            let steps = latest.as_ref().map(|c| c.state.steps);
-            open::agree_on_start(processes.as_ref(), &config, manifest, steps, init)?;
-        }
-        let writer = processes.as_ref().is_none_or(|p| p.rank() == 0);
-        let init = init.filter(|_| latest.is_none());
-        let student = open::first_student(&config, &train_device, latest.is_none(), init)?;
-        let mut trainer = S3Trainer::new(student, &config.trainer)?;
-        let start = match latest {
-            Some(checkpoint) => {
-                let devices = (&device, &train_device);
-                open::resume(&mut trainer, &checkpoint, &config, devices)?;
-                Start::Resumed(trainer.steps_taken())
-            }
-            None => Start::Fresh,
-        };
-        if let Some(processes) = &processes {
-            let networks = [trainer.student(), trainer.teacher()];
-            check_same_weights(processes.as_ref(), &networks, trainer.steps_taken())?;
-        }
-        if writer {
-            open::prepare_folder(out, &config, start, restart)?;
-        }
+        (samples, validation): (TrainingSamples, ValidationSet),
+        trainer: S3Trainer<StereoNetwork>,
+        strategy: Box<dyn Strategy<StereoNetwork>>,
+        start: Start,
+    ) -> Self {
         let resumed_after = match start {
             Start::Resumed(steps) => Some(steps),
             Start::Fresh => None,
         };
         let report = RunReport::new(out, config.network.max_disparity as f32, resumed_after);
-        Ok((
-            Self {
-                report,
-                out: out.to_path_buf(),
-                config,
-                samples: Arc::new(samples),
-                validation,
-                trainer,
-                devices,
-                processes,
-            },
-            start,
-        ))
+        Self {
+            report,
+            out: out.to_path_buf(),
+            config,
+            samples: Arc::new(samples),
+            validation,
+            trainer,
+            strategy,
+        }
     }
 
     /// Whether this process writes the run's files and validates: the only
     /// process, or rank 0 of several.
     pub fn is_writer(&self) -> bool {
-        self.processes.as_ref().is_none_or(|p| p.rank() == 0)
+        self.strategy.writes()
     }
 
     /// The run's configuration.
@@ -339,7 +295,7 @@ impl TrainingRun {
         let steps = self.trainer.steps_taken();
         let metrics = self
             .validation
-            .evaluate(self.trainer.teacher(), &self.devices[0])?;
+            .evaluate(self.trainer.teacher(), &self.strategy.devices()[0])?;
         let path = self.out.join(VAL_LOG);
         let mut log = open_log(&path)?;
         let line = validation_json(steps, &metrics);
@@ -365,7 +321,7 @@ impl TrainingRun {
         let (wide_path, ratio) = &pair.wide_target;
         let wide = mbs_core::formats::rgb::read_rgb(wide_path)?;
         let (width, height) = loaded.reference.dimensions();
-        let tensor = |image: &RgbImage| image_tensor(image, &self.devices[0]);
+        let tensor = |image: &RgbImage| image_tensor(image, &self.strategy.devices()[0]);
         let reference = tensor(&loaded.reference);
         let wide_target = tensor(&wide);
         let diagnosis = self.trainer.diagnose(StepBatch {

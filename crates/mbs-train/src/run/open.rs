@@ -1,6 +1,6 @@
-//! Opening a run, as named steps (where it trains is checked before, in
-//! [`super::Placement`]): its data, the processes' agreement, its first
-//! weights, resuming from a checkpoint, and the output folder.
+//! Opening a run, as named steps the launcher takes ([`crate::launch`];
+//! where it trains is chosen before, by [`super::place`]): its data, its
+//! first weights or those of a checkpoint, and the output folder.
 
 use std::path::Path;
 use std::sync::PoisonError;
@@ -11,13 +11,10 @@ use mbs_dataset::Manifest;
 
 use super::logs::truncate_log;
 use super::resume::check_resumable;
-use super::{
-    CONFIG_FILE, Start, TRAIN_LOG, VAL_LOG, WEIGHT_DRAWING, initial_weights, run_identity,
-};
+use super::{CONFIG_FILE, Start, TRAIN_LOG, VAL_LOG, WEIGHT_DRAWING, initial_weights};
 use crate::checkpoint::Checkpoint;
 use crate::config::RunConfig;
 use crate::data::{TrainingSamples, ValidationSet};
-use crate::distributed::{Collective, agree};
 use crate::error::TrainError;
 use crate::step::S3Trainer;
 use mbs_core::atomic::write_bytes_atomic;
@@ -25,7 +22,7 @@ use mbs_nets::StereoNetwork;
 
 /// The training samples of `manifest` (their files checked) and the
 /// held-out pairs validation scores.
-pub(super) fn load_data(
+pub(crate) fn load_data(
     manifest: &Path,
     config: &RunConfig,
 ) -> Result<(TrainingSamples, ValidationSet), TrainError> {
@@ -43,27 +40,34 @@ pub(super) fn load_data(
     Ok((samples, validation))
 }
 
-/// Makes the processes agree, before anything is written, on the
-/// settings, the manifest, the checkpoint each found (`checkpoint`: its
-/// steps) and `--init`.
-pub(super) fn agree_on_start(
-    processes: &dyn Collective,
+/// The trainer a run starts with, its weights on `device`: those of
+/// `latest` (the checkpoint it resumes), or fresh ones (see
+/// [`first_student`]), `init`'s when given; and how it began.
+pub(crate) fn trainer(
     config: &RunConfig,
-    manifest: &Path,
-    checkpoint: Option<usize>,
+    device: &Device,
+    latest: Option<Checkpoint>,
     init: Option<&Path>,
-) -> Result<(), TrainError> {
-    let mut identity = run_identity(config, manifest)?;
-    identity["checkpoint"] = checkpoint.into();
-    identity["init"] = init.map(|p| p.display().to_string()).into();
-    agree(processes, &identity)
+) -> Result<(S3Trainer<StereoNetwork>, Start), TrainError> {
+    let train_device = device.clone().autodiff();
+    let init = init.filter(|_| latest.is_none());
+    let student = first_student(config, &train_device, latest.is_none(), init)?;
+    let mut trainer = S3Trainer::new(student, &config.trainer)?;
+    let start = match latest {
+        Some(checkpoint) => {
+            resume(&mut trainer, &checkpoint, config, (device, &train_device))?;
+            Start::Resumed(trainer.steps_taken())
+        }
+        None => Start::Fresh,
+    };
+    Ok((trainer, start))
 }
 
 /// The student the run starts from on `train_device`: fresh weights, drawn
 /// on the CPU from the run's seed when `seeded` (a fresh run: a checkpoint
 /// has its own) so that a seed gives the same network on every device,
 /// then the weights of `init` when given.
-pub(super) fn first_student(
+fn first_student(
     config: &RunConfig,
     train_device: &Device,
     seeded: bool,
@@ -91,7 +95,7 @@ pub(super) fn first_student(
 /// Puts `checkpoint`'s state into `trainer` (the teacher on `device`, the
 /// student on `train_device`), once its settings allow resuming with
 /// `config`.
-pub(super) fn resume(
+fn resume(
     trainer: &mut S3Trainer<StereoNetwork>,
     checkpoint: &Checkpoint,
     config: &RunConfig,
@@ -109,15 +113,19 @@ pub(super) fn resume(
     Ok(())
 }
 
-/// Readies `out` for the run's writer: its checkpoints removed when it
+/// Readies `out` for the run's writer: made (a file in its place
+/// refused), the temporary files a killed earlier run left in it removed
+/// (their number is returned), its checkpoints removed when it
 /// `restart`s, the logs cut back to a resumed run's step (or emptied for a
 /// fresh run), and the configuration written.
-pub(super) fn prepare_folder(
+pub(crate) fn prepare_folder(
     out: &Path,
     config: &RunConfig,
     start: Start,
     restart: bool,
-) -> Result<(), TrainError> {
+) -> Result<usize, TrainError> {
+    mbs_core::confine::create_out_dir(out)?;
+    let removed = mbs_core::atomic::remove_stale_partials(out)?;
     if restart {
         crate::checkpoint::discard_all(out)?;
     }
@@ -131,5 +139,6 @@ pub(super) fn prepare_folder(
     }
     let config_json = serde_json::to_vec_pretty(&config.to_json()?)
         .map_err(|e| TrainError::Config(e.to_string()))?;
-    Ok(write_bytes_atomic(&out.join(CONFIG_FILE), &config_json)?)
+    write_bytes_atomic(&out.join(CONFIG_FILE), &config_json)?;
+    Ok(removed)
 }

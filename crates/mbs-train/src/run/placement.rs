@@ -1,66 +1,197 @@
-//! Where a run trains: its devices and the processes it is spread over,
-//! checked against the run's settings once, before anything is read or
-//! written.
+//! Where a run trains, as a strategy: one device ([`OneDevice`]), several
+//! devices of this process ([`Devices`]), or the ranks of an MPI job, each
+//! on one device or several ([`Ranks`]). A strategy answers what differs
+//! between them: which items of each batch this process loads, whether it
+//! writes the run's files, how a stop is voted, how the weights are checked
+//! equal, and how one step runs (and so how its gradients are summed, see
+//! [`GradientReduction`](crate::step::GradientReduction)). [`place`]
+//! checks the devices and processes against the run's settings once,
+//! before anything is read or written, and picks the strategy.
 
+use std::ops::Range;
 use std::rc::Rc;
 
 use burn::tensor::Device;
+use mbs_batch::share;
 
 use crate::config::RunConfig;
-use crate::distributed::Collective;
+use crate::data::StepBatch;
+use crate::distributed::{Collective, check_same_weights};
 use crate::error::TrainError;
 use crate::precision::check_support;
+use crate::step::{HostAllReduce, S3Trainer, Sharing, StepReport};
+use mbs_nets::Backbone;
 
-/// The devices a run trains on (the first holds the weights; all share
-/// each step's batch) and the processes it is spread over (`None`: this
-/// one alone), as [`Placement::check`] accepted them.
-pub struct Placement {
-    pub(super) devices: Vec<Device>,
-    pub(super) processes: Option<Rc<dyn Collective>>,
+/// How a run trains on its placement; see the module's documentation.
+pub trait Strategy<B: Backbone> {
+    /// This process's devices: the first holds the weights and validates.
+    fn devices(&self) -> &[Device];
+    /// The items of each batch of `batch_size` that this process loads.
+    fn items_loaded(&self, batch_size: usize) -> Range<usize>;
+    /// Whether this process writes the run's files and validates.
+    fn writes(&self) -> bool;
+    /// Whether the run stops after this step, when this process was
+    /// `asked` to (all processes of a run stop at the same step).
+    fn stop_voted(&self, asked: bool) -> bool;
+    /// Checks that every process holds the same `networks` after `steps`
+    /// steps (nothing to check in a process of its own).
+    fn check_same_weights(&self, networks: [&B; 2], steps: usize) -> Result<(), TrainError>;
+    /// One optimisation step of `trainer` on this process's items of a
+    /// batch of `batch_size`.
+    fn step(
+        &self,
+        trainer: &mut S3Trainer<B>,
+        batch: StepBatch,
+        batch_size: usize,
+    ) -> Result<StepReport, TrainError>;
 }
 
-impl Placement {
-    /// Accepts `devices` (each with the name errors give it) and
-    /// `processes` for a run with `config`: one device per process of
-    /// several, no more sharers than batch items, and the run's precision
-    /// on every device. Open the run with the same `config`.
-    pub fn check(
-        config: &RunConfig,
-        devices: Vec<(String, Device)>,
-        processes: Option<Rc<dyn Collective>>,
-    ) -> Result<Self, TrainError> {
-        if devices.is_empty() {
-            return Err(TrainError::Config("no device to train on".into()));
-        }
-        if let Some(processes) = processes.as_ref().filter(|_| devices.len() > 1) {
-            return Err(TrainError::Distributed(format!(
-                "each of the {} processes trains on one device, not {}: give one device per \
-                 process",
-                processes.size(),
-                devices.len()
-            )));
-        }
-        // What shares each batch: the processes, or this one's devices.
-        let (sharers, what) = match &processes {
-            Some(processes) => (processes.size(), "processes"),
-            None => (devices.len(), "devices"),
-        };
-        if config.data.batch_size < sharers {
-            return Err(TrainError::Config(format!(
-                "data.batch_size {} is smaller than the {sharers} {what} that share it",
-                config.data.batch_size
-            )));
-        }
-        let named = devices.iter().map(|(name, device)| (name.clone(), device));
-        check_support(config.trainer.precision, named)?;
-        Ok(Self {
-            devices: devices.into_iter().map(|(_, device)| device).collect(),
-            processes,
-        })
-    }
+/// One process on one device.
+pub struct OneDevice {
+    device: [Device; 1],
+}
 
-    /// One process on the CPU.
-    pub fn cpu(config: &RunConfig) -> Result<Self, TrainError> {
-        Self::check(config, vec![("cpu".into(), Device::flex())], None)
+impl<B: Backbone> Strategy<B> for OneDevice {
+    fn devices(&self) -> &[Device] {
+        &self.device
     }
+    fn items_loaded(&self, batch_size: usize) -> Range<usize> {
+        0..batch_size
+    }
+    fn writes(&self) -> bool {
+        true
+    }
+    fn stop_voted(&self, asked: bool) -> bool {
+        asked
+    }
+    fn check_same_weights(&self, _: [&B; 2], _: usize) -> Result<(), TrainError> {
+        Ok(())
+    }
+    fn step(
+        &self,
+        trainer: &mut S3Trainer<B>,
+        batch: StepBatch,
+        _: usize,
+    ) -> Result<StepReport, TrainError> {
+        trainer.step(batch)
+    }
+}
+
+/// One process on several devices: each takes a share of every batch and
+/// the gradients are summed on the first
+/// ([`InProcessSum`](crate::step::InProcessSum)).
+pub struct Devices {
+    devices: Vec<Device>,
+}
+
+impl<B: Backbone> Strategy<B> for Devices {
+    fn devices(&self) -> &[Device] {
+        &self.devices
+    }
+    fn items_loaded(&self, batch_size: usize) -> Range<usize> {
+        0..batch_size
+    }
+    fn writes(&self) -> bool {
+        true
+    }
+    fn stop_voted(&self, asked: bool) -> bool {
+        asked
+    }
+    fn check_same_weights(&self, _: [&B; 2], _: usize) -> Result<(), TrainError> {
+        Ok(())
+    }
+    fn step(
+        &self,
+        trainer: &mut S3Trainer<B>,
+        batch: StepBatch,
+        _: usize,
+    ) -> Result<StepReport, TrainError> {
+        trainer.step_parallel(batch, &self.devices)
+    }
+}
+
+/// One rank of an MPI job on one device or several: it loads its share of
+/// every batch (split again over its devices), the ranks sum their
+/// gradients through one host buffer ([`HostAllReduce`]) and vote on
+/// stopping, and rank 0 alone writes.
+pub struct Ranks {
+    devices: Vec<Device>,
+    processes: Rc<dyn Collective>,
+    reduction: HostAllReduce,
+}
+
+impl<B: Backbone> Strategy<B> for Ranks {
+    fn devices(&self) -> &[Device] {
+        &self.devices
+    }
+    fn items_loaded(&self, batch_size: usize) -> Range<usize> {
+        share(batch_size, self.processes.size(), self.processes.rank())
+    }
+    fn writes(&self) -> bool {
+        self.processes.rank() == 0
+    }
+    fn stop_voted(&self, asked: bool) -> bool {
+        let votes = self.processes.gather(&[u8::from(asked)]);
+        votes.iter().any(|vote| vote[0] == 1)
+    }
+    fn check_same_weights(&self, networks: [&B; 2], steps: usize) -> Result<(), TrainError> {
+        check_same_weights(self.processes.as_ref(), &networks, steps)
+    }
+    fn step(
+        &self,
+        trainer: &mut S3Trainer<B>,
+        batch: StepBatch,
+        batch_size: usize,
+    ) -> Result<StepReport, TrainError> {
+        let sharing = Sharing {
+            devices: &self.devices,
+            items: batch_size,
+            reduction: &self.reduction,
+            processes: Some(self.processes.as_ref()),
+        };
+        trainer.step_shared(batch, &sharing)
+    }
+}
+
+/// The strategy of a run with `config` on `devices` (each with the name
+/// errors give it) and `processes` (`None`: this one alone), once they
+/// can run it: at least one device, no more sharers than batch items (each
+/// device of each process needs one), and the run's precision on every
+/// device.
+pub fn place<B: Backbone>(
+    config: &RunConfig,
+    devices: Vec<(String, Device)>,
+    processes: Option<Rc<dyn Collective>>,
+) -> Result<Box<dyn Strategy<B>>, TrainError> {
+    if devices.is_empty() {
+        return Err(TrainError::Config("no device to train on".into()));
+    }
+    let (sharers, what) = match (&processes, devices.len()) {
+        (Some(processes), 1) => (processes.size(), "processes".to_string()),
+        (Some(processes), each) => (
+            processes.size() * each,
+            format!("devices ({} processes of {each})", processes.size()),
+        ),
+        (None, count) => (count, "devices".to_string()),
+    };
+    if config.data.batch_size < sharers {
+        return Err(TrainError::Config(format!(
+            "data.batch_size {} is smaller than the {sharers} {what} that share it",
+            config.data.batch_size
+        )));
+    }
+    let named = devices.iter().map(|(name, device)| (name.clone(), device));
+    check_support(config.trainer.precision, named)?;
+    let mut devices: Vec<Device> = devices.into_iter().map(|(_, device)| device).collect();
+    Ok(match processes {
+        Some(processes) => Box::new(Ranks {
+            devices,
+            reduction: HostAllReduce::new(Rc::clone(&processes)),
+            processes,
+        }),
+        None if devices.len() == 1 => Box::new(OneDevice {
+            device: [devices.remove(0)],
+        }),
+        None => Box::new(Devices { devices }),
+    })
 }

@@ -11,7 +11,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use burn::tensor::Device;
-use mbs_batch::{HostBatch, share};
+use mbs_batch::HostBatch;
 
 use super::logs::{Interval, open_log, write_line};
 use super::{End, Observer, TRAIN_LOG, TrainingRun, VAL_LOG, read_log, warn};
@@ -85,10 +85,7 @@ impl TrainingRun {
     /// process's share of each, when several share them.
     fn start_loader(&self) -> BatchLoader {
         let data = &self.config.data;
-        let items = match &self.processes {
-            Some(processes) => share(data.batch_size, processes.size(), processes.rank()),
-            None => 0..data.batch_size,
-        };
+        let items = self.strategy.items_loaded(data.batch_size);
         BatchLoader::start(
             Arc::clone(&self.samples),
             (data.batch_size, items),
@@ -123,23 +120,17 @@ impl TrainingRun {
         })
     }
 
-    /// One step on `batch` where the run trains: this process's share of
-    /// several processes', or the devices' (whose shares go to them from
-    /// the host, not through the first device).
+    /// One step on `batch` (this process's items) as the run's strategy
+    /// takes it. With several devices the shares go to them from the
+    /// host, not through the first device.
     fn step_on(&mut self, batch: HostBatch) -> Result<StepReport, TrainError> {
-        let home = match self.devices.len() {
-            1 => self.devices[0].clone(),
+        let home = match self.strategy.devices() {
+            [one] => one.clone(),
             _ => Device::flex(),
         };
         let batch = StepBatch::from_host(batch, &home, &self.config.augment, self.config.seed);
-        match &self.processes {
-            Some(processes) => {
-                let items = self.config.data.batch_size;
-                self.trainer
-                    .step_distributed(batch, items, processes.as_ref())
-            }
-            None => self.trainer.step_parallel(batch, &self.devices),
-        }
+        let batch_size = self.config.data.batch_size;
+        self.strategy.step(&mut self.trainer, batch, batch_size)
     }
 
     /// Validates at the run's interval and at its end (first, so that a
@@ -153,10 +144,8 @@ impl TrainingRun {
         if !taken.is_multiple_of(self.config.val_every) && taken != self.config.steps() {
             return Ok(());
         }
-        if let Some(processes) = &self.processes {
-            let networks = [self.trainer.student(), self.trainer.teacher()];
-            crate::distributed::check_same_weights(processes.as_ref(), &networks, taken)?;
-        }
+        let networks = [self.trainer.student(), self.trainer.teacher()];
+        self.strategy.check_same_weights(networks, taken)?;
         if !self.is_writer() {
             return Ok(());
         }
@@ -202,14 +191,7 @@ impl TrainingRun {
     /// Whether this step is the last before a stop: asked of this process,
     /// or of any of several (so that all stop at the same step).
     fn stop_requested(&self, stop: &AtomicBool) -> bool {
-        let asked = stop.load(Ordering::Relaxed);
-        match &self.processes {
-            Some(processes) => processes
-                .gather(&[u8::from(asked)])
-                .iter()
-                .any(|b| b[0] == 1),
-            None => asked,
-        }
+        self.strategy.stop_voted(stop.load(Ordering::Relaxed))
     }
 }
 

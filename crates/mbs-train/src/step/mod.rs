@@ -1,15 +1,17 @@
 //! One S3 training step: teacher forward (no gradient) on the clean pair,
 //! student forward on the augmented pair, loss on clean images, Adam step
 //! with gradient clipping, EMA update of the teacher. The step's
-//! arithmetic on one share of a batch is [`objective`]'s; where the shares
-//! run is a placement of its own: one device ([`S3Trainer::step`], here),
-//! several devices in one process ([`devices`]) or MPI ranks ([`ranks`],
-//! whose messages [`wire`] spells).
+//! arithmetic on one share of a batch is [`objective`]'s; a step on one
+//! device is [`S3Trainer::step`] (here), a step split into shares (over
+//! this process's devices, and over processes) is [`shares`]'s, whose
+//! gradients meet through a [`GradientReduction`] ([`reduce`]) and whose
+//! loss values the ranks exchange as [`wire`] spells them. Which of these
+//! a run takes is its placement's choice (`crate::run::Strategy`).
 
 mod config;
-mod devices;
 mod objective;
-mod ranks;
+mod reduce;
+mod shares;
 mod wire;
 
 use burn::optim::{GradientsParams, ModuleOptimizer};
@@ -19,14 +21,17 @@ use crate::data::StepBatch;
 use crate::ema::ema_update;
 use crate::error::TrainError;
 use crate::losses::{S3Loss, Terms};
-use crate::precision::{LossScale, Precision};
-use crate::schedule::{CosineMomentum, OneCycle};
+use crate::precision::{LossScale, LossScaling, Precision};
+use crate::schedule::{CosineMomentum, GeometryRamp, OneCycle};
 use crate::supervision::Supervision;
 use mbs_nets::host::read_all;
 use mbs_nets::{Backbone, predict};
 
+pub use crate::precision::MAX_SKIPPED_STEPS;
 pub use config::{TrainerConfig, sequence_weights};
 use objective::{LossValues, Objective};
+pub use reduce::{GradientReduction, HostAllReduce, InProcessSum, ShareGradients};
+pub use shares::Sharing;
 
 /// Why a batch of `items` cannot be shared by `sharers` devices or
 /// processes (`what`), if it cannot: each needs at least one item.
@@ -85,21 +90,12 @@ pub struct S3Trainer<B: Backbone> {
     momentum: CosineMomentum,
     ema: bool,
     grad_clip_norm: f64,
-    /// The loss scale of an f16 run (`None` otherwise).
-    loss_scale: Option<LossScale>,
-    /// Steps before the geometry term is on.
-    geometry_start_steps: usize,
-    /// Steps of the geometry term's warm-up after that.
-    geometry_warmup_steps: usize,
-    /// f16 steps skipped in a row for overflowing gradients.
-    skipped_in_a_row: usize,
+    /// The loss scaling of an f16 run (`None` otherwise).
+    loss_scaling: Option<LossScaling>,
+    /// The geometry term's weight, step by step.
+    geometry: GeometryRamp,
     step: usize,
 }
-
-/// f16 steps skipped in a row after which a run counts as diverged: each
-/// skip halves the loss scale (down to 1), so by then the gradients
-/// overflow at any scale.
-pub const MAX_SKIPPED_STEPS: usize = 30;
 
 impl<B: Backbone> S3Trainer<B> {
     /// A trainer for `student` (on an autodiff device); the teacher starts
@@ -109,11 +105,6 @@ impl<B: Backbone> S3Trainer<B> {
         let loss = S3Loss::new(config.loss.clone())?;
         let lr = config.lr.init()?;
         let optimizer = config.optimizer.init();
-        // Rounded at the start and at the end of the warm-up, so that the
-        // term reaches its full weight within the run.
-        let step_at = |share: f64| (share * config.lr.total_steps as f64).round() as usize;
-        let start = config.geometry_start.unwrap_or(0.0);
-        let warmup_end = step_at(start + config.geometry_warmup.unwrap_or(0.0));
         Ok(Self {
             teacher: student.valid(),
             student,
@@ -123,7 +114,6 @@ impl<B: Backbone> S3Trainer<B> {
                 sequence_gamma: config.sequence_gamma,
                 final_prediction_only: config.final_prediction_only,
                 precision: config.precision,
-                geometry_weight: 1.0,
                 teacher_test_iters: config.teacher_test_iters,
             },
             lr,
@@ -133,11 +123,13 @@ impl<B: Backbone> S3Trainer<B> {
             },
             ema: config.ema,
             grad_clip_norm: config.grad_clip_norm,
-            loss_scale: (config.precision == Precision::F16)
-                .then(|| LossScale::starting_at(config.initial_loss_scale)),
-            geometry_start_steps: step_at(start),
-            geometry_warmup_steps: warmup_end - step_at(start),
-            skipped_in_a_row: 0,
+            loss_scaling: (config.precision == Precision::F16)
+                .then(|| LossScaling::starting_at(config.initial_loss_scale)),
+            geometry: GeometryRamp::new(
+                config.lr.total_steps,
+                config.geometry_start,
+                config.geometry_warmup,
+            ),
             step: 0,
         })
     }
@@ -177,17 +169,18 @@ impl<B: Backbone> S3Trainer<B> {
         self.teacher = teacher;
         self.optimizer = optimizer;
         self.step = steps;
-        if let (Some(scale), Some(saved)) = (&mut self.loss_scale, loss_scale) {
-            *scale = saved;
+        if let (Some(scaling), Some(saved)) = (&mut self.loss_scaling, loss_scale) {
+            scaling.restore(saved);
         }
     }
 
     /// The maps of `batch` (predictions and masks) without a gradient step.
     pub fn diagnose(&self, batch: StepBatch) -> Result<Diagnosis, TrainError> {
         let student = self.student.valid();
-        let (out, _) = self
-            .objective
-            .forward(&self.teacher, &student, batch.clone())?;
+        let geometry_weight = self.geometry_weight();
+        let (out, _) =
+            self.objective
+                .forward(&self.teacher, &student, batch.clone(), geometry_weight)?;
         let teacher = predict(
             &self.teacher,
             batch.reference.clone(),
@@ -216,69 +209,52 @@ impl<B: Backbone> S3Trainer<B> {
 
     /// Takes one optimisation step on `batch` (on the student's device).
     pub fn step(&mut self, batch: StepBatch) -> Result<StepReport, TrainError> {
-        self.objective.geometry_weight = self.geometry_weight();
-        let (grads, values) =
-            self.objective
-                .gradients(&self.teacher, &self.student, batch, self.scale())?;
+        let (scale, geometry_weight) = (self.scale(), self.geometry_weight());
+        let (grads, values) = self.objective.gradients(
+            &self.teacher,
+            &self.student,
+            batch,
+            scale,
+            geometry_weight,
+        )?;
         self.apply(grads, values)
     }
 
     /// The geometry term's weight at the current step: 0 before its
-    /// start, then rising linearly from 0 over the warm-up, then 1.
+    /// start, then rising linearly from 0 over the warm-up, then 1 (see
+    /// [`GeometryRamp`]).
     pub fn geometry_weight(&self) -> f64 {
-        let Some(since) = self.step.checked_sub(self.geometry_start_steps) else {
-            return 0.0;
-        };
-        match self.geometry_warmup_steps {
-            0 => 1.0,
-            steps => (since as f64 / steps as f64).min(1.0),
-        }
+        self.geometry.at(self.step)
     }
 
     /// The loss scale of an f16 run; 1 otherwise.
     fn scale(&self) -> f64 {
-        self.loss_scale.map_or(1.0, |s| s.scale)
+        self.loss_scale().map_or(1.0, |s| s.scale)
     }
 
     /// The loss scale of an f16 run (`None` for f32 and bf16).
     pub fn loss_scale(&self) -> Option<LossScale> {
-        self.loss_scale
+        self.loss_scaling.as_ref().map(LossScaling::scale)
     }
 
     /// Whether the step whose loss is `loss` and gradient norm `grad_norm`
-    /// is skipped: an f16 step whose gradients overflowed (which lowers
-    /// the loss scale), unless that has happened [`MAX_SKIPPED_STEPS`]
-    /// times in a row; a run in another precision cannot skip, so a value
-    /// that is not finite there has diverged.
+    /// is skipped: an f16 step whose gradients overflowed (its loss
+    /// scaling decides, see [`LossScaling::record`]); a run in another
+    /// precision cannot skip, so a value that is not finite there has
+    /// diverged.
     fn skips(&mut self, loss: f32, grad_norm: f64) -> Result<bool, TrainError> {
         let diverged = |what: String| TrainError::Diverged {
             step: self.step + 1,
             what,
         };
-        let skipped = match &mut self.loss_scale {
-            Some(scale) => {
-                scale.update(grad_norm.is_finite());
-                !grad_norm.is_finite()
-            }
-            None if !loss.is_finite() => return Err(diverged(format!("the loss is {loss}"))),
+        match &mut self.loss_scaling {
+            Some(scaling) => scaling.record(grad_norm).map_err(diverged),
+            None if !loss.is_finite() => Err(diverged(format!("the loss is {loss}"))),
             None if !grad_norm.is_finite() => {
-                return Err(diverged(format!("the gradient norm is {grad_norm}")));
+                Err(diverged(format!("the gradient norm is {grad_norm}")))
             }
-            None => false,
-        };
-        self.skipped_in_a_row = if skipped {
-            self.skipped_in_a_row + 1
-        } else {
-            0
-        };
-        if self.skipped_in_a_row >= MAX_SKIPPED_STEPS {
-            return Err(diverged(format!(
-                "the f16 gradients overflowed {MAX_SKIPPED_STEPS} steps in a row \
-                 (loss scale now {})",
-                self.scale()
-            )));
+            None => Ok(false),
         }
-        Ok(skipped)
     }
 
     /// Clips `grads`, steps the optimiser and updates the teacher. An f16
@@ -290,7 +266,7 @@ impl<B: Backbone> S3Trainer<B> {
         values: LossValues,
     ) -> Result<StepReport, TrainError> {
         let lr = self.lr.lr(self.step);
-        let loss_scale = self.loss_scale.map(|s| s.scale);
+        let loss_scale = self.loss_scale().map(|s| s.scale);
         let grad_norm =
             unscale_and_clip(&self.student, &mut grads, self.grad_clip_norm, self.scale())?;
         let skipped = self.skips(values.total, grad_norm)?;

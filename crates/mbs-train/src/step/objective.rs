@@ -18,15 +18,14 @@ use mbs_nets::{Backbone, predict, predict_sequence};
 
 /// What the student minimises: the S3 loss of its final prediction plus
 /// the weighted losses of its earlier ones. Plain settings, shared by the
-/// threads of a data-parallel step.
+/// threads of a data-parallel step; what changes from step to step (the
+/// geometry term's weight, the loss scale) is passed to each call.
 #[derive(Debug, Clone)]
 pub(super) struct Objective {
     pub(super) loss: S3Loss,
     pub(super) sequence_gamma: f64,
     pub(super) final_prediction_only: bool,
     pub(super) precision: Precision,
-    /// The geometry term's weight at the step being taken.
-    pub(super) geometry_weight: f64,
     /// The teacher's pseudo-labels come from its test iterations.
     pub(super) teacher_test_iters: bool,
 }
@@ -42,20 +41,25 @@ pub(super) struct LossValues {
 impl Objective {
     /// Teacher and student predictions and the loss on `batch`, on the
     /// student's device (the student's own gradient path when it has one),
-    /// the networks in the run's precision and the loss in f32.
+    /// the networks in the run's precision and the loss in f32, its
+    /// geometry term weighted by `geometry_weight`.
     pub(super) fn forward<B: Backbone>(
         &self,
         teacher: &B,
         student: &B,
         batch: StepBatch,
+        geometry_weight: f64,
     ) -> Result<(LossOutput, Tensor<1>), TrainError> {
         match self.precision.compute_dtype() {
-            None => self.forward_in(teacher, student, batch, None),
+            None => self.forward_in((teacher, student), batch, None, geometry_weight),
             Some(dtype) => self.forward_in(
-                &cast_network(teacher.clone(), dtype),
-                &cast_network(student.clone(), dtype),
+                (
+                    &cast_network(teacher.clone(), dtype),
+                    &cast_network(student.clone(), dtype),
+                ),
                 batch,
                 Some(dtype),
+                geometry_weight,
             ),
         }
     }
@@ -66,10 +70,10 @@ impl Objective {
     /// ([`measure`]) on the device.
     fn forward_in<B: Backbone>(
         &self,
-        teacher: &B,
-        student: &B,
+        (teacher, student): (&B, &B),
         batch: StepBatch,
         dtype: Option<FloatDType>,
+        geometry_weight: f64,
     ) -> Result<(LossOutput, Tensor<1>), TrainError> {
         let StepBatch {
             reference,
@@ -98,7 +102,7 @@ impl Objective {
             student_sides,
             teacher_sides,
             ratios,
-            geometry_weight: self.geometry_weight,
+            geometry_weight,
         };
         let out = self.loss.compute_sequence(inputs, earlier)?;
         let measured = measure(
@@ -171,16 +175,18 @@ impl Objective {
 
     /// The gradients of `weight` times the loss of `batch` for `student`
     /// (on an autodiff device, with `teacher` and `batch` on the same
-    /// device), and the unweighted loss values. An f16 run passes its loss
-    /// scale in `weight`.
+    /// device), its geometry term weighted by `geometry_weight`, and the
+    /// unweighted loss values. An f16 run passes its loss scale in
+    /// `weight`.
     pub(super) fn gradients<B: Backbone>(
         &self,
         teacher: &B,
         student: &B,
         batch: StepBatch,
         weight: f64,
+        geometry_weight: f64,
     ) -> Result<(GradientsParams, LossValues), TrainError> {
-        let (out, measured) = self.forward(teacher, student, batch)?;
+        let (out, measured) = self.forward(teacher, student, batch, geometry_weight)?;
         let values = LossValues {
             total: read_scalar(out.total.clone(), "the loss")?,
             terms: out

@@ -12,17 +12,14 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::{Context, bail};
 use clap::Parser;
 use mbs_nets::BackboneKind;
-use mbs_nets::checkpoint::CHECKPOINTS_DIR;
 use mbs_nets::device::DeviceList;
+use mbs_train::RunConfig;
 use mbs_train::checkpoint::Checkpoint;
-use mbs_train::distributed::{Collective, agree, all_succeeded};
+use mbs_train::distributed::Collective;
+use mbs_train::launch::{Launch, LaunchError, Launched, ReportedByRankZero, Stopped, settle};
 use mbs_train::precision::Precision;
-use mbs_train::run::{
-    Beginning, End, Placement, Quiet, Start, TrainingRun, computing_differences, run_identity,
-};
-use mbs_train::{RunConfig, TrainError};
+use mbs_train::run::{Beginning, End, Quiet, Start, TrainingRun, computing_differences};
 
-use crate::cli::processes::ReportedByRankZero;
 use report::Report;
 
 /// Arguments of `train`.
@@ -117,9 +114,11 @@ pub struct Args {
     /// GPUs), or cuda[:N] in a build with `--features cuda`. A comma-separated
     /// list (cuda:0,cuda:1) trains data parallel: each device takes a share of
     /// every batch and the gradients are summed on the first one. Under
-    /// mpirun or srun each process takes one device: `cuda` (or `vulkan`)
+    /// mpirun or srun each process takes the list: `cuda` (or `vulkan`)
     /// means GPU LOCAL_RANK, the process's rank on its machine (from MPI,
-    /// whatever the launcher), so N processes per node use its first N GPUs.
+    /// whatever the launcher), so N processes per node use its first N GPUs;
+    /// a list of K (`cuda,cuda`) gives each process GPUs K*LOCAL_RANK to
+    /// K*LOCAL_RANK+K-1, whose gradients it sums before the processes do.
     #[arg(long, default_value = "cpu", value_parser = crate::cli::values::devices)]
     pub device: DeviceList,
     /// The format the networks compute in (trainer.precision): f32, or mixed
@@ -214,7 +213,8 @@ impl Args {
 }
 
 /// Runs `train`: in this process alone, or as one rank of the processes
-/// `mpirun`/`srun` started (a build with `--features mpi`).
+/// `mpirun`/`srun` started (a build with `--features mpi`), whose errors
+/// end the ranks as [`settle`] says.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let config = args.run_config()?;
     if args.print_config {
@@ -225,81 +225,41 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("give a MANIFEST and --out DIR");
     };
     crate::cli::set_threads(args.jobs)?;
-    let Some(processes) = crate::cli::processes::join()? else {
-        return train(&args, config, manifest, out, None);
-    };
-    match train(&args, config, manifest, out, Some(&processes)) {
-        Ok(()) => Ok(()),
-        // Met by every rank alike: printed once, by rank 0, before any rank
-        // ends (the launcher ends the others as soon as one fails).
-        Err(e) if met_by_every_rank(&e) || e.is::<ReportedByRankZero>() => {
-            if processes.rank() == 0 && !e.is::<ReportedByRankZero>() {
-                eprintln!("error: {}", crate::cli::report_error::describe(&e));
-            }
-            processes.gather(&[]);
-            Err(ReportedByRankZero.into())
+    let processes = crate::cli::processes::join()?;
+    match (
+        train(&args, config, manifest, out, processes.clone()),
+        processes,
+    ) {
+        (Err(e), Some(processes)) => {
+            let description = crate::cli::report_error::describe(&e);
+            Err(settle(processes.as_ref(), e.as_ref(), &description).into())
         }
-        // Met by this rank alone while the others wait for it: end them all.
-        Err(e) => {
-            eprintln!(
-                "error: rank {} of {}: {}",
-                processes.rank(),
-                processes.size(),
-                crate::cli::report_error::describe(&e)
-            );
-            processes.abort(1)
-        }
+        (result, _) => result,
     }
 }
-
-/// Whether every rank has `error`: it came from a check the ranks made
-/// together, or the ranks stopped together.
-fn met_by_every_rank(error: &anyhow::Error) -> bool {
-    error.chain().any(|cause| {
-        matches!(cause.downcast_ref(), Some(TrainError::Distributed(_))) || cause.is::<Stopped>()
-    })
-}
-
-/// The run stopped on request (Ctrl-C, SIGTERM, SIGUSR1) with a checkpoint.
-#[derive(Debug)]
-struct Stopped {
-    steps: usize,
-    total: usize,
-}
-
-impl std::fmt::Display for Stopped {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "stopped after step {} of {}; a checkpoint is saved, run the same command to resume",
-            self.steps, self.total
-        )
-    }
-}
-
-impl std::error::Error for Stopped {}
 
 /// Trains into `out`; with `processes`, as this process's rank of them:
-/// the devices opened, the folder readied, the run opened, then trained
-/// until its end or a stop request.
+/// the run launched, then trained until its end or a stop request.
 fn train(
     args: &Args,
     config: RunConfig,
     manifest: &Path,
     out: &Path,
-    processes: Option<&Rc<dyn Collective>>,
+    processes: Option<Rc<dyn Collective>>,
 ) -> anyhow::Result<()> {
-    let placement = open_devices(args, &config, processes)?;
-    crate::cli::require_file(manifest, "manifest")?;
-    if let Some(init) = &args.init {
-        check_init(init, out, args.restart)?;
-    }
-    prepare_folder(args, &config, manifest, out, processes)?;
-    let beginning = Beginning {
-        init: args.init.as_deref(),
-        restart: args.restart,
+    let spread = processes.as_ref().map(|p| p.size());
+    let launch = Launch {
+        manifest,
+        out,
+        config,
+        devices: &args.device,
+        processes,
+        beginning: Beginning {
+            init: args.init.as_deref(),
+            restart: args.restart,
+        },
     };
-    let (mut training, start) = TrainingRun::open_on(manifest, out, config, placement, beginning)?;
+    let (mut training, start) = launch_run(launch)?;
     let writer = training.is_writer();
     let total = training.config().steps();
     if let Start::Resumed(steps) = start
@@ -314,7 +274,7 @@ fn train(
         return Ok(());
     }
     if writer {
-        announce(args, &training, start, out, processes);
+        announce(args, &training, start, out, spread);
     }
     let stop = stop_requests()?;
     if !writer {
@@ -335,92 +295,31 @@ fn train(
     }
 }
 
-/// The devices `--device` names for this process (the rank's local GPU
-/// under MPI), opened and accepted for the run before anything is removed
-/// or written (a bad name is an input error, on every rank alike), with
-/// their memory estimated.
-fn open_devices(
-    args: &Args,
-    config: &RunConfig,
-    processes: Option<&Rc<dyn Collective>>,
-) -> anyhow::Result<Placement> {
-    let device_list = match processes {
-        Some(processes) => args.device.of_process(processes.local_rank())?,
-        None => args.device.clone(),
-    };
-    let devices = device_list.open();
-    if let Some(processes) = processes {
-        let outcome = devices.as_ref().map(drop).map_err(|e| e.to_string());
-        all_succeeded(processes.as_ref(), outcome)?;
-    }
-    let names = device_list.names();
-    let labelled = names
-        .iter()
-        .map(ToString::to_string)
-        .zip(devices?)
-        .collect();
-    // Settings the devices cannot run (more sharers than batch items, no
-    // device) are usage errors.
-    let placement =
-        Placement::check(config, labelled, processes.cloned()).map_err(|e| match e {
-            TrainError::Config(message) => anyhow::Error::new(crate::cli::UsageError(message)),
-            other => other.into(),
-        })?;
-    if let Some(warning) = mbs_train::memory::check(config, &names)?
-        && processes.is_none_or(|p| p.rank() == 0)
-    {
+/// Opens the run `launch` describes and prints what the launcher found
+/// (warnings, the temporary files of a killed run it removed).
+fn launch_run(launch: Launch<'_>) -> anyhow::Result<(TrainingRun, Start)> {
+    let out = launch.out;
+    let Launched {
+        run,
+        start,
+        warnings,
+        removed_partials,
+    } = launch.open().map_err(|e| match e {
+        // Settings the devices cannot run (more sharers than batch items,
+        // no device) are usage errors.
+        LaunchError::Usage(message) => anyhow::Error::new(crate::cli::UsageError(message)),
+        LaunchError::Run(e) => e.into(),
+    })?;
+    for warning in warnings {
         eprintln!("warning: {warning}");
     }
-    Ok(placement)
-}
-
-/// Refuses an `--init` that does not exist, or that `--restart` would
-/// remove: the run's own folder or one of its checkpoints.
-fn check_init(init: &Path, out: &Path, restart: bool) -> anyhow::Result<()> {
-    if !init.exists() {
-        bail!("--init {}: no such file or folder", init.display());
-    }
-    let inside = |a: &Path, b: &Path| match (a.canonicalize(), b.canonicalize()) {
-        (Ok(a), Ok(b)) => a.starts_with(b),
-        _ => false,
-    };
-    if restart && (inside(init, &out.join(CHECKPOINTS_DIR)) || inside(out, init)) {
-        bail!(
-            "--init {}: --restart removes the checkpoints of {} that it would start from; \
-             copy them elsewhere first, or resume without --restart",
-            init.display(),
+    if removed_partials > 0 {
+        eprintln!(
+            "removed {removed_partials} temporary file(s) left in {} by a killed run",
             out.display()
         );
     }
-    Ok(())
-}
-
-/// Makes `out`, once every process agrees on the command, by the writer
-/// alone while the others wait (`--restart`'s checkpoints are removed by
-/// the run, after its checks).
-fn prepare_folder(
-    args: &Args,
-    config: &RunConfig,
-    manifest: &Path,
-    out: &Path,
-    processes: Option<&Rc<dyn Collective>>,
-) -> anyhow::Result<()> {
-    if let Some(processes) = processes {
-        // Agreed before rank 0 touches the folder, so that a mismatch
-        // leaves nothing behind.
-        let mut command = run_identity(config, manifest)?;
-        command["restart"] = args.restart.into();
-        command["device"] = args.device.to_string().into();
-        agree(processes.as_ref(), &command)?;
-    }
-    if processes.is_none_or(|p| p.rank() == 0) {
-        crate::cli::prepare_out(out)?;
-    }
-    if let Some(processes) = processes {
-        // The others wait until rank 0 has prepared the folder.
-        processes.gather(&[]);
-    }
-    Ok(())
+    Ok((run, start))
 }
 
 /// The flag that Ctrl-C, SIGTERM and SIGUSR1 set to stop the run with a
@@ -450,11 +349,11 @@ fn announce(
     training: &TrainingRun,
     start: Start,
     out: &Path,
-    processes: Option<&Rc<dyn Collective>>,
+    processes: Option<usize>,
 ) {
     let total = training.config().steps();
     let spread = match processes {
-        Some(processes) => format!(" on {} processes", processes.size()),
+        Some(processes) => format!(" on {processes} processes"),
         None => String::new(),
     };
     match start {

@@ -1,0 +1,188 @@
+//! Launching a run: from the typed device list, the processes a launcher
+//! (`mpirun`, `srun`) started, the run's paths and its flags, to an open
+//! [`TrainingRun`], for any front end (the CLI's `train`, the demo, a
+//! binding). [`Launch::open`] opens the devices under one consensus,
+//! checks the inputs, agrees once across the ranks on everything they
+//! must share, lets the one writer prepare the folder and hands back the
+//! run; [`settle`] is how the ranks end on an error.
+//!
+//! Every check comes before anything is removed or written: a refused
+//! launch leaves the output folder as it was (or absent).
+
+mod devices;
+mod ranks;
+
+use std::path::Path;
+use std::rc::Rc;
+
+use mbs_nets::checkpoint::CHECKPOINTS_DIR;
+use mbs_nets::device::DeviceList;
+use thiserror::Error;
+
+use crate::checkpoint::Checkpoint;
+use crate::config::RunConfig;
+use crate::distributed::{Collective, agree};
+use crate::error::TrainError;
+use crate::run::{Beginning, Start, Strategy, TrainingRun, open, place};
+use mbs_nets::StereoNetwork;
+
+pub use ranks::{ReportedByRankZero, Stopped, met_by_every_rank, settle};
+
+/// What a run is launched from.
+pub struct Launch<'a> {
+    /// The dataset manifest.
+    pub manifest: &'a Path,
+    /// The run's output folder.
+    pub out: &'a Path,
+    /// The run's settings (a resumed run's: its checkpoint's, overlaid).
+    pub config: RunConfig,
+    /// The devices, as the user listed them (each rank of several takes
+    /// its part of the list on its machine).
+    pub devices: &'a DeviceList,
+    /// The processes the run is spread over (`None`: this one alone).
+    pub processes: Option<Rc<dyn Collective>>,
+    /// Where the first weights come from.
+    pub beginning: Beginning<'a>,
+}
+
+/// A launched run.
+pub struct Launched {
+    /// The run, ready to train.
+    pub run: TrainingRun,
+    /// How it began.
+    pub start: Start,
+    /// Warnings for the user (the memory a step needs), on the writer.
+    pub warnings: Vec<String>,
+    /// Temporary files a killed earlier run had left in the folder, removed.
+    pub removed_partials: usize,
+}
+
+/// Why a run could not be launched.
+#[derive(Debug, Error)]
+pub enum LaunchError {
+    /// The devices cannot run the settings (more sharers than batch items,
+    /// no device): a usage error.
+    #[error("{0}")]
+    Usage(String),
+    /// Anything else.
+    #[error(transparent)]
+    Run(#[from] TrainError),
+}
+
+impl Launch<'_> {
+    /// Opens the run: the devices (under one consensus), the strategy for
+    /// them, the inputs (manifest, `--init`), the data and the newest
+    /// checkpoint; then one agreement of the ranks on the settings, the
+    /// manifest's digest, the devices, `restart`, `init` and the
+    /// checkpoint found; the first weights, checked equal on every rank;
+    /// and last the writer's folder (the others wait for it).
+    pub fn open(self) -> Result<Launched, LaunchError> {
+        let processes = self.processes.as_deref();
+        let (names, devices) = devices::open(self.devices, processes)?;
+        let labelled = names.iter().map(ToString::to_string).zip(devices).collect();
+        let strategy: Box<dyn Strategy<StereoNetwork>> =
+            place(&self.config, labelled, self.processes.clone()).map_err(|e| match e {
+                TrainError::Config(message) => LaunchError::Usage(message),
+                other => other.into(),
+            })?;
+        let warnings = match strategy.writes() {
+            true => crate::memory::check(&self.config, &names)?
+                .into_iter()
+                .collect(),
+            false => Vec::new(),
+        };
+        self.check_inputs()?;
+        self.config.validate()?;
+        let (samples, validation) = open::load_data(self.manifest, &self.config)?;
+        let Beginning { init, restart } = self.beginning;
+        let latest = (!restart)
+            .then(|| Checkpoint::latest(self.out))
+            .transpose()?;
+        let latest = latest.flatten();
+        if let Some(processes) = processes {
+            agree(processes, &self.identity(latest.as_ref())?)?;
+        }
+        let home = strategy.devices()[0].clone();
+        let (trainer, start) = open::trainer(&self.config, &home, latest, init)?;
+        strategy.check_same_weights(
+            [trainer.student(), trainer.teacher()],
+            trainer.steps_taken(),
+        )?;
+        let removed_partials = match strategy.writes() {
+            true => open::prepare_folder(self.out, &self.config, start, restart)?,
+            false => 0,
+        };
+        if let Some(processes) = processes {
+            // The others wait until the writer has prepared the folder.
+            processes.gather(&[]);
+        }
+        let data = (samples, validation);
+        let run = TrainingRun::assemble(self.out, self.config, data, trainer, strategy, start);
+        Ok(Launched {
+            run,
+            start,
+            warnings,
+            removed_partials,
+        })
+    }
+
+    /// Refuses a manifest that is not a file, and an `init` that does not
+    /// exist or that `restart` would remove: the run's own folder or one
+    /// of its checkpoints.
+    fn check_inputs(&self) -> Result<(), TrainError> {
+        let manifest = self.manifest;
+        if manifest.is_dir() {
+            return Err(TrainError::Input(format!(
+                "{}: is a folder, the manifest must be a file",
+                manifest.display()
+            )));
+        }
+        if !manifest.is_file() {
+            let shown = manifest.display();
+            return Err(TrainError::Input(format!(
+                "{shown}: no such file (the manifest)"
+            )));
+        }
+        let Some(init) = self.beginning.init else {
+            return Ok(());
+        };
+        if !init.exists() {
+            let shown = init.display();
+            return Err(TrainError::Input(format!(
+                "--init {shown}: no such file or folder"
+            )));
+        }
+        let inside = |a: &Path, b: &Path| match (a.canonicalize(), b.canonicalize()) {
+            (Ok(a), Ok(b)) => a.starts_with(b),
+            _ => false,
+        };
+        let out = self.out;
+        if self.beginning.restart && (inside(init, &out.join(CHECKPOINTS_DIR)) || inside(out, init))
+        {
+            return Err(TrainError::Input(format!(
+                "--init {}: --restart removes the checkpoints of {} that it would start from; \
+                 copy them elsewhere first, or resume without --restart",
+                init.display(),
+                out.display()
+            )));
+        }
+        Ok(())
+    }
+
+    /// What every rank must hold alike: the settings, the manifest's
+    /// digest, the devices as listed, `restart`, `init` and the steps of
+    /// the checkpoint it found.
+    fn identity(&self, latest: Option<&Checkpoint>) -> Result<serde_json::Value, TrainError> {
+        let manifest = self.manifest;
+        let digest = mbs_dataset::checksum::sha256_file(manifest)
+            .map_err(|e| TrainError::data(manifest, e))?;
+        Ok(serde_json::json!({
+            "settings": self.config.to_json()?,
+            "manifest_sha256": digest,
+            "device": self.devices.to_string(),
+            "restart": self.beginning.restart,
+            "init": self.beginning.init.map(|p| p.display().to_string()),
+            "checkpoint": latest.map(|c| c.state.steps),
+        }))
+    }
+}
