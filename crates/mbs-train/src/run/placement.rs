@@ -147,7 +147,6 @@ impl<B: Backbone> Strategy<B> for Ranks {
             devices: &self.devices,
             items: batch_size,
             reduction: &self.reduction,
-            processes: Some(self.processes.as_ref()),
         };
         trainer.step_shared(batch, &sharing)
     }

@@ -30,7 +30,7 @@ use mbs_nets::{Backbone, predict};
 pub use crate::precision::MAX_SKIPPED_STEPS;
 pub use config::{TrainerConfig, sequence_weights};
 use objective::{LossValues, Objective};
-pub use reduce::{GradientReduction, HostAllReduce, InProcessSum, ShareGradients};
+pub use reduce::{GradientReduction, HostAllReduce, InProcessSum, LocalGradients, ShareGradients};
 pub use shares::Sharing;
 
 /// Why a batch of `items` cannot be shared by `sharers` devices or
