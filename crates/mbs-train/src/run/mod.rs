@@ -45,7 +45,7 @@ mod steps;
 
 pub use logs::{TRAIN_LOG, VAL_LOG, read_log, validation_json};
 use logs::{open_log, write_line};
-pub use placement::{Devices, OneDevice, Ranks, Strategy, place};
+pub use placement::{Devices, Ranks, Strategy, place};
 use report::RunReport;
 pub use report::{LOSS_PLOT, TENSORBOARD_DIR, VAL_PLOT, VISUALS_DIR};
 pub use resume::computing_differences;

@@ -101,7 +101,9 @@ impl<B: Backbone> S3Trainer<B> {
         // before the gather, so that no rank waits in it for one that failed.
         let local = reduction.local_sum(&self.student, gradients, &sharing.devices[0])?;
         let values = match (reduction.processes(), local.length()) {
-            (None, _) => local_values(&values),
+            // A process of its own: its shares' values weighted by their
+            // share of the step's items (a lone share's weight is 1).
+            (None, _) => LossValues::weighted_sum(&values),
             (Some(processes), Some(length)) => exchange_values(&values, length, processes)?,
             (Some(_), None) => {
                 return Err(TrainError::Distributed(
@@ -214,15 +216,6 @@ fn exchange_values(
     }
     let weighted: Vec<_> = all.into_iter().map(|(v, w, _)| (v, w)).collect();
     Ok(LossValues::weighted_sum(&weighted))
-}
-
-/// The loss values of a step that this process takes alone: a lone
-/// share's as they are, several shares' weighted sum.
-fn local_values(values: &[(LossValues, f64)]) -> LossValues {
-    match values {
-        [(one, _)] => *one,
-        _ => LossValues::weighted_sum(&relative_to(values, 1.0)),
-    }
 }
 
 /// Each share's values with its weight divided by `total`.
