@@ -69,6 +69,17 @@ pub enum LaunchError {
     Run(#[from] TrainError),
 }
 
+impl From<LaunchError> for TrainError {
+    /// A usage error becomes a configuration error, for the callers that
+    /// have no usage errors of their own (the library, the tests).
+    fn from(error: LaunchError) -> Self {
+        match error {
+            LaunchError::Usage(message) => TrainError::Config(message),
+            LaunchError::Run(e) => e,
+        }
+    }
+}
+
 impl Launch<'_> {
     /// Opens the run: the devices (under one consensus), the strategy for
     /// them, the inputs (manifest, `--init`), the data and the newest
