@@ -16,12 +16,12 @@ use std::path::Path;
 use std::rc::Rc;
 
 use mbs_nets::checkpoint::CHECKPOINTS_DIR;
-use mbs_nets::device::DeviceList;
+use mbs_nets::device::{DeviceList, DeviceName};
 use thiserror::Error;
 
 use crate::checkpoint::Checkpoint;
 use crate::config::RunConfig;
-use crate::distributed::{Collective, agree};
+use crate::distributed::{Collective, agree, all_succeeded};
 use crate::error::TrainError;
 use crate::run::{Beginning, Start, Strategy, TrainingRun, open, place};
 use mbs_nets::StereoNetwork;
@@ -96,12 +96,7 @@ impl Launch<'_> {
                 TrainError::Config(message) => LaunchError::Usage(message),
                 other => other.into(),
             })?;
-        let warnings = match strategy.writes() {
-            true => crate::memory::check(&self.config, &names)?
-                .into_iter()
-                .collect(),
-            false => Vec::new(),
-        };
+        let warnings = self.check_memory(&names, strategy.writes())?;
         self.check_inputs()?;
         self.config.validate()?;
         let (samples, validation) = open::load_data(self.manifest, &self.config)?;
@@ -134,6 +129,28 @@ impl Launch<'_> {
             start,
             warnings,
             removed_partials,
+        })
+    }
+
+    /// Checks the run on `names` (this process's devices) against this
+    /// machine's memory ([`crate::memory::check`]): every rank checks its
+    /// own machine, and a machine too small refuses the run on every rank
+    /// alike (naming the rank, as a device that cannot be opened does).
+    /// The warnings are the writer's (`writes`) to show; the others'
+    /// machines warn nobody, as no one would read them.
+    fn check_memory(&self, names: &[DeviceName], writes: bool) -> Result<Vec<String>, TrainError> {
+        let checked = crate::memory::check(&self.config, names);
+        let checked = match self.processes.as_deref() {
+            None => checked?,
+            Some(processes) => {
+                let outcome = checked.as_ref().map(drop).map_err(ToString::to_string);
+                all_succeeded(processes, outcome)?;
+                checked?
+            }
+        };
+        Ok(match writes {
+            true => checked.into_iter().collect(),
+            false => Vec::new(),
         })
     }
 
