@@ -26,7 +26,7 @@ use crate::error::TrainError;
 use crate::run::{Beginning, Start, Strategy, TrainingRun, open, place};
 use mbs_nets::StereoNetwork;
 
-pub use ranks::{ReportedByRankZero, Stopped, met_by_every_rank, settle};
+pub use ranks::{ReportedByRankZero, Stopped, settle};
 
 /// What a run is launched from.
 pub struct Launch<'a> {

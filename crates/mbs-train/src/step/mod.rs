@@ -27,7 +27,6 @@ use crate::supervision::Supervision;
 use mbs_nets::host::read_all;
 use mbs_nets::{Backbone, predict};
 
-pub use crate::precision::MAX_SKIPPED_STEPS;
 pub use config::{TrainerConfig, sequence_weights};
 use objective::{LossValues, Objective};
 pub use reduce::{GradientReduction, HostAllReduce, InProcessSum, LocalGradients, ShareGradients};
@@ -175,6 +174,9 @@ impl<B: Backbone> S3Trainer<B> {
     }
 
     /// The maps of `batch` (predictions and masks) without a gradient step.
+    /// The geometry term weighs what the ramp gives it at the current step
+    /// ([`Self::geometry_weight`]), deliberately: the maps show what the
+    /// next step would train on (before the first step, the ramp's start).
     pub fn diagnose(&self, batch: StepBatch) -> Result<Diagnosis, TrainError> {
         let student = self.student.valid();
         let geometry_weight = self.geometry_weight();
