@@ -175,8 +175,9 @@ impl<B: Backbone> S3Trainer<B> {
 
     /// The maps of `batch` (predictions and masks) without a gradient step.
     /// The geometry term weighs what the ramp gives it at the current step
-    /// ([`Self::geometry_weight`]), deliberately: the maps show what the
-    /// next step would train on (before the first step, the ramp's start).
+    /// ([`Self::geometry_weight`]), deliberately, as the next step would
+    /// (before the first step, the ramp's start); the weight only scales
+    /// the loss, which is not returned, so the maps do not depend on it.
     pub fn diagnose(&self, batch: StepBatch) -> Result<Diagnosis, TrainError> {
         let student = self.student.valid();
         let geometry_weight = self.geometry_weight();
