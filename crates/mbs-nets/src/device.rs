@@ -128,28 +128,28 @@ impl DeviceList {
         self.devices.iter().map(|(name, _)| *name).collect()
     }
 
-    /// The device of one of several processes on a machine (the ranks of
-    /// an MPI job) that were all given this list: `cuda` and `vulkan`
-    /// without an index become GPU `local_rank` (`cuda:LOCAL_RANK`), a
-    /// named device (`cpu`, `cuda:2`) stays as it is, and a list is
-    /// refused, since each process trains on one device.
-    pub fn of_process(&self, local_rank: usize) -> Result<DeviceList, NetError> {
-        let [(name, indexed)] = self.devices[..] else {
-            return Err(NetError::Device {
-                name: self.to_string(),
-                reason: "each process of a multi-process run trains on one device: give one \
-                         (`cuda` takes the GPU of the process's local rank)"
-                    .into(),
-            });
-        };
-        let name = match (name, indexed) {
-            (DeviceName::Cuda(_), false) => DeviceName::Cuda(local_rank),
-            (DeviceName::Vulkan(None), _) => DeviceName::Vulkan(Some(local_rank)),
-            _ => name,
-        };
-        Ok(DeviceList {
-            devices: vec![(name, true)],
-        })
+    /// The devices of one of several processes on a machine (the ranks
+    /// of an MPI job) that were all given this list, whose `k` entries
+    /// each rank takes alike: `cuda` and `vulkan` without an index become
+    /// GPUs `k * local_rank` to `k * local_rank + k - 1`, in order (with
+    /// one entry, GPU `local_rank`); a named device (`cpu`, `cuda:2`)
+    /// stays as it is.
+    pub fn of_rank(&self, local_rank: usize) -> DeviceList {
+        let first = self.devices.len() * local_rank;
+        let devices = self
+            .devices
+            .iter()
+            .enumerate()
+            .map(|(i, &(name, indexed))| {
+                let name = match (name, indexed) {
+                    (DeviceName::Cuda(_), false) => DeviceName::Cuda(first + i),
+                    (DeviceName::Vulkan(None), _) => DeviceName::Vulkan(Some(first + i)),
+                    _ => name,
+                };
+                (name, true)
+            })
+            .collect();
+        DeviceList { devices }
     }
 
     /// Opens each device, in order ([`DeviceName::open`]). The same device
@@ -293,19 +293,19 @@ mod tests {
     use super::*;
 
     #[test]
-    fn each_process_takes_the_gpu_of_its_local_rank_unless_one_is_named() {
-        let device_of_process = |list: &str, rank| {
+    fn each_process_takes_the_gpus_of_its_local_rank_unless_they_are_named() {
+        let devices_of_rank = |list: &str, rank| {
             let list: DeviceList = list.parse().expect("known devices");
-            list.of_process(rank).map(|device| device.to_string())
+            list.of_rank(rank).to_string()
         };
-        assert_eq!(device_of_process("cuda", 3).expect("one"), "cuda:3");
-        assert_eq!(device_of_process(" vulkan ", 1).expect("one"), "vulkan:1");
-        assert_eq!(device_of_process("cuda:0", 3).expect("one"), "cuda:0");
-        assert_eq!(device_of_process("cpu", 2).expect("one"), "cpu");
-        let message = device_of_process("cuda:0,cuda:1", 0)
-            .expect_err("a list")
-            .to_string();
-        assert!(message.contains("trains on one device"), "{message}");
+        assert_eq!(devices_of_rank("cuda", 3), "cuda:3");
+        assert_eq!(devices_of_rank(" vulkan ", 1), "vulkan:1");
+        assert_eq!(devices_of_rank("cuda:0", 3), "cuda:0");
+        assert_eq!(devices_of_rank("cpu", 2), "cpu");
+        // A list of k: each rank takes the next k GPUs, named ones as given.
+        assert_eq!(devices_of_rank("cuda,cuda", 1), "cuda:2,cuda:3");
+        assert_eq!(devices_of_rank("cuda:0,cuda:1", 1), "cuda:0,cuda:1");
+        assert_eq!(devices_of_rank("cpu,vulkan", 1), "cpu,vulkan:3");
         let list: DeviceList = "cuda, cuda:1,vulkan".parse().expect("known devices");
         assert_eq!(list.to_string(), "cuda,cuda:1,vulkan");
         assert_eq!(

@@ -279,4 +279,40 @@ mod tests {
         tiny.update(false);
         assert_eq!((tiny.scale, tiny.good_steps), (1.0, 0));
     }
+
+    /// An overflow skips the step; a good step ends the streak; the
+    /// streak's limit is an error saying how far the scale fell.
+    #[test]
+    fn loss_scaling_counts_overflows_in_a_row_and_refuses_at_the_limit() {
+        let mut scaling = LossScaling::starting_at(4.0);
+        for _ in 0..MAX_SKIPPED_STEPS - 1 {
+            assert_eq!(scaling.record(f64::INFINITY), Ok(true));
+        }
+        assert_eq!(scaling.scale().scale, 1.0, "halved down to 1, no lower");
+        assert_eq!(scaling.record(0.5), Ok(false));
+        for _ in 0..MAX_SKIPPED_STEPS - 1 {
+            assert_eq!(scaling.record(f64::NAN), Ok(true));
+        }
+        let message = scaling.record(f64::INFINITY).expect_err("the limit");
+        assert!(
+            message.contains(&format!("overflowed {MAX_SKIPPED_STEPS} steps in a row")),
+            "{message}"
+        );
+        assert!(message.contains("loss scale now 1"), "{message}");
+    }
+
+    /// A checkpoint's scale comes back whole (factor and good steps), and
+    /// the scale then grows from the saved count of good steps.
+    #[test]
+    fn restoring_puts_back_the_saved_scale_and_its_good_steps() {
+        let mut scaling = LossScaling::starting_at(LossScale::PYTORCH_INITIAL);
+        let saved = LossScale {
+            scale: 256.0,
+            good_steps: 1999,
+        };
+        scaling.restore(saved);
+        assert_eq!(scaling.scale(), saved);
+        assert_eq!(scaling.record(1.0), Ok(false));
+        assert_eq!(scaling.scale(), LossScale::starting_at(512.0));
+    }
 }

@@ -12,6 +12,8 @@ pub mod rig;
 pub mod scoring;
 pub mod shard;
 pub mod source;
+
+use mbs_train::launch::LaunchError;
 pub mod values;
 
 /// Flags that cannot work together or with the settings, found after
@@ -29,13 +31,13 @@ impl std::fmt::Display for UsageError {
 impl std::error::Error for UsageError {}
 
 /// The exit status of a command that failed with `error`: 2 for a usage
-/// error, 1 otherwise.
+/// error (ours, or settings the devices of a launch cannot run: more
+/// sharers than batch items, no device), 1 otherwise.
 pub fn exit_status(error: &anyhow::Error) -> u8 {
-    if error.chain().any(|cause| cause.is::<UsageError>()) {
-        2
-    } else {
-        1
-    }
+    let usage = |cause: &(dyn std::error::Error + 'static)| {
+        cause.is::<UsageError>() || matches!(cause.downcast_ref(), Some(LaunchError::Usage(_)))
+    };
+    if error.chain().any(usage) { 2 } else { 1 }
 }
 
 /// Creates the output folder `dir` (refusing a file in its place) and

@@ -16,17 +16,17 @@ use std::path::Path;
 use std::rc::Rc;
 
 use mbs_nets::checkpoint::CHECKPOINTS_DIR;
-use mbs_nets::device::DeviceList;
+use mbs_nets::device::{DeviceList, DeviceName};
 use thiserror::Error;
 
 use crate::checkpoint::Checkpoint;
 use crate::config::RunConfig;
-use crate::distributed::{Collective, agree};
+use crate::distributed::{Collective, agree, all_succeeded};
 use crate::error::TrainError;
 use crate::run::{Beginning, Start, Strategy, TrainingRun, open, place};
 use mbs_nets::StereoNetwork;
 
-pub use ranks::{ReportedByRankZero, Stopped, met_by_every_rank, settle};
+pub use ranks::{ReportedByRankZero, Stopped, settle};
 
 /// What a run is launched from.
 pub struct Launch<'a> {
@@ -69,6 +69,17 @@ pub enum LaunchError {
     Run(#[from] TrainError),
 }
 
+impl From<LaunchError> for TrainError {
+    /// A usage error becomes a configuration error, for the callers that
+    /// have no usage errors of their own (the library, the tests).
+    fn from(error: LaunchError) -> Self {
+        match error {
+            LaunchError::Usage(message) => TrainError::Config(message),
+            LaunchError::Run(e) => e,
+        }
+    }
+}
+
 impl Launch<'_> {
     /// Opens the run: the devices (under one consensus), the strategy for
     /// them, the inputs (manifest, `--init`), the data and the newest
@@ -85,12 +96,7 @@ impl Launch<'_> {
                 TrainError::Config(message) => LaunchError::Usage(message),
                 other => other.into(),
             })?;
-        let warnings = match strategy.writes() {
-            true => crate::memory::check(&self.config, &names)?
-                .into_iter()
-                .collect(),
-            false => Vec::new(),
-        };
+        let warnings = self.check_memory(&names, strategy.writes())?;
         self.check_inputs()?;
         self.config.validate()?;
         let (samples, validation) = open::load_data(self.manifest, &self.config)?;
@@ -123,6 +129,28 @@ impl Launch<'_> {
             start,
             warnings,
             removed_partials,
+        })
+    }
+
+    /// Checks the run on `names` (this process's devices) against this
+    /// machine's memory ([`crate::memory::check`]): every rank checks its
+    /// own machine, and a machine too small refuses the run on every rank
+    /// alike (naming the rank, as a device that cannot be opened does).
+    /// The warnings are the writer's (`writes`) to show; the others'
+    /// machines warn nobody, as no one would read them.
+    fn check_memory(&self, names: &[DeviceName], writes: bool) -> Result<Vec<String>, TrainError> {
+        let checked = crate::memory::check(&self.config, names);
+        let checked = match self.processes.as_deref() {
+            None => checked?,
+            Some(processes) => {
+                let outcome = checked.as_ref().map(drop).map_err(ToString::to_string);
+                all_succeeded(processes, outcome)?;
+                checked?
+            }
+        };
+        Ok(match writes {
+            true => checked.into_iter().collect(),
+            false => Vec::new(),
         })
     }
 

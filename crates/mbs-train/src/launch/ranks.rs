@@ -50,7 +50,7 @@ impl Error for ReportedByRankZero {}
 
 /// Whether every rank has `error`: it came from a check the ranks made
 /// together, or the ranks stopped together.
-pub fn met_by_every_rank(error: &(dyn Error + 'static)) -> bool {
+fn met_by_every_rank(error: &(dyn Error + 'static)) -> bool {
     let together = |e: &TrainError| matches!(e, TrainError::Distributed(_));
     let mut cause = Some(error);
     while let Some(here) = cause {

@@ -29,7 +29,7 @@ use crate::data::StepBatch;
 use crate::data::validation::{ValidationMetrics, ValidationPair};
 use crate::data::{TrainingSamples, ValidationSet};
 use crate::error::TrainError;
-use crate::launch::{Launch, LaunchError};
+use crate::launch::Launch;
 use crate::step::{S3Trainer, StepReport};
 use mbs_nets::StereoNetwork;
 use mbs_nets::checkpoint::TrainedNetworks;
@@ -45,7 +45,7 @@ mod steps;
 
 pub use logs::{TRAIN_LOG, VAL_LOG, read_log, validation_json};
 use logs::{open_log, write_line};
-pub use placement::{Devices, OneDevice, Ranks, Strategy, place};
+pub use placement::{Devices, Ranks, Strategy, place};
 use report::RunReport;
 pub use report::{LOSS_PLOT, TENSORBOARD_DIR, VAL_PLOT, VISUALS_DIR};
 pub use resume::computing_differences;
@@ -173,7 +173,11 @@ impl TrainingRun {
     /// CPU, in this process alone (see [`Launch`] for the devices, the
     /// processes and the first weights): resumes from the newest
     /// checkpoint there, or starts fresh. Resuming with a configuration
-    /// that changes what is computed is refused.
+    /// that changes what is computed is refused. This is the quiet entry
+    /// of the library and the tests: like [`Launch::open`] it removes the
+    /// temporary files a killed earlier run left in `out`, but it neither
+    /// reports how many nor returns the launcher's warnings (the memory a
+    /// step needs); a front end that shows them uses [`Launch`].
     pub fn open(
         manifest: &Path,
         out: &Path,
@@ -188,11 +192,8 @@ impl TrainingRun {
             processes: None,
             beginning: Beginning::default(),
         };
-        match launch.open() {
-            Ok(launched) => Ok((launched.run, launched.start)),
-            Err(LaunchError::Usage(message)) => Err(TrainError::Config(message)),
-            Err(LaunchError::Run(e)) => Err(e),
-        }
+        let launched = launch.open()?;
+        Ok((launched.run, launched.start))
     }
 
     /// The run the launcher opened: in `out`, with `config`, on `data`

@@ -1,5 +1,5 @@
-//! Where a run trains, as a strategy: one device ([`OneDevice`]), several
-//! devices of this process ([`Devices`]), or the ranks of an MPI job, each
+//! Where a run trains, as a strategy: the devices of this process, one or
+//! several ([`Devices`]), or the ranks of an MPI job, each
 //! on one device or several ([`Ranks`]). A strategy answers what differs
 //! between them: which items of each batch this process loads, whether it
 //! writes the run's files, how a stop is voted, how the weights are checked
@@ -46,40 +46,10 @@ pub trait Strategy<B: Backbone> {
     ) -> Result<StepReport, TrainError>;
 }
 
-/// One process on one device.
-pub struct OneDevice {
-    device: [Device; 1],
-}
-
-impl<B: Backbone> Strategy<B> for OneDevice {
-    fn devices(&self) -> &[Device] {
-        &self.device
-    }
-    fn items_loaded(&self, batch_size: usize) -> Range<usize> {
-        0..batch_size
-    }
-    fn writes(&self) -> bool {
-        true
-    }
-    fn stop_voted(&self, asked: bool) -> bool {
-        asked
-    }
-    fn check_same_weights(&self, _: [&B; 2], _: usize) -> Result<(), TrainError> {
-        Ok(())
-    }
-    fn step(
-        &self,
-        trainer: &mut S3Trainer<B>,
-        batch: StepBatch,
-        _: usize,
-    ) -> Result<StepReport, TrainError> {
-        trainer.step(batch)
-    }
-}
-
-/// One process on several devices: each takes a share of every batch and
-/// the gradients are summed on the first
-/// ([`InProcessSum`](crate::step::InProcessSum)).
+/// One process on one device or several: each takes a share of every
+/// batch and the gradients are summed on the first
+/// ([`InProcessSum`](crate::step::InProcessSum)); on one device, the step
+/// is [`S3Trainer::step`] ([`S3Trainer::step_parallel`] falls back to it).
 pub struct Devices {
     devices: Vec<Device>,
 }
@@ -147,7 +117,6 @@ impl<B: Backbone> Strategy<B> for Ranks {
             devices: &self.devices,
             items: batch_size,
             reduction: &self.reduction,
-            processes: Some(self.processes.as_ref()),
         };
         trainer.step_shared(batch, &sharing)
     }
@@ -182,15 +151,12 @@ pub fn place<B: Backbone>(
     }
     let named = devices.iter().map(|(name, device)| (name.clone(), device));
     check_support(config.trainer.precision, named)?;
-    let mut devices: Vec<Device> = devices.into_iter().map(|(_, device)| device).collect();
+    let devices: Vec<Device> = devices.into_iter().map(|(_, device)| device).collect();
     Ok(match processes {
         Some(processes) => Box::new(Ranks {
             devices,
             reduction: HostAllReduce::new(Rc::clone(&processes)),
             processes,
-        }),
-        None if devices.len() == 1 => Box::new(OneDevice {
-            device: [devices.remove(0)],
         }),
         None => Box::new(Devices { devices }),
     })

@@ -27,10 +27,9 @@ use crate::supervision::Supervision;
 use mbs_nets::host::read_all;
 use mbs_nets::{Backbone, predict};
 
-pub use crate::precision::MAX_SKIPPED_STEPS;
 pub use config::{TrainerConfig, sequence_weights};
 use objective::{LossValues, Objective};
-pub use reduce::{GradientReduction, HostAllReduce, InProcessSum, ShareGradients};
+pub use reduce::{GradientReduction, HostAllReduce, InProcessSum, LocalGradients, ShareGradients};
 pub use shares::Sharing;
 
 /// Why a batch of `items` cannot be shared by `sharers` devices or
@@ -175,6 +174,10 @@ impl<B: Backbone> S3Trainer<B> {
     }
 
     /// The maps of `batch` (predictions and masks) without a gradient step.
+    /// The geometry term weighs what the ramp gives it at the current step
+    /// ([`Self::geometry_weight`]), deliberately, as the next step would
+    /// (before the first step, the ramp's start); the weight only scales
+    /// the loss, which is not returned, so the maps do not depend on it.
     pub fn diagnose(&self, batch: StepBatch) -> Result<Diagnosis, TrainError> {
         let student = self.student.valid();
         let geometry_weight = self.geometry_weight();

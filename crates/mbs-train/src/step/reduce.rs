@@ -24,17 +24,61 @@ pub struct ShareGradients<B> {
     pub replica: B,
 }
 
-/// How the gradients of a step's shares become their sum.
+/// How the gradients of a step's shares become their sum, in two steps
+/// so that the processes can check, between them, that they are about to
+/// sum buffers of the same length: this process's sum
+/// ([`Self::local_sum`]), then the sum over the processes
+/// ([`Self::sum_over_processes`]). The reduction owns the processes it
+/// sums over, so that the processes that exchange loss values are always
+/// those whose gradients are summed.
 pub trait GradientReduction<B: Backbone> {
-    /// The sum, over every participant of the step, of the gradients of
-    /// `shares` (this process's, at least one), on `home` (the device of
-    /// `student`, the network the optimiser steps).
-    fn reduce(
+    /// The processes whose gradients this sums and that exchange their
+    /// loss values (`None`: this process alone).
+    fn processes(&self) -> Option<&dyn Collective>;
+    /// The sum of `shares` (this process's, at least one) on `home` (the
+    /// device of `student`, the network the optimiser steps), in the form
+    /// [`Self::sum_over_processes`] takes.
+    fn local_sum(
         &self,
         student: &B,
         shares: Vec<ShareGradients<B>>,
         home: &Device,
+    ) -> Result<LocalGradients, TrainError>;
+    /// The sum over every process of each one's `local` sum, as the
+    /// optimiser takes it.
+    fn sum_over_processes(
+        &self,
+        student: &B,
+        local: LocalGradients,
     ) -> Result<GradientsParams, TrainError>;
+}
+
+/// One process's sum of its shares' gradients.
+pub enum LocalGradients {
+    /// On the student's device: the sum of a process that trains alone.
+    OnDevice(GradientsParams),
+    /// Read back into one host buffer, ready for the processes' sum.
+    OnHost(FlatGradients),
+}
+
+impl LocalGradients {
+    /// The number of gradient values the processes are about to sum
+    /// (`None` on the device, where no process sums them further): every
+    /// process must have as many.
+    pub fn length(&self) -> Option<usize> {
+        match self {
+            Self::OnDevice(_) => None,
+            Self::OnHost(flat) => Some(flat.values.len()),
+        }
+    }
+
+    /// The gradients as they are, on the device.
+    fn into_device(self) -> GradientsParams {
+        match self {
+            Self::OnDevice(grads) => grads,
+            Self::OnHost(flat) => flat.into_grads(),
+        }
+    }
 }
 
 /// The shares of one process, summed on its first device: a lone share's
@@ -43,20 +87,32 @@ pub trait GradientReduction<B: Backbone> {
 pub struct InProcessSum;
 
 impl<B: Backbone> GradientReduction<B> for InProcessSum {
-    fn reduce(
+    fn processes(&self) -> Option<&dyn Collective> {
+        None
+    }
+
+    fn local_sum(
         &self,
         student: &B,
         mut shares: Vec<ShareGradients<B>>,
         home: &Device,
-    ) -> Result<GradientsParams, TrainError> {
+    ) -> Result<LocalGradients, TrainError> {
         if shares.len() == 1 {
-            return Ok(shares.remove(0).grads);
+            return Ok(LocalGradients::OnDevice(shares.remove(0).grads));
         }
         let mut sum = GradientsAccumulator::<B>::new();
         for share in shares {
             sum.accumulate(student, share.grads.to_device(home, &share.replica));
         }
-        Ok(sum.grads())
+        Ok(LocalGradients::OnDevice(sum.grads()))
+    }
+
+    fn sum_over_processes(
+        &self,
+        _: &B,
+        local: LocalGradients,
+    ) -> Result<GradientsParams, TrainError> {
+        Ok(local.into_device())
     }
 }
 
@@ -76,41 +132,34 @@ impl HostAllReduce {
 }
 
 impl<B: Backbone> GradientReduction<B> for HostAllReduce {
-    fn reduce(
+    fn processes(&self) -> Option<&dyn Collective> {
+        Some(self.processes.as_ref())
+    }
+
+    fn local_sum(
         &self,
         student: &B,
         shares: Vec<ShareGradients<B>>,
         home: &Device,
+    ) -> Result<LocalGradients, TrainError> {
+        let local = InProcessSum.local_sum(student, shares, home)?.into_device();
+        Ok(LocalGradients::OnHost(FlatGradients::gather(
+            student, &local,
+        )?))
+    }
+
+    fn sum_over_processes(
+        &self,
+        student: &B,
+        local: LocalGradients,
     ) -> Result<GradientsParams, TrainError> {
-        let local = InProcessSum.reduce(student, shares, home)?;
-        let mut flat = FlatGradients::gather(student, &local)?;
+        // This reduction's `local_sum` is always on the host; a sum handed
+        // over on the device is read back first, so that it is still summed.
+        let mut flat = match local {
+            LocalGradients::OnHost(flat) => flat,
+            LocalGradients::OnDevice(grads) => FlatGradients::gather(student, &grads)?,
+        };
         flat.sum_over(self.processes.as_ref());
         Ok(flat.into_grads())
-    }
-}
-
-/// The number of gradient values `grads` holds for `student`'s float
-/// parameters: what every process of a step must agree on before their
-/// gradients are summed.
-pub(super) fn gradient_length<B: Backbone>(student: &B, grads: &GradientsParams) -> usize {
-    let mut count = CountGradients { grads, length: 0 };
-    student.visit(&mut count);
-    count.length
-}
-
-/// Counts the gradient values of the parameters it visits.
-struct CountGradients<'a> {
-    grads: &'a GradientsParams,
-    length: usize,
-}
-
-impl burn::module::ModuleVisitor for CountGradients<'_> {
-    fn visit_float<const D: usize>(
-        &mut self,
-        param: &burn::module::Param<burn::tensor::Tensor<D>>,
-    ) {
-        if let Some(grad) = self.grads.get::<D>(param.id) {
-            self.length += grad.dims().iter().product::<usize>();
-        }
     }
 }

@@ -9,7 +9,7 @@
 use burn::tensor::Device;
 
 use super::objective::LossValues;
-use super::reduce::{GradientReduction, InProcessSum, ShareGradients, gradient_length};
+use super::reduce::{GradientReduction, InProcessSum, ShareGradients};
 use super::{S3Trainer, StepReport, unshareable};
 use crate::data::StepBatch;
 use crate::distributed::Collective;
@@ -23,11 +23,9 @@ pub struct Sharing<'a, B: Backbone> {
     pub devices: &'a [Device],
     /// The items of the whole step, over every process.
     pub items: usize,
-    /// How the shares' gradients are summed.
+    /// How the shares' gradients are summed, and over which processes
+    /// (those that exchange their loss values).
     pub reduction: &'a dyn GradientReduction<B>,
-    /// The processes the step is spread over (`None`: this one alone),
-    /// which exchange their loss values.
-    pub processes: Option<&'a dyn Collective>,
 }
 
 /// A share's gradients and loss values, its weight (its share of the
@@ -62,7 +60,6 @@ impl<B: Backbone> S3Trainer<B> {
             devices,
             items,
             reduction: &InProcessSum,
-            processes: None,
         };
         self.step_shared(batch, &sharing)
     }
@@ -72,8 +69,10 @@ impl<B: Backbone> S3Trainer<B> {
     /// holds share r of the step's, as [`mbs_batch::share`] deals them),
     /// split again over its devices. Every share's gradient is of its loss
     /// weighted by its share of all the step's items; the gradients are
-    /// summed by `sharing.reduction`, the processes exchange their loss
-    /// values (and check that they computed as many gradient values), and
+    /// summed by `sharing.reduction`: first on this process (read back
+    /// into one buffer when processes sum it), then the processes exchange
+    /// their loss values and check that their buffers are as long, then
+    /// the buffers are summed over the processes; and
     /// each process clips, steps the optimiser and updates its teacher
     /// identically, so the weights stay the same everywhere (see
     /// [`crate::distributed::check_same_weights`]). The report is the
@@ -83,7 +82,7 @@ impl<B: Backbone> S3Trainer<B> {
         batch: StepBatch,
         sharing: &Sharing<'_, B>,
     ) -> Result<StepReport, TrainError> {
-        if let Some(processes) = sharing.processes
+        if let Some(processes) = sharing.reduction.processes()
             && let Some(message) = unshareable(sharing.items, processes.size(), "processes")
         {
             return Err(TrainError::Distributed(message));
@@ -92,14 +91,29 @@ impl<B: Backbone> S3Trainer<B> {
         if let Some(message) = unshareable(local, sharing.devices.len(), "devices") {
             return Err(TrainError::Config(message));
         }
-        let shares = self.share_gradients(batch, sharing)?;
-        let values = match sharing.processes {
-            Some(processes) => self.exchange_values(&shares, processes)?,
-            None => local_values(&shares),
+        let (gradients, values): (Vec<_>, Vec<_>) = self
+            .share_gradients(batch, sharing)?
+            .into_iter()
+            .map(|share| (share.gradients, (share.values, share.weight)))
+            .unzip();
+        let reduction = sharing.reduction;
+        // Flattening may fail (reading back from the device): it comes
+        // before the gather, so that no rank waits in it for one that failed.
+        let local = reduction.local_sum(&self.student, gradients, &sharing.devices[0])?;
+        let values = match (reduction.processes(), local.length()) {
+            // A process of its own: its shares' values weighted by their
+            // share of the step's items (a lone share's weight is 1).
+            (None, _) => LossValues::weighted_sum(&values),
+            (Some(processes), Some(length)) => exchange_values(&values, length, processes)?,
+            (Some(_), None) => {
+                return Err(TrainError::Distributed(
+                    "the gradient reduction kept the gradients on the device, where the \
+                     processes cannot check that they sum as many"
+                        .into(),
+                ));
+            }
         };
-        let home = &sharing.devices[0];
-        let gradients = shares.into_iter().map(|share| share.gradients).collect();
-        let grads = sharing.reduction.reduce(&self.student, gradients, home)?;
+        let grads = reduction.sum_over_processes(&self.student, local)?;
         self.apply(grads, values)
     }
 
@@ -170,56 +184,45 @@ impl<B: Backbone> S3Trainer<B> {
             weight,
         })
     }
-
-    /// The whole step's loss values, from every process's shares: each
-    /// process sends its shares' values (combined, with their total
-    /// weight) and its gradient length, which must be the same everywhere
-    /// before the gradients are summed.
-    fn exchange_values(
-        &self,
-        shares: &[ShareResult<B>],
-        processes: &dyn Collective,
-    ) -> Result<LossValues, TrainError> {
-        let first = &shares[0].gradients;
-        let length = gradient_length(&self.student, &first.grads);
-        let weight: f64 = shares.iter().map(|share| share.weight).sum();
-        let mine = match shares {
-            [one] => one.values,
-            _ => LossValues::weighted_sum(&relative_to(shares, weight)),
-        };
-        let all = processes
-            .gather(&mine.encode(weight, length))
-            .iter()
-            .map(|bytes| LossValues::decode(bytes))
-            .collect::<Option<Vec<_>>>()
-            .ok_or_else(|| TrainError::Distributed("a rank sent unreadable loss values".into()))?;
-        if let Some(rank) = all.iter().position(|(_, _, len)| *len != length) {
-            return Err(TrainError::Distributed(format!(
-                "rank {rank} computed {} gradient values where rank {} computed {length}: the \
-                 processes do not train the same network",
-                all[rank].2,
-                processes.rank(),
-            )));
-        }
-        let weighted: Vec<_> = all.into_iter().map(|(v, w, _)| (v, w)).collect();
-        Ok(LossValues::weighted_sum(&weighted))
-    }
 }
 
-/// The loss values of a step that this process takes alone: a lone
-/// share's as they are, several shares' weighted sum.
-fn local_values<B>(shares: &[ShareResult<B>]) -> LossValues {
-    match shares {
-        [one] => one.values,
-        _ => LossValues::weighted_sum(&relative_to(shares, 1.0)),
+/// The whole step's loss values, from every process's shares: each
+/// process sends its shares' `values` (combined, with their total weight)
+/// and the `length` of its gradient buffer, which must be the same
+/// everywhere before the buffers are summed.
+fn exchange_values(
+    values: &[(LossValues, f64)],
+    length: usize,
+    processes: &dyn Collective,
+) -> Result<LossValues, TrainError> {
+    let weight: f64 = values.iter().map(|(_, weight)| weight).sum();
+    let mine = match values {
+        [(one, _)] => *one,
+        _ => LossValues::weighted_sum(&relative_to(values, weight)),
+    };
+    let all = processes
+        .gather(&mine.encode(weight, length))
+        .iter()
+        .map(|bytes| LossValues::decode(bytes))
+        .collect::<Option<Vec<_>>>()
+        .ok_or_else(|| TrainError::Distributed("a rank sent unreadable loss values".into()))?;
+    if let Some(rank) = all.iter().position(|(_, _, len)| *len != length) {
+        return Err(TrainError::Distributed(format!(
+            "rank {rank} computed {} gradient values where rank {} computed {length}: the \
+             processes do not train the same network",
+            all[rank].2,
+            processes.rank(),
+        )));
     }
+    let weighted: Vec<_> = all.into_iter().map(|(v, w, _)| (v, w)).collect();
+    Ok(LossValues::weighted_sum(&weighted))
 }
 
 /// Each share's values with its weight divided by `total`.
-fn relative_to<B>(shares: &[ShareResult<B>], total: f64) -> Vec<(LossValues, f64)> {
-    shares
+fn relative_to(values: &[(LossValues, f64)], total: f64) -> Vec<(LossValues, f64)> {
+    values
         .iter()
-        .map(|share| (share.values, share.weight / total))
+        .map(|(values, weight)| (*values, weight / total))
         .collect()
 }
 

@@ -16,7 +16,7 @@ use mbs_nets::device::DeviceList;
 use mbs_train::RunConfig;
 use mbs_train::checkpoint::Checkpoint;
 use mbs_train::distributed::Collective;
-use mbs_train::launch::{Launch, LaunchError, Launched, ReportedByRankZero, Stopped, settle};
+use mbs_train::launch::{Launch, Launched, ReportedByRankZero, Stopped, settle};
 use mbs_train::precision::Precision;
 use mbs_train::run::{Beginning, End, Quiet, Start, TrainingRun, computing_differences};
 
@@ -304,12 +304,7 @@ fn launch_run(launch: Launch<'_>) -> anyhow::Result<(TrainingRun, Start)> {
         start,
         warnings,
         removed_partials,
-    } = launch.open().map_err(|e| match e {
-        // Settings the devices cannot run (more sharers than batch items,
-        // no device) are usage errors.
-        LaunchError::Usage(message) => anyhow::Error::new(crate::cli::UsageError(message)),
-        LaunchError::Run(e) => e.into(),
-    })?;
+    } = launch.open()?;
     for warning in warnings {
         eprintln!("warning: {warning}");
     }
