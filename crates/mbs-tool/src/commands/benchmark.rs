@@ -235,16 +235,19 @@ impl FrameLists {
             shared: None,
         };
         for spec in specs {
-            let bound = spec
-                .split_once('=')
-                .filter(|(dir, _)| folders.iter().any(|(_, d)| d.as_path() == Path::new(dir)));
+            let bound = spec.split_once('=').and_then(|(dir, file)| {
+                let folder = folders
+                    .iter()
+                    .find(|(_, d)| same_folder(d, Path::new(dir)))?;
+                Some((&folder.1, file))
+            });
             match bound {
-                Some((dir, file)) => {
-                    if lists.bound.iter().any(|(d, _)| d == Path::new(dir)) {
-                        bail!("--frames: two lists for the folder {dir}");
+                Some((folder, file)) => {
+                    if lists.bound.iter().any(|(d, _)| d == folder) {
+                        bail!("--frames: two lists for the folder {}", folder.display());
                     }
                     let list = FrameList::read(Path::new(file))?;
-                    lists.bound.push((PathBuf::from(dir), list));
+                    lists.bound.push((folder.clone(), list));
                 }
                 None if lists.shared.is_some() => {
                     bail!(
@@ -289,6 +292,12 @@ impl FrameLists {
         }
         Ok(())
     }
+}
+
+/// Whether `a` and `b` name one folder, however spelled (`k`, `./k`, a
+/// link to it): the same path, or the same path once resolved.
+fn same_folder(a: &Path, b: &Path) -> bool {
+    a == b || matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b)
 }
 
 /// The protocol's headline figure (percent) of `region` in a column, if
@@ -374,4 +383,34 @@ fn write_json(path: &Path, value: &Value) -> anyhow::Result<()> {
     let text = format!("{value:#}\n");
     write_bytes_atomic(path, text.as_bytes())
         .with_context(|| format!("writing the per-image scores to {}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_frame_list_binds_to_its_folder_however_the_folder_is_spelled() {
+        let dir = tempfile::tempdir().unwrap();
+        let kitti = dir.path().join("k15");
+        std::fs::create_dir(&kitti).unwrap();
+        let list = dir.path().join("one.txt");
+        std::fs::write(&list, "000001_10\n").unwrap();
+        let folders = [(Benchmark::Kitti, kitti.clone())];
+        let spelled = dir.path().join(".").join("k15");
+        let spec = format!("{}={}", spelled.display(), list.display());
+        let lists = FrameLists::read(std::slice::from_ref(&spec), &folders).unwrap();
+        assert!(lists.shared.is_none());
+        assert_eq!(
+            lists.for_folder(&kitti).map(|l| &l.names[..]),
+            Some(&["000001_10".to_string()][..])
+        );
+        let twice = FrameLists::read(&[spec.clone(), spec], &folders)
+            .err()
+            .unwrap();
+        assert!(
+            twice.to_string().contains("two lists for the folder"),
+            "{twice}"
+        );
+    }
 }
