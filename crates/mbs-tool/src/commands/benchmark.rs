@@ -64,9 +64,9 @@ pub struct Args {
     #[arg(long, default_value = "s3")]
     pub protocol: Protocol,
     /// Score only the frames a file names, one a line (blank lines and #
-    /// comments ignored): DIR=FILE for the folder DIR (as given to its
-    /// flag), FILE for every folder without one of its own (each name must
-    /// be in one of them). May be repeated.
+    /// comments ignored): DIR=FILE for the folder DIR (one given to a
+    /// folder flag, however spelled), FILE for every folder without one of
+    /// its own (each name must be in one of them). May be repeated.
     #[arg(long, value_name = "[DIR=]FILE")]
     pub frames: Vec<String>,
     /// Print JSON instead of the tables.
