@@ -91,6 +91,23 @@ fn open_without_blocking(path: &Path, options: &mut fs::OpenOptions) -> std::io:
     options.open(path)
 }
 
+/// Why `path`, the user's `what` (e.g. "left view", "manifest"), cannot
+/// be read as a file before any work starts: it is a folder or does not
+/// exist; `None` when it is a file. The message names the path, as the
+/// commands print it.
+pub fn not_a_file(path: &Path, what: &str) -> Option<String> {
+    if path.is_dir() {
+        Some(format!(
+            "{}: is a folder, the {what} must be a file",
+            path.display()
+        ))
+    } else if !path.is_file() {
+        Some(format!("{}: no such file (the {what})", path.display()))
+    } else {
+        None
+    }
+}
+
 /// What a file that is not a regular file is, in words: "a folder", "a
 /// FIFO (named pipe)", …
 pub fn describe(kind: &fs::FileType) -> &'static str {

@@ -56,13 +56,10 @@ pub fn prepare_out(dir: &std::path::Path) -> anyhow::Result<()> {
 
 /// Checks that an input `path` given as `what` (e.g. "left view") is a file.
 pub fn require_file(path: &std::path::Path, what: &str) -> anyhow::Result<()> {
-    if path.is_dir() {
-        anyhow::bail!("{}: is a folder, the {what} must be a file", path.display());
+    match mbs_core::regular::not_a_file(path, what) {
+        Some(message) => anyhow::bail!(message),
+        None => Ok(()),
     }
-    if !path.is_file() {
-        anyhow::bail!("{}: no such file (the {what})", path.display());
-    }
-    Ok(())
 }
 
 /// Sets the number of worker threads (0 = one per core).

@@ -142,11 +142,7 @@ impl Launch<'_> {
         let checked = crate::memory::check(&self.config, names);
         let checked = match self.processes.as_deref() {
             None => checked?,
-            Some(processes) => {
-                let outcome = checked.as_ref().map(drop).map_err(ToString::to_string);
-                all_succeeded(processes, outcome)?;
-                checked?
-            }
+            Some(processes) => all_succeeded(processes, checked)?,
         };
         Ok(match writes {
             true => checked.into_iter().collect(),
@@ -158,18 +154,8 @@ impl Launch<'_> {
     /// exist or that `restart` would remove: the run's own folder or one
     /// of its checkpoints.
     fn check_inputs(&self) -> Result<(), TrainError> {
-        let manifest = self.manifest;
-        if manifest.is_dir() {
-            return Err(TrainError::Input(format!(
-                "{}: is a folder, the manifest must be a file",
-                manifest.display()
-            )));
-        }
-        if !manifest.is_file() {
-            let shown = manifest.display();
-            return Err(TrainError::Input(format!(
-                "{shown}: no such file (the manifest)"
-            )));
+        if let Some(message) = mbs_core::regular::not_a_file(self.manifest, "manifest") {
+            return Err(TrainError::Input(message));
         }
         let Some(init) = self.beginning.init else {
             return Ok(());
