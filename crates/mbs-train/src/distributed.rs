@@ -67,19 +67,20 @@ pub fn agree(collective: &dyn Collective, what: &Value) -> Result<(), TrainError
 }
 
 /// Turns an outcome that may differ between ranks (opening this rank's
-/// device) into one every rank shares: `Ok` when it succeeded everywhere,
-/// else an error on every rank naming the first rank that failed and why.
-pub fn all_succeeded(
+/// device) into one every rank shares: this rank's value when it
+/// succeeded everywhere, else an error on every rank naming the first
+/// rank that failed and why.
+pub fn all_succeeded<T, E: std::fmt::Display>(
     collective: &dyn Collective,
-    outcome: Result<(), String>,
-) -> Result<(), TrainError> {
+    outcome: Result<T, E>,
+) -> Result<T, TrainError> {
     let mine = match &outcome {
-        Ok(()) => Vec::new(),
-        Err(message) => message.as_bytes().to_vec(),
+        Ok(_) => Vec::new(),
+        Err(error) => error.to_string().into_bytes(),
     };
     let all = collective.gather(&mine);
     match all.iter().position(|bytes| !bytes.is_empty()) {
-        None => Ok(()),
+        None => outcome.map_err(|e| TrainError::Distributed(e.to_string())),
         Some(rank) => Err(TrainError::Distributed(format!(
             "rank {rank} of {}: {}",
             all.len(),
@@ -354,11 +355,11 @@ mod tests {
 
     #[test]
     fn one_rank_failing_fails_every_rank_with_its_reason() {
-        let fine = on_ranks(2, |rank| all_succeeded(rank, Ok(())));
+        let fine = on_ranks(2, |rank| all_succeeded(rank, Ok::<(), String>(())));
         assert!(fine.iter().all(Result::is_ok), "{fine:?}");
         let one_fails = on_ranks(3, |rank| match rank.rank() {
-            1 => all_succeeded(rank, Err("cuda:1: no such device".into())),
-            _ => all_succeeded(rank, Ok(())),
+            1 => all_succeeded(rank, Err::<(), String>("cuda:1: no such device".into())),
+            _ => all_succeeded(rank, Ok::<(), String>(())),
         });
         for result in one_fails {
             let message = result.expect_err("refused").to_string();

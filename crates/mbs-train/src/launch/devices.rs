@@ -21,10 +21,8 @@ pub(super) fn open(
         return Ok((list.names(), list.open()?));
     };
     let mine = list.of_rank(processes.local_rank());
-    let opened = mine.open();
-    let outcome = opened.as_ref().map(drop).map_err(ToString::to_string);
-    all_succeeded(processes, outcome)?;
-    Ok((mine.names(), opened?))
+    let opened = all_succeeded(processes, mine.open())?;
+    Ok((mine.names(), opened))
 }
 
 #[cfg(test)]
