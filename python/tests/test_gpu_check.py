@@ -9,7 +9,11 @@ Both delete only what they made: prepare.sh refuses an existing OUT (with
 --force it replaces only a bundle of its own), never touches OUT.partial,
 takes relative paths from the caller's folder and checks every input before
 building; run.py unpacks its binaries under a temporary name and renames
-them when complete, and refuses a broken archive in one line.
+them when complete, and refuses a broken archive in one line. Both keep
+results: a second run.py into the same --out merges into its results.json
+and gpu_samples.csv (a stub mbs-tool stands in, no build needed), and
+run.py writes nothing through a link, each file under a fresh temporary
+name renamed when complete.
 """
 
 from __future__ import annotations
@@ -346,3 +350,223 @@ def test_run_leaves_a_binary_it_did_not_unpack_alone(tmp_path: Path) -> None:
     assert f"{folder / 'mbs-tool'} is not mbs-tool.xz's content" in line and "--binary" in line, line
     assert (folder / "mbs-tool").read_bytes() == users
     assert sorted(p.name for p in folder.iterdir()) == ["mbs-tool", "mbs-tool.xz", "run.py"]
+
+
+# run.py keeps results (issue 57): a second run into --out merges into its
+# results.json and gpu_samples.csv, and no write follows a link.
+
+RUN = ROOT / "tools" / "gpu" / "run.py"
+
+# An mbs-tool that trains in no time: `train` writes a train.jsonl of its
+# steps (fails when a file fail-BACKBONE lies beside it), `synth` a manifest.
+STUB_TOOL = """
+import json, sys
+from pathlib import Path
+
+args = sys.argv[1:]
+out = Path(args[args.index("--out") + 1])
+if args[0] == "train":
+    backbone = args[args.index("--backbone") + 1]
+    if (Path(__file__).parent / f"fail-{backbone}").exists():
+        sys.exit(f"stub: {backbone} fails")
+    out.mkdir(parents=True, exist_ok=True)
+    steps = range(int(args[args.index("--steps") + 1]))
+    lines = [{"step": s, "loss": 1 / (s + 1), "grad_norm": 2.0, "samples_per_s": 10.0 + s} for s in steps]
+    (out / "train.jsonl").write_text("".join(json.dumps(line) + "\\n" for line in lines))
+elif args[0] == "synth":
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "manifest.json").write_text("{}\\n")
+"""
+
+# An nvidia-smi with one GPU, so that gpu_samples.csv is written.
+FAKE_NVIDIA_SMI = """#!/bin/sh
+case "$*" in
+    *memory.used*) echo "1234, 56" ;;
+    -L) echo "GPU 0: stub" ;;
+    *) echo "999.9" ;;
+esac
+"""
+
+
+def stub_tools(tmp_path: Path) -> tuple[Path, dict[str, str]]:
+    """The stub mbs-tool, and an environment with the fake nvidia-smi."""
+    folder = tmp_path / "tools"
+    folder.mkdir()
+    tool = folder / "mbs-tool"
+    tool.write_text(f"#!{sys.executable}\n{STUB_TOOL}")
+    (folder / "nvidia-smi").write_text(FAKE_NVIDIA_SMI)
+    for script in folder.iterdir():
+        script.chmod(0o755)
+    return tool, dict(os.environ, PATH=f"{folder}{os.pathsep}{os.environ['PATH']}")
+
+
+def run_check(
+    tool: Path, env: dict[str, str], out: Path, phases: str, device: str = "cpu"
+) -> subprocess.CompletedProcess[str]:
+    argv = [sys.executable, str(RUN), "--device", device, "--small", "--binary", str(tool), "--out", str(out)]
+    return subprocess.run([*argv, "--phases", phases], capture_output=True, text=True, timeout=300, env=env)
+
+
+def entry_text(results: str, name: str) -> str:
+    """The lines of a phase's entry in results.json, as written."""
+    lines = results.splitlines()
+    start = lines.index(f'    "{name}": {{')
+    end = next(i for i in range(start, len(lines)) if lines[i] in ("    }", "    },"))
+    return "\n".join(lines[start:end] + ["    }"])
+
+
+def snapshot(folder: Path) -> dict[str, object]:
+    """Every path under `folder`: a file's bytes, a link's target, or None
+    for a folder."""
+    found: dict[str, object] = {}
+    for path in sorted(folder.rglob("*")):
+        name = str(path.relative_to(folder))
+        found[name] = os.readlink(path) if path.is_symlink() else path.read_bytes() if path.is_file() else None
+    return found
+
+
+def test_a_second_run_keeps_the_first_runs_phases(tmp_path: Path) -> None:
+    tool, env = stub_tools(tmp_path)
+    out = tmp_path / "results"
+    (tool.parent / "fail-raft-stereo").write_text("")
+    first = run_check(tool, env, out, "compact,raft-stereo")
+    assert first.returncode == 1 and "stub: raft-stereo fails" in first.stdout, first.stdout + first.stderr
+    before = (out / "results.json").read_text()
+    samples = (out / "gpu_samples.csv").read_text()
+    log = (out / "logs" / "compact-device.log").read_bytes()
+    assert json.loads(before)["phases"]["raft-stereo"]["status"] == "failed"
+    assert samples.startswith("time_s,memory_used_mib,utilization_percent\n") and ",1234,56\n" in samples
+
+    (tool.parent / "fail-raft-stereo").unlink()
+    second = run_check(tool, env, out, "raft-stereo")
+    assert second.returncode == 0, second.stdout + second.stderr
+    after = (out / "results.json").read_text()
+    results = json.loads(after)
+    assert list(results["phases"]) == ["environment", "probe", "compact", "raft-stereo"]
+    assert entry_text(after, "compact") == entry_text(before, "compact")
+    assert results["phases"]["compact"]["run"] == 1 and "finished" in results["phases"]["compact"]
+    for name in ["environment", "probe", "raft-stereo"]:
+        assert results["phases"][name]["run"] == 2 and results["phases"][name]["status"] == "ok", name
+    assert [(run["run"], run["phases"]) for run in results["runs"]] == [
+        (1, ["environment", "probe", "compact", "raft-stereo"]),
+        (2, ["environment", "probe", "raft-stereo"]),
+    ]
+    assert all(run["started"] and run["binary"] == str(tool) for run in results["runs"])
+    assert (out / "logs" / "compact-device.log").read_bytes() == log
+    newer = (out / "gpu_samples.csv").read_text()
+    assert newer.startswith(samples) and len(newer.splitlines()) > len(samples.splitlines())
+    assert newer.count("time_s") == 1
+    assert "(run 1) loss within" in second.stdout, second.stdout
+    assert not [p.name for p in out.rglob("*.partial")]
+
+
+@pytest.mark.parametrize(
+    "results, device, message",
+    [
+        (None, "vulkan", "holds a run with --device cpu --small"),
+        ('{"mine": true}\n', "cpu", "is not a results.json of run.py"),
+        ("not json\n", "cpu", "is not a results.json of run.py"),
+    ],
+    ids=["other-device", "other-json", "not-json"],
+)
+def test_run_refuses_results_it_cannot_merge_with_and_changes_nothing(
+    tmp_path: Path, results: str | None, device: str, message: str
+) -> None:
+    tool, env = stub_tools(tmp_path)
+    out = tmp_path / "results"
+    assert run_check(tool, env, out, "probe").returncode == 0
+    if results is not None:
+        (out / "results.json").write_text(results)
+    before = snapshot(out)
+    done = run_check(tool, env, out, "probe", device=device)
+    assert done.returncode == 2, done.stdout + done.stderr
+    line = one_line(done.stderr)
+    assert line.startswith(f"run.py: {out / 'results.json'} ") and message in line, line
+    assert snapshot(out) == before
+
+
+def test_run_merges_into_a_results_json_of_an_older_run_py(tmp_path: Path) -> None:
+    tool, env = stub_tools(tmp_path)
+    out = tmp_path / "results"
+    out.mkdir()
+    figures = {"loss_relative_error": 0.0, "grad_norm_relative_error": 0.0}
+    compact = {"status": "ok", "figures": figures, "seconds": 1.0}
+    older = {"device": "cpu", "small": True, "binary": "/old/mbs-tool", "autotune_binary": None, "phases": {}}
+    older["phases"] = {"compact": compact}
+    (out / "results.json").write_text(json.dumps(older, indent=2) + "\n")
+    done = run_check(tool, env, out, "probe")
+    assert done.returncode == 0, done.stdout + done.stderr
+    results = json.loads((out / "results.json").read_text())
+    assert results["phases"]["compact"] == compact
+    assert [(run["run"], run["binary"], run["phases"]) for run in results["runs"]] == [
+        (1, "/old/mbs-tool", ["compact"]),
+        (2, str(tool), ["environment", "probe"]),
+    ]
+
+
+@pytest.mark.parametrize("name", ["results.json", "gpu_samples.csv", "logs", "logs/probe.log", "lib"])
+def test_run_refuses_a_link_in_out_before_writing_anything(tmp_path: Path, name: str) -> None:
+    tool, env = stub_tools(tmp_path)
+    out = tmp_path / "results"
+    assert run_check(tool, env, out, "probe").returncode == 0
+    elsewhere = tmp_path / "elsewhere"
+    if name in ("logs", "lib"):
+        elsewhere.mkdir()
+        (elsewhere / "probe.log").write_text("mine\n")
+    else:
+        elsewhere.write_text("mine\n")
+    path = out / name
+    if path.is_dir():
+        shutil.rmtree(path)
+    elif path.exists():
+        path.unlink()
+    path.symlink_to(elsewhere)
+    before, theirs = snapshot(out), snapshot(tmp_path / "tools")
+    done = run_check(tool, env, out, "probe")
+    assert done.returncode == 2, done.stdout + done.stderr
+    expected = f"run.py: {path} is a symbolic link: run.py writes nothing through a link"
+    assert one_line(done.stderr) == f"{expected}; move it away, or choose another --out"
+    assert snapshot(out) == before and snapshot(tmp_path / "tools") == theirs
+    if elsewhere.is_dir():
+        assert [p.name for p in elsewhere.iterdir()] == ["probe.log"]
+        assert (elsewhere / "probe.log").read_text() == "mine\n"
+    else:
+        assert elsewhere.read_text() == "mine\n"
+
+
+def test_run_writes_under_a_fresh_temporary_name_not_through_a_link(tmp_path: Path) -> None:
+    tool, env = stub_tools(tmp_path)
+    out = tmp_path / "results"
+    out.mkdir()
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.write_text("mine\n")
+    # The name an older run.py wrote results.json under before renaming it.
+    (out / "results.json.partial").symlink_to(elsewhere)
+    done = run_check(tool, env, out, "probe")
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert elsewhere.read_text() == "mine\n"
+    assert os.readlink(out / "results.json.partial") == str(elsewhere)
+    assert json.loads((out / "results.json").read_text())["phases"]["probe"]["status"] == "ok"
+    assert not (out / "results.json").is_symlink()
+    assert sorted(p.name for p in out.iterdir()) == [
+        "data",
+        "gpu_samples.csv",
+        "logs",
+        "results.json",
+        "results.json.partial",
+        "runs",
+    ]
+
+
+def test_run_refuses_a_link_at_the_unpack_stamp_and_unpacks_nothing(tmp_path: Path) -> None:
+    folder = bundle_with(tmp_path, lzma.compress(FAKE_TOOL))
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.write_text("mine\n")
+    (folder / ".mbs-tool.unpacked").symlink_to(elsewhere)
+    done = run_bundle(folder, tmp_path / "results")
+    assert done.returncode == 2, done.stdout + done.stderr
+    line = one_line(done.stderr)
+    assert line.startswith(f"run.py: {folder / '.mbs-tool.unpacked'} is a symbolic link") and "--binary" in line
+    assert elsewhere.read_text() == "mine\n" and os.readlink(folder / ".mbs-tool.unpacked") == str(elsewhere)
+    assert sorted(p.name for p in folder.iterdir()) == [".mbs-tool.unpacked", "mbs-tool.xz", "run.py"]
+    assert not (tmp_path / "results").exists()

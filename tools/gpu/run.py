@@ -29,7 +29,22 @@ the run with a diagnosis:
 
 Everything goes to --out as it happens: results.json (rewritten after each
 phase), logs/ (each command's output), gpu_samples.csv (nvidia-smi every
-half second); a short table is printed last. `--device cpu --small` runs
+half second); a short table is printed last.
+
+A second run into the same --out (say `--phases igev` after a failure)
+merges into its results: the phases run now (environment and probe always
+run) replace those phases' entries, every other entry is kept as it was,
+and gpu_samples.csv keeps the earlier rows. results.json lists the runs
+("runs": number, start, binaries, phases run) and each phase entry names
+its run and when it finished ("run", "finished"). A results.json of
+another --device or --small, or not run.py's, is refused (exit 2): choose
+another --out. run.py writes no file through a symbolic link: a link at
+results.json, gpu_samples.csv, logs/, lib/ or a log is refused (exit 2, a
+line naming it) before anything is written, and every file it writes is
+made under a temporary name beside it and renamed when complete. What the
+mbs-tool commands write (data/, runs/, predict/) follows their own rules.
+
+`--device cpu --small` runs
 every phase on the CPU at small sizes (CI runs it so that it cannot rot);
 the official code's parts need `official/RAFT-Stereo` and
 `official/IGEV-Stereo` beside this script (prepare.sh puts them there) and
@@ -49,6 +64,11 @@ import threading
 import time
 from pathlib import Path
 
+# The permissions a file gets from open() (mkstemp makes 0600), read while
+# the process has one thread.
+UMASK = os.umask(0)
+os.umask(UMASK)
+
 HERE = Path(__file__).resolve().parent
 # In the prepared folder the benchmarks and the test pair lie beside this
 # script; in the repository, in tools/bench and testdata.
@@ -60,23 +80,131 @@ class PhaseError(Exception):
     """A phase's failure, with what it found."""
 
 
-class Check:
-    """The run: its settings, environment, output folder and results."""
+class Refused(Exception):
+    """A path in --out that run.py will not write: a link, or not what it
+    writes there."""
 
-    def __init__(self, args):
+
+def writable(path, kind="file", other="choose another --out"):
+    """Refused when `path` is a symbolic link, or is there and is not a
+    `kind` ("file": a regular file, or "folder"); the message ends with the
+    `other` way out."""
+    if path.is_symlink():
+        raise Refused(f"{path} is a symbolic link: run.py writes nothing through a link; move it away, or {other}")
+    if path.exists() and not (path.is_dir() if kind == "folder" else path.is_file()):
+        raise Refused(f"{path} is in the way: run.py writes a {kind} there; move it away, or {other}")
+
+
+def make_folder(path):
+    """`path` as a folder (made when absent); Refused when it is a link or
+    not a folder."""
+    try:
+        path.mkdir()
+    except FileExistsError:
+        writable(path, "folder")
+
+
+def write_file(path, text):
+    """Writes `text` to `path` under a temporary name beside it (made anew,
+    so never through a link) and renames it over `path` when complete:
+    Refused when `path` is a link or not a file; the temporary file is
+    removed on failure."""
+    writable(path)
+    descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".partial")
+    try:
+        os.fchmod(descriptor, 0o666 & ~UMASK)
+        with os.fdopen(descriptor, "w") as target:
+            target.write(text)
+        os.replace(temporary, path)
+    finally:
+        if os.path.lexists(temporary):
+            os.unlink(temporary)
+
+
+def check_output(args):
+    """Every check of --out, before anything is written: the folders and
+    files run.py writes there are absent or real folders and files (no
+    links), and a results.json there is one a run of this --device and
+    --small size can merge into. Its results ({} when none) and samples."""
+    out = args.out.resolve()
+    writable(out, "folder")
+    for path, kind in [(out / "logs", "folder"), (out / "lib", "folder"), (out / "gpu_samples.csv", "file")]:
+        writable(path, kind)
+    if (out / "logs").is_dir():
+        for log in sorted((out / "logs").glob("*.log")):
+            writable(log)
+    refuse_foreign_nccl_link(out / "lib" / "libnccl.so")
+    samples = out / "gpu_samples.csv"
+    return previous_results(out / "results.json", args), samples.read_text() if samples.exists() else ""
+
+
+def previous_results(path, args):
+    """The results at `path` that this run merges into ({} when none);
+    Refused when they are not run.py's, or of another --device or size."""
+    writable(path)
+    if not path.exists():
+        return {}
+    try:
+        results = json.loads(path.read_text())
+    except (OSError, ValueError) as error:
+        raise Refused(f"{path} is not a results.json of run.py ({error}): move it away, or choose another "
+                      "--out") from None
+    if not isinstance(results, dict) or not isinstance(results.get("phases"), dict):
+        raise Refused(f"{path} is not a results.json of run.py (no phases): move it away, or choose another --out")
+    if [results.get("device"), results.get("small")] != [args.device, args.small]:
+        raise Refused(f"{path} holds a run with --device {results.get('device')}"
+                      f"{' --small' if results.get('small') else ''}, which this run's results would be mixed "
+                      "with: choose another --out")
+    return results
+
+
+def refuse_foreign_nccl_link(path):
+    """Refused when something is at `path` other than a link to a
+    libnccl.so.2, which environment() makes there."""
+    ours = path.is_symlink() and Path(os.readlink(path)).name == "libnccl.so.2"
+    if (path.exists() or path.is_symlink()) and not ours:
+        raise Refused(f"{path} is not the link to libnccl.so.2 run.py makes: move it away, or choose another --out")
+
+
+def now():
+    """The local time, to the second, with its offset from UTC."""
+    return time.strftime("%Y-%m-%dT%H:%M:%S%z")
+
+
+class Check:
+    """The run: its settings, environment, output folder and results (the
+    previous run's in --out, merged)."""
+
+    def __init__(self, args, previous):
         self.args = args
         self.out = args.out.resolve()
         self.logs = self.out / "logs"
-        self.logs.mkdir(parents=True, exist_ok=True)
+        self.out.parent.mkdir(parents=True, exist_ok=True)
+        make_folder(self.out)
+        make_folder(self.logs)
         self.env = dict(os.environ)
-        self.results = {"device": args.device, "small": args.small, "binary": str(args.binary),
-                        "autotune_binary": args.autotune_binary and str(args.autotune_binary), "phases": {}}
+        runs = earlier_runs(previous)
+        self.run = {"run": len(runs) + 1, "started": now(), "binary": str(args.binary),
+                    "autotune_binary": args.autotune_binary and str(args.autotune_binary), "phases": []}
+        self.results = {"device": args.device, "small": args.small, "runs": runs + [self.run],
+                        "phases": dict(previous.get("phases", {}))}
         self.sampler = None
 
+    def record(self, name, record):
+        """Records a phase of this run (replacing an earlier run's entry for
+        it) and saves the results."""
+        record.update(run=self.run["run"], finished=now())
+        self.results["phases"][name] = record
+        self.run["phases"].append(name)
+        self.save()
+
     def save(self):
-        partial = self.out / "results.json.partial"
-        partial.write_text(json.dumps(self.results, indent=2) + "\n")
-        partial.replace(self.out / "results.json")
+        """results.json, with the phases in their running order."""
+        phases = self.results["phases"]
+        known = [name for name, _, _ in PHASES]
+        order = sorted(phases, key=lambda name: known.index(name) if name in known else len(known))
+        self.results["phases"] = {name: phases[name] for name in order}
+        write_file(self.out / "results.json", json.dumps(self.results, indent=2) + "\n")
 
     def command(self, name, argv, timeout, env=None):
         """Runs argv with its output in logs/NAME.log; its stdout, or a
@@ -87,11 +215,11 @@ class Check:
             done = subprocess.run([str(a) for a in argv], capture_output=True, text=True, timeout=timeout,
                                   env=env or self.env)
         except subprocess.TimeoutExpired as error:
-            log.write_text(f"$ {' '.join(map(str, argv))}\n(timed out after {timeout} s)\n{error.stdout or ''}"
-                           f"{error.stderr or ''}")
+            write_file(log, f"$ {' '.join(map(str, argv))}\n(timed out after {timeout} s)\n"
+                       f"{text(error.stdout)}{text(error.stderr)}")
             raise PhaseError(f"{name}: timed out after {timeout} s (logs/{name}.log)") from None
-        log.write_text(f"$ {' '.join(map(str, argv))}\n({time.time() - start:.1f} s, exit {done.returncode})\n"
-                       f"--- stdout\n{done.stdout}\n--- stderr\n{done.stderr}")
+        write_file(log, f"$ {' '.join(map(str, argv))}\n({time.time() - start:.1f} s, exit {done.returncode})\n"
+                   f"--- stdout\n{done.stdout}\n--- stderr\n{done.stderr}")
         if done.returncode != 0:
             tail = "\n".join((done.stdout + done.stderr).strip().splitlines()[-6:])
             raise PhaseError(f"{name}: exit {done.returncode} (logs/{name}.log):\n{tail}")
@@ -105,29 +233,67 @@ class Check:
         return self.sampler.peak_since(since) if self.sampler else None
 
 
+def text(output):
+    """A timed-out command's output so far: TimeoutExpired gives bytes
+    even when the command ran with text=True."""
+    if isinstance(output, bytes):
+        return output.decode(errors="replace")
+    return output or ""
+
+
+def earlier_runs(previous):
+    """The runs recorded in a previous results.json; one written before
+    run.py recorded its runs counts as run 1, with the phases it holds."""
+    if "runs" in previous or not previous.get("phases"):
+        return list(previous.get("runs", []))
+    return [{"run": 1, "started": None, "binary": previous.get("binary"),
+             "autotune_binary": previous.get("autotune_binary"), "phases": list(previous["phases"])}]
+
+
 class GpuSampler(threading.Thread):
     """nvidia-smi's memory and utilisation every half second, into
-    gpu_samples.csv and memory for the phases' peaks."""
+    gpu_samples.csv after the earlier runs' rows (the file is written anew
+    every ten seconds and at the end) and into memory for the phases'
+    peaks."""
 
-    def __init__(self, path):
+    HEADER = "time_s,memory_used_mib,utilization_percent\n"
+
+    def __init__(self, path, earlier):
         super().__init__(daemon=True)
-        self.path, self.samples, self.stop = path, [], threading.Event()
+        self.path, self.samples, self.stop, self.error = path, [], threading.Event(), None
+        self.rows = [earlier + ("" if earlier.endswith("\n") else "\n") if earlier else self.HEADER]
 
     def run(self):
-        query = ["nvidia-smi", "--query-gpu=memory.used,utilization.gpu", "--format=csv,noheader,nounits"]
-        with open(self.path, "w") as csv:
-            csv.write("time_s,memory_used_mib,utilization_percent\n")
-            while not self.stop.is_set():
-                try:
-                    line = subprocess.run(query, capture_output=True, text=True, timeout=5).stdout.splitlines()[0]
-                    memory, utilisation = (float(v) for v in line.split(","))
-                except (OSError, IndexError, ValueError, subprocess.TimeoutExpired):
-                    return
-                now = time.time()
-                self.samples.append((now, memory))
-                csv.write(f"{now:.2f},{memory:.0f},{utilisation:.0f}\n")
-                csv.flush()
+        try:
+            while not self.stop.is_set() and self.sample():
+                if len(self.samples) % 20 == 0:
+                    self.write()
                 self.stop.wait(0.5)
+            self.write()
+        except (OSError, Refused) as error:
+            self.error = str(error)
+
+    def sample(self):
+        """One reading of nvidia-smi's; False when it gives none."""
+        query = ["nvidia-smi", "--query-gpu=memory.used,utilization.gpu", "--format=csv,noheader,nounits"]
+        try:
+            line = subprocess.run(query, capture_output=True, text=True, timeout=5).stdout.splitlines()[0]
+            memory, utilisation = (float(v) for v in line.split(","))
+        except (OSError, IndexError, ValueError, subprocess.TimeoutExpired):
+            return False
+        when = time.time()
+        self.samples.append((when, memory))
+        self.rows.append(f"{when:.2f},{memory:.0f},{utilisation:.0f}\n")
+        return True
+
+    def write(self):
+        write_file(self.path, "".join(self.rows))
+
+    def finish(self):
+        """Stops the sampling; the last write's error, if any."""
+        self.stop.set()
+        self.join()
+        return self.error
 
     def peak_since(self, since):
         used = [memory for when, memory in self.samples if when >= since]
@@ -188,12 +354,8 @@ def environment(check):
     # gradients through the host, so this matters only to cubecl.
     nccl = sorted(glob.glob(f"{roots[0]}/nvidia/nccl/lib/libnccl.so.2")) if roots else []
     if nccl:
-        links = check.out / "lib"
-        links.mkdir(exist_ok=True)
-        link = links / "libnccl.so"
-        if not link.exists():
-            link.symlink_to(nccl[0])
-        libs.append(str(links))
+        link = nccl_link(check.out / "lib", nccl[0])
+        libs.append(str(link.parent))
         found["nccl_link"] = f"{link} -> {nccl[0]}"
     if libs:
         check.env["LD_LIBRARY_PATH"] = ":".join(libs + [check.env.get("LD_LIBRARY_PATH", "")]).rstrip(":")
@@ -212,6 +374,25 @@ def environment(check):
         found["torch"] = None
     found["official_code"] = {name: (HERE / "official" / name).is_dir() for name in ("RAFT-Stereo", "IGEV-Stereo")}
     return found
+
+
+def nccl_link(folder, target):
+    """FOLDER/libnccl.so, a link to `target`: made under a temporary name
+    and renamed over an earlier run's link (never followed); Refused when
+    something else is there."""
+    make_folder(folder)
+    link = folder / "libnccl.so"
+    if link.is_symlink() and os.readlink(link) == target:
+        return link
+    refuse_foreign_nccl_link(link)
+    temporary = folder / f".libnccl.so.{os.getpid()}.{time.monotonic_ns()}.partial"
+    temporary.symlink_to(target)
+    try:
+        os.replace(temporary, link)
+    finally:
+        if temporary.is_symlink():
+            temporary.unlink()
+    return link
 
 
 def synth(check, name, width, height, frames):
@@ -412,7 +593,10 @@ PHASES = [
 
 
 def table(results):
+    """The results as a short table; a phase kept from an earlier run says
+    which."""
     lines = [f"GPU check on {results['device']}{' (small)' if results['small'] else ''}"]
+    latest = results["runs"][-1]["run"]
     for name, phase in results["phases"].items():
         status = phase["status"]
         detail = ""
@@ -433,7 +617,8 @@ def table(results):
             detail = f"device vs CPU {figures['mbs_device_vs_cpu_mean_px']:.2e} px"
         elif status != "ok":
             detail = phase.get("error", "").splitlines()[0]
-        lines.append(f"  {name:12} {status:8} {phase.get('seconds', 0):6.1f} s  {detail}")
+        earlier = f"(run {phase.get('run', 1)}) " if phase.get("run", 1) != latest else ""
+        lines.append(f"  {name:12} {status:8} {phase.get('seconds', 0):6.1f} s  {earlier}{detail}")
     return "\n".join(lines)
 
 
@@ -455,6 +640,7 @@ def unpacked(name):
     if not packed.is_file():
         return binary if binary.is_file() else None
     stamp = HERE / f".{name}.unpacked"
+    writable(stamp, other="pass --binary/--autotune-binary")
     try:
         recorded = json.loads(stamp.read_text())
     except (OSError, ValueError):
@@ -493,9 +679,7 @@ def unpacked(name):
                                   "it away, or pass --binary/--autotune-binary")
         else:
             os.replace(temporary, binary)
-        partial = stamp.with_name(f"{stamp.name}.partial")
-        partial.write_text(json.dumps({"archive": identity(packed), "binary": identity(binary)}) + "\n")
-        partial.replace(stamp)
+        write_file(stamp, json.dumps({"archive": identity(packed), "binary": identity(binary)}) + "\n")
     except OSError as error:
         raise UnpackError(f"{packed}: cannot unpack it beside itself ({error})") from None
     finally:
@@ -522,9 +706,11 @@ def compare(existing, complete):
                 return "other"
 
 
-def main():
+def arguments():
+    """The command line's parser."""
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", type=Path, required=True, help="folder for results.json, logs/ and samples")
+    parser.add_argument("--out", type=Path, required=True, help="folder for results.json, logs/ and samples; a "
+                        "second run into it merges its phases into the results there (see above)")
     parser.add_argument("--device", default="cuda", help="cuda, cuda:N, vulkan or cpu (default cuda)")
     parser.add_argument("--binary", type=Path, help="mbs-tool to run (default: ./mbs-tool, unpacked from "
                         "mbs-tool.xz beside this script when needed)")
@@ -533,50 +719,73 @@ def main():
                         "not run)")
     parser.add_argument("--small", action="store_true", help="small sizes (CI on the CPU)")
     parser.add_argument("--phases", help="comma-separated subset of: " + ", ".join(n for n, _, _ in PHASES))
-    args = parser.parse_args()
-    try:
-        args.binary = args.binary or unpacked("mbs-tool")
-        if args.binary is None or not args.binary.is_file():
-            parser.error(f"--binary {args.binary or HERE / 'mbs-tool'}: no such file")
-        args.autotune_binary = args.autotune_binary or unpacked("mbs-tool-autotune")
-    except UnpackError as error:
-        print(f"run.py: {error}", file=sys.stderr)
-        return 2
-    if args.autotune_binary is not None and not args.autotune_binary.is_file():
-        parser.error(f"--autotune-binary {args.autotune_binary}: no such file")
+    return parser
+
+
+def binaries(parser, args):
+    """Sets args.binary and args.autotune_binary: the ones given, checked
+    before anything is unpacked, or the ones beside this script."""
+    for flag, given in [("--binary", args.binary), ("--autotune-binary", args.autotune_binary)]:
+        if given is not None and not given.is_file():
+            parser.error(f"{flag} {given}: no such file")
+    args.binary = args.binary or unpacked("mbs-tool")
+    if args.binary is None:
+        parser.error(f"--binary {HERE / 'mbs-tool'}: no such file")
+    args.autotune_binary = args.autotune_binary or unpacked("mbs-tool-autotune")
     args.binary = args.binary.resolve()
     args.autotune_binary = args.autotune_binary and args.autotune_binary.resolve()
-    wanted = set(args.phases.split(",")) if args.phases else None
-    check = Check(args)
-    if shutil.which("nvidia-smi"):
-        check.sampler = GpuSampler(check.out / "gpu_samples.csv")
-        check.sampler.start()
+
+
+def run_phases(check, wanted):
+    """Runs the phases wanted (all when None; the environment and the probe
+    always), recording each as it ends; whether one failed."""
     failed = False
     for name, phase, keep_going in PHASES:
         if wanted is not None and name not in wanted and name not in ("environment", "probe"):
             continue
         start = time.time()
         print(f"[{time.strftime('%H:%M:%S')}] {name} ...", flush=True)
-        record = {}
         try:
             record = {"status": "ok", "figures": phase(check)}
         except PhaseError as error:
             record = {"status": "failed", "error": str(error)}
-            failed = True
         except Exception as error:  # a bug of this script: recorded, the run goes on
             record = {"status": "failed", "error": f"{type(error).__name__}: {error}"}
-            failed = True
         record["seconds"] = round(time.time() - start, 1)
-        check.results["phases"][name] = record
-        check.save()
+        check.record(name, record)
         if record["status"] != "ok":
+            failed = True
             print(record["error"], flush=True)
             if not keep_going:
                 break
-    if check.sampler:
-        check.sampler.stop.set()
+    return failed
+
+
+def main():
+    parser = arguments()
+    args = parser.parse_args()
+    wanted = set(args.phases.split(",")) if args.phases else None
+    try:
+        previous, samples = check_output(args)
+        binaries(parser, args)
+        check = Check(args, previous)
+    except (UnpackError, Refused, OSError) as error:
+        print(f"run.py: {error}", file=sys.stderr)
+        return 2
+    if shutil.which("nvidia-smi"):
+        check.sampler = GpuSampler(check.out / "gpu_samples.csv", samples)
+        check.sampler.start()
+    problems = []
+    try:
+        failed = run_phases(check, wanted)
+    except Refused as error:  # a link put in the way during the run
+        failed, problems = True, [str(error)]
+    finally:
+        problems += [check.sampler.finish()] if check.sampler else []
+    for problem in filter(None, problems):
+        print(f"run.py: {problem}", file=sys.stderr)
     print(table(check.results))
-    return 1 if failed else 0
+    return 1 if failed or any(problems) else 0
 
 
 if __name__ == "__main__":
