@@ -6,14 +6,14 @@ autotune build), and `prepare.sh` assembles its folder, compresses the
 binaries losslessly and refuses a folder over the limit (32 MiB with one
 binary, 48 MiB with the autotune build too), leaving nothing behind.
 Both delete only what they made: prepare.sh refuses an existing OUT (with
---force it replaces only a bundle of its own), never touches OUT.partial,
-takes relative paths from the caller's folder and checks every input before
-building; run.py unpacks its binaries under a temporary name and renames
-them when complete, and refuses a broken archive in one line. Both keep
-results: a second run.py into the same --out merges into its results.json
-and gpu_samples.csv (a stub mbs-tool stands in, no build needed), and
-run.py writes nothing through a link, each file under a fresh temporary
-name renamed when complete.
+--force it replaces only a bundle of its own, and refuses one that holds
+results), never touches OUT.partial, takes relative paths from the
+caller's folder and checks every input before building; run.py unpacks its
+binaries under a temporary name and renames them when complete, and
+refuses a broken archive in one line. A second run.py into the same --out
+merges into its results.json and gpu_samples.csv (a stub mbs-tool stands
+in: no build needed), and run.py writes nothing through a link, each file
+under a fresh temporary name renamed when complete.
 """
 
 from __future__ import annotations
@@ -570,3 +570,114 @@ def test_run_refuses_a_link_at_the_unpack_stamp_and_unpacks_nothing(tmp_path: Pa
     assert elsewhere.read_text() == "mine\n" and os.readlink(folder / ".mbs-tool.unpacked") == str(elsewhere)
     assert sorted(p.name for p in folder.iterdir()) == [".mbs-tool.unpacked", "mbs-tool.xz", "run.py"]
     assert not (tmp_path / "results").exists()
+
+
+# prepare.sh --force never deletes results (issue 57): a bundle holding
+# anything but what prepare.sh and run.py's unpack put there is refused.
+
+RUN_PY_MADE = ["mbs-tool", ".mbs-tool.unpacked", "bench/__pycache__/s3_torch.cpython-311.pyc"]
+
+
+def made_bundle(tmp_path: Path) -> tuple[Path, Path]:
+    """A bundle of prepare.sh's with what run.py makes beside itself."""
+    binary = small_binary(tmp_path / "mbs-tool")
+    bundle = tmp_path / "bundle"
+    assert prepare(str(bundle), "--binary", str(binary), "--no-autotune").returncode == 0
+    for name in RUN_PY_MADE:
+        (bundle / name).parent.mkdir(exist_ok=True)
+        (bundle / name).write_bytes(b"made by run.py\n")
+    return bundle, small_binary(tmp_path / "other", seed=7)
+
+
+def users_files(bundle: Path, names: list[str]) -> list[Path]:
+    """Makes each file, with the folders it needs, in `bundle`: what was
+    made, in order."""
+    made: list[Path] = []
+    for name in names:
+        path = bundle / name
+        for folder in reversed(path.parents):
+            if bundle in folder.parents and not folder.exists():
+                folder.mkdir()
+                made.append(folder)
+        path.write_text(f"the user's {name}\n")
+        made.append(path)
+    return made
+
+
+@pytest.mark.parametrize(
+    "results, named",
+    [
+        (["results/results.json", "results/logs/probe.log", "results/gpu_samples.csv"], "results/results.json"),
+        (["results/logs/probe.log"], "results"),
+        (["data/mine/results.json"], "data/mine/results.json"),
+        (["official/gpu_samples.csv"], "official/gpu_samples.csv"),
+        (["notes.txt"], "notes.txt"),
+    ],
+    ids=["results", "results-without-json", "results-json-deeper", "samples-deeper", "users-file"],
+)
+def test_prepare_force_refuses_a_bundle_holding_results_and_changes_nothing(
+    tmp_path: Path, results: list[str], named: str
+) -> None:
+    bundle, other = made_bundle(tmp_path)
+    made = users_files(bundle, results)
+    before = snapshot(tmp_path)
+    done = prepare(str(bundle), "--force", "--binary", str(other), "--no-autotune")
+    assert done.returncode == 2, done.stdout + done.stderr
+    line = one_line(done.stderr)
+    assert line.startswith(f"prepare.sh: {bundle} holds results or files prepare.sh did not put there ("), line
+    assert named in line and "--force never deletes them" in line, line
+    assert snapshot(tmp_path) == before
+    # Without them, the bundle and what run.py made in it are replaced.
+    for path in reversed(made):
+        if path.is_dir():
+            path.rmdir()
+        else:
+            path.unlink()
+    done = prepare(str(bundle), "--force", "--binary", str(other), "--no-autotune")
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert lzma.decompress((bundle / "mbs-tool.xz").read_bytes()) == other.read_bytes()
+    assert not (bundle / "mbs-tool").exists() and not (bundle / "bench" / "__pycache__").exists()
+
+
+def test_prepare_force_refuses_results_made_during_the_build(tmp_path: Path) -> None:
+    bundle, other = made_bundle(tmp_path)
+    # An xz that starts a run in the bundle while the new one is compressed.
+    fake = tmp_path / "bin"
+    fake.mkdir()
+    xz = shutil.which("xz")
+    assert xz is not None
+    results = bundle / "results"
+    (fake / "xz").write_text(
+        f'#!/bin/sh\nmkdir -p "{results}"\necho "{{}}" > "{results}/results.json"\nexec {xz} "$@"\n'
+    )
+    (fake / "xz").chmod(0o755)
+    env = dict(os.environ, PATH=f"{fake}{os.pathsep}{os.environ['PATH']}")
+    before = snapshot(bundle)
+    done = prepare(str(bundle), "--force", "--binary", str(other), "--no-autotune", env=env)
+    assert done.returncode == 2, done.stdout + done.stderr
+    line = done.stderr.strip().splitlines()[-1]
+    assert line.startswith(f"prepare.sh: {bundle} holds results") and "results/results.json" in line, line
+    assert snapshot(bundle) == {**before, "results": None, "results/results.json": b"{}\n"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bin", "bundle", "mbs-tool", "other"]
+
+
+def test_prepare_force_puts_back_a_bundle_given_results_as_it_is_moved(tmp_path: Path) -> None:
+    bundle, other = made_bundle(tmp_path)
+    # An mv that lets a run write results.json just before the bundle moves.
+    fake = tmp_path / "bin"
+    fake.mkdir()
+    mv = shutil.which("mv")
+    results = bundle / "results"
+    (fake / "mv").write_text(
+        f'#!/bin/sh\nif [ "$2" = "{bundle}" ]; then mkdir "{results}" && echo "{{}}" > "{results}/results.json"; fi\n'
+        f'exec {mv} "$@"\n'
+    )
+    (fake / "mv").chmod(0o755)
+    env = dict(os.environ, PATH=f"{fake}{os.pathsep}{os.environ['PATH']}")
+    before = snapshot(bundle)
+    done = prepare(str(bundle), "--force", "--binary", str(other), "--no-autotune", env=env)
+    assert done.returncode == 2, done.stdout + done.stderr
+    line = done.stderr.strip().splitlines()[-1]
+    assert line.startswith(f"prepare.sh: {bundle} holds results") and "results/results.json" in line, line
+    assert snapshot(bundle) == {**before, "results": None, "results/results.json": b"{}\n"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bin", "bundle", "mbs-tool", "other"]

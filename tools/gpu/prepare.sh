@@ -11,8 +11,13 @@
 #                          parent folder must; relative to the current folder
 #   --force                replace OUT, once the new one is complete, when it
 #                          is a bundle this script made (it holds the marker
-#                          file .mbs-gpu-bundle); anything else at OUT is still
-#                          refused and left as it is
+#                          file .mbs-gpu-bundle) and holds nothing else but
+#                          what run.py unpacks beside itself (the binaries,
+#                          their stamps, __pycache__); anything else at OUT,
+#                          and a bundle that holds results (a results folder,
+#                          a results.json or gpu_samples.csv at any depth)
+#                          or any file of yours, is refused and left as it
+#                          is: --force never deletes results, move them out
 #   --official-raft DIR    a clone of princeton-vl/RAFT-Stereo: its core/ is
 #                          copied (never committed here), for the official
 #                          step and predictions
@@ -77,7 +82,48 @@ check_out() {
         elif ! own_bundle "$out"; then
             fail "$out is not a bundle prepare.sh made (no $marker file in it): --force does not replace it"
         fi
+        no_results "$out" "$out"
     fi
+}
+# Refuses bundle $1 (OUT, named $2) when it holds anything not_ours finds.
+no_results() {
+    local extra
+    extra=$(not_ours "$1") || fail "$2 cannot be read through: --force does not replace it"
+    if [ -n "$extra" ]; then
+        fail "$2 holds results or files prepare.sh did not put there ($(printf '%s\n' "$extra" | listed)):" \
+            "--force never deletes them; move them out of it first"
+    fi
+}
+# Puts the previous bundle back at OUT from the temporary folder, or, when
+# something took OUT meanwhile, beside it under a fresh name: never left
+# in the temporary folder the exit trap removes.
+restore_previous() {
+    if ! mv -T "$tmp/previous" "$out"; then
+        kept=$(mktemp -d "$(dirname "$out")/.$(basename "$out").previous.XXXXXX")
+        mv -T "$tmp/previous" "$kept/bundle"
+        echo "prepare.sh: the previous bundle is at $kept/bundle" >&2
+    fi
+}
+# The lines read as "a, b, c, d, e, and 2 more".
+listed() {
+    awk 'NR <= 5 { printf "%s%s", (NR > 1 ? ", " : ""), $0 } END { if (NR > 5) printf ", and %d more", NR - 5 }'
+}
+# What bundle $1 holds besides what this script put there and what run.py
+# unpacks beside itself, one path a line: a results.json or gpu_samples.csv
+# at any depth, then any other name at its top (a results folder, a file of
+# the user's).
+not_ours() {
+    local entry
+    (cd "$1" && find . \( -name results.json -o -name gpu_samples.csv \) -print) | sed 's|^\./||'
+    for entry in "$1"/* "$1"/.[!.]* "$1"/..?*; do
+        [ -e "$entry" ] || [ -L "$entry" ] || continue
+        case ${entry##*/} in
+            "$marker"|run.py|official_predict.py|bench|data|official|vendor) ;;
+            mbs-tool.xz|mbs-tool-autotune.xz|mbs-tool|mbs-tool-autotune|__pycache__) ;;
+            .mbs-tool.unpacked|.mbs-tool-autotune.unpacked) ;;
+            *) printf '%s\n' "${entry##*/}" ;;
+        esac
+    done
 }
 
 out="" force=0 raft="" igev="" binary="" tuned="" with_autotune=1
@@ -182,20 +228,21 @@ if [ "$size_kib" -gt $((limit_mib * 1024)) ]; then
     echo "prepare.sh: the folder is $((size_kib / 1024)) MiB, over the ${limit_mib} MiB limit" >&2
     exit 1
 fi
-# OUT again, as it may have changed during the build: a bundle of ours is
-# moved into the temporary folder (removed with it), anything else refused.
+# OUT again, as it may have changed during the build: a bundle of ours
+# without results is moved into the temporary folder (removed with it),
+# anything else refused.
 check_out
 if [ -e "$out" ]; then
     mv -T "$out" "$tmp/previous"
+    # Results made in the instant before the move go back with the bundle.
+    if ! (no_results "$tmp/previous" "$out"); then
+        restore_previous
+        exit 2
+    fi
 fi
 # -T: a folder made at OUT meanwhile is refused, not filled.
 if ! mv -T "$partial" "$out"; then
-    if [ -e "$tmp/previous" ] && ! mv -T "$tmp/previous" "$out"; then
-        # Kept out of the temporary folder the exit trap removes.
-        kept=$(mktemp -d "$(dirname "$out")/.$(basename "$out").previous.XXXXXX")
-        mv -T "$tmp/previous" "$kept/bundle"
-        echo "prepare.sh: the previous bundle is at $kept/bundle" >&2
-    fi
+    [ ! -e "$tmp/previous" ] || restore_previous
     echo "prepare.sh: could not rename $partial to $out" >&2
     exit 1
 fi
