@@ -52,6 +52,41 @@ impl InputFiles {
         }
     }
 
+    /// Records every file under the folder `dir` (or `dir` itself when it
+    /// is a file), for inputs read from a folder (a run, a checkpoint);
+    /// links to folders are not followed, so a loop cannot stall it.
+    pub fn add_tree(&mut self, dir: &Path) {
+        match fs::metadata(dir) {
+            Ok(metadata) if metadata.is_dir() => self.add_folder(dir),
+            _ => self.add(dir),
+        }
+    }
+
+    /// Records the files of the folder `dir` and of its folders.
+    fn add_folder(&mut self, dir: &Path) {
+        let Ok(entries) = fs::read_dir(dir) else {
+            return;
+        };
+        for entry in entries.flatten() {
+            let path = entry.path();
+            match entry.file_type() {
+                Ok(kind) if kind.is_dir() => self.add_folder(&path),
+                Ok(_) => self.add(&path),
+                Err(_) => {}
+            }
+        }
+    }
+
+    /// An input that lies inside the folder `dir` (compared resolved), if
+    /// any: for outputs that replace or prune whole folders.
+    pub fn inside(&self, dir: &Path) -> Option<&Path> {
+        let dir = fs::canonicalize(dir).ok()?;
+        self.by_identity
+            .values()
+            .find(|input| fs::canonicalize(input).is_ok_and(|p| p.starts_with(&dir)))
+            .map(PathBuf::as_path)
+    }
+
     /// The input `output` would replace, if any.
     fn clash(&self, output: &Path) -> Option<&Path> {
         let input = self.by_identity.get(&identity(output)?)?;
@@ -123,5 +158,33 @@ mod tests {
         }
         assert!(inputs.refuse(&dir.path().join("disp0MBS.pfm")).is_ok());
         assert!(inputs.refuse(&dir.path().join("missing.png")).is_ok());
+    }
+
+    #[test]
+    fn a_folder_is_indexed_down_to_its_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let run = dir.path().join("run");
+        let step = run.join("checkpoints/step-1");
+        fs::create_dir_all(&step).unwrap();
+        fs::write(step.join("teacher.bpk"), b"weights").unwrap();
+        fs::write(run.join("config.json"), b"{}").unwrap();
+        #[cfg(unix)]
+        std::os::unix::fs::symlink(&run, run.join("loop")).unwrap();
+        let mut inputs = InputFiles::new();
+        inputs.add_tree(&run);
+        let err = inputs.refuse(&step.join("teacher.bpk")).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("teacher.bpk: is one of its inputs")
+        );
+        assert!(inputs.refuse(&run.join("config.json")).is_err());
+        assert!(inputs.refuse(&run.join("other.json")).is_ok());
+        let inside = inputs.inside(&run.join("checkpoints")).unwrap();
+        assert!(inside.ends_with("teacher.bpk"), "{}", inside.display());
+        assert!(
+            inputs
+                .inside(dir.path().join("elsewhere").as_path())
+                .is_none()
+        );
     }
 }

@@ -16,7 +16,9 @@ pub mod geometry;
 pub mod inputs;
 pub mod layered;
 pub mod limits;
+pub mod lock;
 pub mod metrics;
+pub mod out_dir;
 pub mod regular;
 
 pub use error::{FormatError, Result};

@@ -155,19 +155,36 @@ pub struct DepthDecoding {
 }
 
 impl DepthDecoding {
-    /// Decodes one depth image and writes the outputs it does not have yet
-    /// (each atomically); `false` when all were there already.
-    pub fn decode(&self, image: &DepthImage) -> Result<bool, DatasetError> {
+    /// The decoded depth of `image` and its disparities for each target.
+    fn output_files(&self, image: &DepthImage) -> (PathBuf, Vec<(usize, PathBuf)>) {
         let depth_path = image
             .out_dir
             .join(decoded_depth_file(self.camera, self.depth_format));
-        let missing: Vec<(usize, PathBuf)> = self
+        let disparities = self
             .targets
             .iter()
             .map(|&t| {
                 let name = decoded_disparity_file(self.camera, t, self.disparity_format);
                 (t, image.out_dir.join(name))
             })
+            .collect();
+        (depth_path, disparities)
+    }
+
+    /// Every file decoding `image` writes.
+    pub fn outputs(&self, image: &DepthImage) -> Vec<PathBuf> {
+        let (depth, disparities) = self.output_files(image);
+        std::iter::once(depth)
+            .chain(disparities.into_iter().map(|(_, path)| path))
+            .collect()
+    }
+
+    /// Decodes one depth image and writes the outputs it does not have yet
+    /// (each atomically); `false` when all were there already.
+    pub fn decode(&self, image: &DepthImage) -> Result<bool, DatasetError> {
+        let (depth_path, disparities) = self.output_files(image);
+        let missing: Vec<(usize, PathBuf)> = disparities
+            .into_iter()
             .filter(|(_, path)| !path.exists())
             .collect();
         let depth_missing = !depth_path.exists();

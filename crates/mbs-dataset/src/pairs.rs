@@ -7,6 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use mbs_core::Side;
+use mbs_core::inputs::InputFiles;
 
 use crate::DatasetError;
 use crate::benchmark::Benchmark;
@@ -84,6 +85,19 @@ impl PairSource {
                 manifest_pairs(path, &manifest, &[*cameras], *split)
             }
         }
+    }
+
+    /// Every file a command reading `pairs` (this source's) reads or may
+    /// read: each pair's files, and for a manifest the manifest itself and
+    /// every file of every sample it lists, not only the pair's two views.
+    pub fn input_files(&self, pairs: &[StereoPair]) -> Result<InputFiles, DatasetError> {
+        let mut inputs = crate::stereo_pair::input_files(pairs);
+        if let PairSource::Manifest { path, .. } = self {
+            inputs.add(path);
+            let manifest = Manifest::load(path)?;
+            inputs.extend(manifest_files(path, &manifest));
+        }
+        Ok(inputs)
     }
 
     /// The pairs with ground truth; an error naming the dataset when there
@@ -209,6 +223,17 @@ pub fn check_cameras(
         }),
         None => Ok(()),
     }
+}
+
+/// Every file `manifest`'s samples name (views, depth, ground truth,
+/// masks...), resolved against its file `path`.
+pub fn manifest_files(path: &Path, manifest: &Manifest) -> Vec<PathBuf> {
+    manifest
+        .samples
+        .iter()
+        .flat_map(Sample::files)
+        .map(|(_, file)| resolve(path, file))
+        .collect()
 }
 
 #[cfg(test)]

@@ -164,6 +164,51 @@ impl Frame {
         ]
     }
 
+    /// Every file the frame is read from: its views, disparity files and
+    /// ground truth.
+    pub fn inputs(&self) -> Vec<&Path> {
+        let mut inputs = vec![self.left.as_path(), self.right.as_path()];
+        inputs.extend(self.left_disparity.as_deref());
+        inputs.extend(self.right_disparity.as_deref());
+        inputs.extend(self.ground_truth.as_ref().map(|(truth, _)| truth.as_path()));
+        inputs
+    }
+
+    /// Every file processing writes (the contact sheet too with
+    /// `preview`): the outputs, less the places of the input views and
+    /// ground truth that already are those inputs (a KITTI folder
+    /// extrapolated in place), which are left as they are.
+    pub fn written(&self, preview: bool) -> Vec<&Path> {
+        let in_place = |input: &Path, place: &Path| {
+            matches!(
+                (input.canonicalize(), place.canonicalize()),
+                (Ok(a), Ok(b)) if a == b
+            )
+        };
+        let mut links = vec![(&self.left, &self.image_2), (&self.right, &self.image_3)];
+        links.extend(
+            self.ground_truth
+                .as_ref()
+                .map(|(truth, copy)| (truth, copy)),
+        );
+        let kept: Vec<&PathBuf> = links
+            .into_iter()
+            .filter(|(input, place)| in_place(input, place))
+            .map(|(_, place)| place)
+            .collect();
+        let mut written: Vec<&Path> = self
+            .outputs()
+            .into_iter()
+            .chain(self.ground_truth.as_ref().map(|(_, copy)| copy))
+            .filter(|path| !kept.contains(path))
+            .map(PathBuf::as_path)
+            .collect();
+        if preview {
+            written.push(&self.preview);
+        }
+        written
+    }
+
     /// Whether every output exists (with the preview, when asked for).
     pub fn is_done(&self, preview: bool) -> bool {
         self.outputs().iter().all(|p| p.exists()) && (!preview || self.preview.exists())

@@ -97,6 +97,18 @@ impl DatasetSpec {
         )
     }
 
+    /// Every file `frame` writes under `root`, for every weather.
+    pub fn frame_outputs(&self, root: &Path, frame: &Frame) -> Vec<PathBuf> {
+        let files = self.sample_files();
+        self.weathers
+            .iter()
+            .flat_map(|&w| {
+                let dir = root.join(self.sample_id(frame, w));
+                files.iter().map(move |f| dir.join(f)).collect::<Vec<_>>()
+            })
+            .collect()
+    }
+
     /// Every file of one sample, relative to its folder.
     fn sample_files(&self) -> Vec<String> {
         let n = self.rig.num_views;

@@ -13,6 +13,11 @@ pub mod scoring;
 pub mod shard;
 pub mod source;
 
+use std::path::{Path, PathBuf};
+
+use mbs_core::inputs::InputFiles;
+use mbs_core::lock::Share;
+use mbs_core::out_dir::{OutDir, Written};
 use mbs_train::launch::LaunchError;
 pub mod values;
 
@@ -40,18 +45,45 @@ pub fn exit_status(error: &anyhow::Error) -> u8 {
     if error.chain().any(usage) { 2 } else { 1 }
 }
 
-/// Creates the output folder `dir` (refusing a file in its place) and
-/// removes the temporary files a killed earlier run left in it.
-pub fn prepare_out(dir: &std::path::Path) -> anyhow::Result<()> {
-    mbs_core::confine::create_out_dir(dir)?;
-    let removed = mbs_core::atomic::remove_stale_partials(dir)?;
+/// Takes the output folder `dir` for `command` ([`OutDir::take`]: made,
+/// locked for this process or its `shard`, cleared of the temporary files
+/// killed runs left), once every one of `outputs` has passed the checks,
+/// before and again under the lock: none replaces one of `inputs` or a
+/// file mbs did not write there. The outputs are then recorded as the
+/// command's, so a later `--overwrite` may replace them.
+pub fn take_out(
+    dir: &Path,
+    shard: Option<shard::Shard>,
+    command: &str,
+    inputs: &InputFiles,
+    outputs: &[PathBuf],
+) -> anyhow::Result<OutDir> {
+    let check = |written: &Written| -> anyhow::Result<()> {
+        for output in outputs {
+            inputs.refuse(output)?;
+            written.refuse_foreign(output)?;
+        }
+        Ok(())
+    };
+    check(&Written::read(dir)?)?;
+    let share = match shard {
+        Some(shard) => Share::Shard {
+            index: shard.index,
+            count: shard.count,
+        },
+        None => Share::Whole,
+    };
+    let out = OutDir::take(dir, share, &format!("mbs-tool {command}"))?;
+    check(out.written())?;
+    out.record(outputs)?;
+    let removed = out.removed_partials();
     if removed > 0 {
         eprintln!(
             "removed {removed} temporary file(s) left in {} by a killed run",
             dir.display()
         );
     }
-    Ok(())
+    Ok(out)
 }
 
 /// Checks that an input `path` given as `what` (e.g. "left view") is a file.

@@ -106,9 +106,20 @@ impl Shard {
     /// This process's rank and the number of processes of its launch
     /// (`mpirun`, `srun`), from the variables [`Shard::from_launcher`]
     /// reads for them; `None` when no launcher set them.
+    /// A rank that is not one of its launch's (`RANK=3` with `SIZE=1`, a
+    /// size of 0) is an error naming both variables: such a process would
+    /// otherwise run alone as if no launcher had started it.
     pub fn of_launch(var: impl Fn(&str) -> Option<String>) -> Result<Option<Self>, String> {
         for pair in LAUNCH_VARIABLES.chunks_exact(2) {
             if let Some(shard) = variable_pair(&var, pair[0], pair[1])? {
+                if shard.index >= shard.count {
+                    return Err(format!(
+                        "{}={} and {}={} give a rank that is not one of the launch's \
+                         processes (0 to size - 1): unset them to run one process, or start \
+                         the processes with mpirun or srun",
+                        pair[0], shard.index, pair[1], shard.count
+                    ));
+                }
                 return Ok(Some(shard));
             }
         }
@@ -212,6 +223,29 @@ mod tests {
             err.contains("overflow") && err.contains("4 processes"),
             "{err}"
         );
+    }
+
+    /// A rank past its launch's size used to be ignored with a size of 1,
+    /// so the process trained alone.
+    #[test]
+    fn a_rank_outside_its_launch_is_refused() {
+        for (rank, size) in [("3", "1"), ("0", "0"), ("2", "2")] {
+            let vars = [
+                ("OMPI_COMM_WORLD_RANK", rank),
+                ("OMPI_COMM_WORLD_SIZE", size),
+            ];
+            let var = |name: &str| {
+                vars.iter()
+                    .find(|(key, _)| *key == name)
+                    .map(|(_, value)| value.to_string())
+            };
+            let err = Shard::of_launch(var).unwrap_err();
+            assert!(
+                err.contains(&format!("OMPI_COMM_WORLD_RANK={rank}"))
+                    && err.contains("not one of the launch's processes"),
+                "{err}"
+            );
+        }
     }
 
     #[test]

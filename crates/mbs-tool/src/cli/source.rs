@@ -11,6 +11,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::ValueEnum;
 use mbs_core::RgbImage;
+use mbs_core::inputs::InputFiles;
 use mbs_dataset::StereoPair;
 use mbs_infer::onnx::{ModelCard, OnnxStereo};
 use mbs_infer::{Disparity, InferError, Sgm, SgmConfig, SgmPaths, StereoMatcher};
@@ -156,19 +157,15 @@ impl StereoSourceArgs {
         Ok(())
     }
 
-    /// The files the source reads (model, card file, run or weights), so
-    /// that no output replaces one.
-    pub fn files(&self) -> Vec<PathBuf> {
+    /// Adds the files the source reads to `inputs`, so that no output
+    /// replaces one: the model, the card file, and the weights file or
+    /// every file of the run or checkpoint folder.
+    pub fn add_files_to(&self, inputs: &mut InputFiles) {
         let card = self.card.as_ref().map(PathBuf::from);
-        [
-            self.model.clone(),
-            card,
-            self.checkpoint.clone(),
-            self.weights.clone(),
-        ]
-        .into_iter()
-        .flatten()
-        .collect()
+        [&self.model, &card, &self.checkpoint, &self.weights]
+            .into_iter()
+            .flatten()
+            .for_each(|path| inputs.add_tree(path));
     }
 
     /// Whether a network (ONNX, a run, weights) predicts, not the built-in

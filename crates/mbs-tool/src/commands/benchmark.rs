@@ -201,7 +201,7 @@ fn list_folders(args: &Args) -> anyhow::Result<(Vec<Folder>, InputFiles)> {
     let mut inputs = InputFiles::new();
     inputs.extend(lists.bound.iter().map(|(_, list)| &list.path));
     inputs.extend(lists.shared.iter().map(|list| &list.path));
-    inputs.extend(args.source.files());
+    args.source.add_files_to(&mut inputs);
     let mut kept = Vec::new();
     for ((_, dir), (label, rules, listing)) in folders.iter().zip(listed) {
         let listing = match lists.for_folder(dir) {

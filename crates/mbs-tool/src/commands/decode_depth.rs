@@ -1,15 +1,17 @@
 //! `mbs-tool decode-depth`: CARLA depth PNGs -> metric depth and disparity.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::bail;
 use clap::Parser;
 use mbs_core::Rig;
 use mbs_core::formats::{DepthFormat, DisparityFormat};
+use mbs_core::inputs::InputFiles;
 use mbs_dataset::Manifest;
 use mbs_dataset::mbs20k::{
     DepthDecoding, DepthImage, depth_images_in_folder, depth_images_in_manifest,
 };
+use mbs_dataset::pairs::manifest_files;
 
 use crate::cli::batch::{self, Outcome};
 use crate::cli::pairs::parse_pair;
@@ -93,9 +95,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(shard) => shard.select(jobs),
         None => jobs,
     };
-    if let Some(out) = &args.out {
-        crate::cli::prepare_out(out)?;
+    let mut inputs = InputFiles::new();
+    inputs.add(&args.input);
+    inputs.extend(jobs.iter().map(|j| &j.encoded));
+    if !args.input.is_dir() {
+        let manifest = Manifest::load(&args.input)?;
+        inputs.extend(manifest_files(&args.input, &manifest));
     }
+    let outputs: Vec<PathBuf> = jobs.iter().flat_map(|j| plan.outputs(j)).collect();
+    let root = match (&args.out, args.input.is_dir()) {
+        (Some(out), _) => out.clone(),
+        (None, true) => args.input.clone(),
+        (None, false) => manifest_folder(&args.input),
+    };
+    let _out = crate::cli::take_out(&root, args.shard, "decode-depth", &inputs, &outputs)?;
     let summary = batch::run(
         &jobs,
         "images",
@@ -129,6 +142,15 @@ fn input_images(args: &Args) -> anyhow::Result<(Vec<DepthImage>, Rig, usize, Opt
     let camera = depth.map_or(0, |d| d.camera);
     let jobs = depth_images_in_manifest(&args.input, &manifest, args.out.as_deref())?;
     Ok((jobs, manifest.rig, camera, depth.map(|d| d.max_depth_m)))
+}
+
+/// The folder of the manifest file `path`, which its samples' paths are
+/// relative to.
+fn manifest_folder(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
 }
 
 fn requested_targets(

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};
+use mbs_core::inputs::InputFiles;
 use mbs_dataset::kitti::KittiFrames;
 use mbs_dataset::kitti::KittiVersion;
 use mbs_dataset::pairs::PairSource;
@@ -20,6 +21,9 @@ use mbs_warp::Dilation;
 use crate::cli::batch::{self, Outcome};
 use crate::cli::shard::Shard;
 use crate::cli::source::{StereoSource, StereoSourceArgs};
+
+/// The manifest of the four-view samples, in the output folder.
+const MANIFEST_FILE: &str = "manifest.json";
 
 /// Arguments of `extrapolate`.
 #[derive(Parser)]
@@ -52,7 +56,11 @@ default, an ONNX model (--model, --card), a training run's teacher
 the right view's by mirroring. Do not pass KITTI's ground truth (disp_occ_0, disp_noc_0) for data
 meant for training without ground truth: the extrapolated views would carry
 it into training (a warning says so). Finished frames are skipped, so an
-interrupted run resumes where it stopped.")]
+interrupted run resumes where it stopped. An output that would replace an
+input (a view, a disparity file, ground truth), or a file that mbs did not
+write (OUT/.mbs-written lists those it did), is refused before anything is
+written; one process writes an output folder at a time (the shards of
+--shard share it).")]
 pub struct Args {
     /// Left view of one pair (image_2 in KITTI).
     #[arg(long, requires = "right", required_unless_present = "kitti")]
@@ -168,11 +176,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // source leaves no output folder behind.
     let extrapolator = Extrapolator::new(dilation(&args), inpainter(&args)?);
     let source = disparity_source(&args)?;
-    crate::cli::prepare_out(&out)?;
     let selected: Vec<&Frame> = match args.shard {
         Some(shard) => shard.select(frames.iter().collect()),
         None => frames.iter().collect(),
     };
+    let (inputs, outputs) = files(&args, &frames, &selected, &out);
+    let _out = crate::cli::take_out(&out, args.shard, "extrapolate", &inputs, &outputs)?;
     let summary = batch::run(
         &selected,
         "frames",
@@ -190,6 +199,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_manifest(&args, &frames, &out)?;
     }
     result
+}
+
+/// Every file the frames are read from, and every file the `selected`
+/// ones are written to in `out` (with the manifest, unless sharded).
+fn files(
+    args: &Args,
+    frames: &[Frame],
+    selected: &[&Frame],
+    out: &Path,
+) -> (InputFiles, Vec<PathBuf>) {
+    let mut inputs = InputFiles::new();
+    inputs.extend(frames.iter().flat_map(Frame::inputs));
+    args.source.add_files_to(&mut inputs);
+    let mut outputs: Vec<PathBuf> = selected
+        .iter()
+        .flat_map(|frame| frame.written(args.preview))
+        .map(Path::to_path_buf)
+        .collect();
+    if args.shard.is_none() {
+        outputs.push(out.join(MANIFEST_FILE));
+    }
+    (inputs, outputs)
 }
 
 /// The frames of the KITTI folder `root` and the folder they go to (the
@@ -247,7 +278,7 @@ fn write_manifest(args: &Args, frames: &[Frame], out: &Path) -> anyhow::Result<(
         return Ok(());
     }
     let manifest = four_view_manifest(&done, out, args.focal, args.baseline)?;
-    let path = out.join("manifest.json");
+    let path = out.join(MANIFEST_FILE);
     manifest.save(&path)?;
     eprintln!(
         "extrapolate: {} four-view samples -> {}",

@@ -2,14 +2,13 @@
 //! source (the built-in semi-global matcher, an ONNX model, a trained
 //! network).
 
-use std::collections::HashMap;
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use anyhow::bail;
 use clap::Parser;
 use mbs_core::confine::join_confined;
 use mbs_core::formats::{DisparityFormat, rgb};
-use mbs_core::inputs::InputFiles;
 use mbs_dataset::StereoPair;
 use mbs_infer::SgmConfig;
 use mbs_viz::colormap::{colorize_disparity, disparity_scale};
@@ -37,7 +36,12 @@ With the built-in matcher, holes are filled from the background side, so
 every pixel has a value; with --model, pixels the network gives a negative
 disparity are invalid. Built-in cards: lama, migan, crestereo, hitnet,
 raft-stereo, igev (see schemas/model-card.schema.json to write one).
-Finished outputs are skipped, so an interrupted run resumes where it stopped.")]
+Finished outputs are skipped, so an interrupted run resumes where it stopped.
+One process writes an output folder at a time (the shards of --shard share
+it). An output that would replace a file the command reads (a view, ground
+truth, any file of a manifest's samples), or a file in --out that mbs did
+not write (OUT/.mbs-written lists those it did), is refused before anything
+is written, whatever the flags: --overwrite replaces mbs's own outputs only.")]
 pub struct Args {
     /// The pairs to match.
     #[command(flatten)]
@@ -54,7 +58,8 @@ pub struct Args {
     /// Where the disparities come from.
     #[command(flatten)]
     pub source: StereoSourceArgs,
-    /// Recompute outputs that already exist.
+    /// Recompute outputs that mbs wrote earlier (a file it did not write
+    /// is refused, with or without this flag).
     #[arg(long)]
     pub overwrite: bool,
     /// Process only shard K of N (0-based), for cluster job arrays.
@@ -76,15 +81,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     };
     let pairs = source.pairs()?;
-    let inputs = mbs_dataset::stereo_pair::input_files(&pairs);
+    let mut inputs = source.input_files(&pairs)?;
+    args.source.add_files_to(&mut inputs);
     let pairs = match args.shard {
         Some(shard) => shard.select(pairs),
         None => pairs,
     };
-    check_outputs(&args, &pairs, &inputs)?;
+    let outputs = every_output(&args, &pairs)?;
     args.source.refuse_unused_device()?;
     let matcher = args.source.matcher(SgmConfig::default())?;
-    crate::cli::prepare_out(&args.out)?;
+    let _out = crate::cli::take_out(&args.out, args.shard, "predict", &inputs, &outputs)?;
     let summary = batch::run(
         &pairs,
         "pairs",
@@ -104,10 +110,9 @@ fn outputs(args: &Args, pair: &StereoPair) -> anyhow::Result<(PathBuf, PathBuf)>
     Ok((out, color))
 }
 
-/// Refuses, before anything is written, an output that would replace one
-/// of the files the pairs are read from, or that two pairs would share.
-fn check_outputs(args: &Args, pairs: &[StereoPair], inputs: &InputFiles) -> anyhow::Result<()> {
-    let mut written_by: HashMap<PathBuf, &str> = HashMap::new();
+/// Every file the pairs are written to; two pairs sharing one is an error.
+fn every_output(args: &Args, pairs: &[StereoPair]) -> anyhow::Result<Vec<PathBuf>> {
+    let mut written_by: BTreeMap<PathBuf, &str> = BTreeMap::new();
     for pair in pairs {
         let (out, color) = outputs(args, pair)?;
         let files = if args.color {
@@ -116,7 +121,6 @@ fn check_outputs(args: &Args, pairs: &[StereoPair], inputs: &InputFiles) -> anyh
             vec![out]
         };
         for file in files {
-            inputs.refuse(&file)?;
             if let Some(first) = written_by.insert(file.clone(), &pair.id) {
                 bail!(
                     "{}: pairs {first} and {} would both be written there",
@@ -126,7 +130,7 @@ fn check_outputs(args: &Args, pairs: &[StereoPair], inputs: &InputFiles) -> anyh
             }
         }
     }
-    Ok(())
+    Ok(written_by.into_keys().collect())
 }
 
 fn predict_one(args: &Args, matcher: &PairMatcher, pair: &StereoPair) -> anyhow::Result<Outcome> {

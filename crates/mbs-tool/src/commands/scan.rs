@@ -3,6 +3,8 @@
 use std::path::PathBuf;
 
 use clap::Parser;
+use mbs_core::inputs::InputFiles;
+use mbs_dataset::pairs::manifest_files;
 
 use crate::cli::rig::RigArgs;
 use mbs_dataset::mbs20k::{Counts, ScanOptions, scan};
@@ -42,6 +44,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max_depth_m: args.max_depth,
     };
     let mut manifest = scan(&args.root, &options)?;
+    let named = args.out.is_some();
     let out = args.out.unwrap_or_else(|| args.root.join("manifest.json"));
     let out_dir = out.parent().unwrap_or(std::path::Path::new(""));
     let out_dir = if out_dir.as_os_str().is_empty() {
@@ -65,6 +68,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         })?;
         manifest.rebase(std::path::Path::new(&prefix));
     }
+    let mut inputs = InputFiles::new();
+    inputs.extend(manifest_files(&out, &manifest));
+    inputs.refuse(&out)?;
+    // The default name in the dataset's own folder: a manifest.json there
+    // that mbs did not write is the dataset's, never replaced.
+    let _held = match named {
+        true => None,
+        false => Some(crate::cli::take_out(
+            &args.root,
+            None,
+            "scan",
+            &inputs,
+            std::slice::from_ref(&out),
+        )?),
+    };
     manifest.save(&out)?;
     print!("{}", Counts::of(&manifest).table());
     eprintln!(

@@ -42,7 +42,9 @@ prediction is timed alone (reading the images excluded); the mean time is
 printed at the end. Finished pairs are skipped (a file cut short is
 recomputed), so an interrupted run resumes; the archive is made when every
 pair is done. An output that would replace one of the files read (a view,
-ground truth, mask or calib.txt) is refused before anything is written.")]
+ground truth, mask or calib.txt), or a file in --out that mbs did not write
+(a dataset's own disp0GTy.pfm or KITTI ground truth; OUT/.mbs-written lists
+what mbs wrote), is refused before anything is written, whatever the flags.")]
 pub struct Args {
     /// What predicts the pairs.
     #[command(flatten)]
@@ -56,7 +58,8 @@ pub struct Args {
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,
-    /// Recompute pairs whose files already exist.
+    /// Recompute pairs whose files mbs wrote earlier (a file it did not
+    /// write is refused, with or without this flag).
     #[arg(long)]
     pub overwrite: bool,
 }
@@ -71,12 +74,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     .pairs()?;
     args.source.refuse_unused_device()?;
     let ids: Vec<String> = pairs.iter().map(|p| p.id.clone()).collect();
-    let inputs = mbs_dataset::stereo_pair::input_files(&pairs);
-    for output in layout.outputs(&args.out, &ids) {
-        inputs.refuse(&output)?;
-    }
+    let mut inputs = mbs_dataset::stereo_pair::input_files(&pairs);
+    args.source.add_files_to(&mut inputs);
+    let outputs = layout.outputs(&args.out, &ids);
     let matcher = args.source.matcher(SgmConfig::default())?;
-    crate::cli::prepare_out(&args.out)?;
+    let _out = crate::cli::take_out(&args.out, None, "submit", &inputs, &outputs)?;
     let seconds = std::sync::Mutex::new(Vec::new());
     let summary = batch::run_in_order(
         &pairs,

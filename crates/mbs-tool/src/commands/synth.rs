@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use clap::Parser;
+use mbs_core::inputs::InputFiles;
 
 use crate::cli::rig::RigArgs;
 use mbs_synth::dataset::DatasetSpec;
@@ -69,7 +70,6 @@ pub struct Args {
 /// Runs `synth`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
-    crate::cli::prepare_out(&args.out)?;
     let rig = args.rig.rig();
     let spec = DatasetSpec {
         rig,
@@ -88,6 +88,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(shard) => shard.select(frames),
         None => frames,
     };
+    let manifest_path = args.out.join("manifest.json");
+    let mut outputs: Vec<PathBuf> = frames
+        .iter()
+        .flat_map(|f| spec.frame_outputs(&args.out, f))
+        .collect();
+    if args.shard.is_none() {
+        outputs.push(manifest_path.clone());
+    }
+    let inputs = InputFiles::new();
+    let _out = crate::cli::take_out(&args.out, args.shard, "synth", &inputs, &outputs)?;
     let summary = batch::run(
         &frames,
         "scenes",
@@ -102,7 +112,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     summary.finish("synth", "scenes")?;
     if args.shard.is_none() {
-        let manifest_path = args.out.join("manifest.json");
         spec.manifest(&args.out)?.save(&manifest_path)?;
         eprintln!(
             "synth: {} samples ({} scenes x {} weathers) -> {}",

@@ -15,6 +15,8 @@ mod ranks;
 use std::path::Path;
 use std::rc::Rc;
 
+use mbs_core::inputs::InputFiles;
+use mbs_core::out_dir::OutDir;
 use mbs_nets::checkpoint::CHECKPOINTS_DIR;
 use mbs_nets::device::{DeviceList, DeviceName};
 use thiserror::Error;
@@ -96,6 +98,11 @@ impl Launch<'_> {
                 TrainError::Config(message) => LaunchError::Usage(message),
                 other => other.into(),
             })?;
+        let hold = open::hold_folder(self.out, strategy.writes());
+        let hold = match processes {
+            Some(processes) => all_succeeded(processes, hold)?,
+            None => hold?,
+        };
         let warnings = self.check_memory(&names, strategy.writes())?;
         self.check_inputs()?;
         self.config.validate()?;
@@ -114,16 +121,18 @@ impl Launch<'_> {
             [trainer.student(), trainer.teacher()],
             trainer.steps_taken(),
         )?;
-        let removed_partials = match strategy.writes() {
-            true => open::prepare_folder(self.out, &self.config, start, restart)?,
-            false => 0,
+        let inputs = self.input_files()?;
+        let folder = open::prepare_folder(self.out, hold, &inputs, &self.config, (start, restart));
+        let folder = match processes {
+            // The others wait until the writer has prepared the folder,
+            // and share its outcome.
+            Some(processes) => all_succeeded(processes, folder)?,
+            None => folder?,
         };
-        if let Some(processes) = processes {
-            // The others wait until the writer has prepared the folder.
-            processes.gather(&[]);
-        }
+        let removed_partials = folder.as_ref().map_or(0, OutDir::removed_partials);
         let data = (samples, validation);
-        let run = TrainingRun::assemble(self.out, self.config, data, trainer, strategy, start);
+        let run = TrainingRun::assemble(self.out, self.config, data, trainer, strategy, start)
+            .holding(folder);
         Ok(Launched {
             run,
             start,
@@ -181,6 +190,19 @@ impl Launch<'_> {
             )));
         }
         Ok(())
+    }
+
+    /// Every file the run reads: the manifest, every file of its samples,
+    /// and the files of `init` (a file, or a run or checkpoint folder).
+    fn input_files(&self) -> Result<InputFiles, TrainError> {
+        let mut inputs = InputFiles::new();
+        inputs.add(self.manifest);
+        let manifest = mbs_dataset::Manifest::load(self.manifest)?;
+        inputs.extend(mbs_dataset::pairs::manifest_files(self.manifest, &manifest));
+        if let Some(init) = self.beginning.init {
+            inputs.add_tree(init);
+        }
+        Ok(inputs)
     }
 
     /// What every rank must hold alike: the settings, the manifest's

@@ -155,6 +155,9 @@ pub struct TrainingRun {
     /// weights) and the processes it is spread over.
     strategy: Box<dyn Strategy<StereoNetwork>>,
     report: RunReport,
+    /// The writer's hold on the folder (locked for as long as the run
+    /// lives); `None` on the other ranks.
+    _folder: Option<mbs_core::out_dir::OutDir>,
 }
 
 /// Where a run's first weights come from.
@@ -220,7 +223,15 @@ impl TrainingRun {
             validation,
             trainer,
             strategy,
+            _folder: None,
         }
+    }
+
+    /// The run holding `folder`, its output folder, for as long as it
+    /// lives (the writer's; `None` on the other ranks).
+    pub(crate) fn holding(mut self, folder: Option<mbs_core::out_dir::OutDir>) -> Self {
+        self._folder = folder;
+        self
     }
 
     /// Whether this process writes the run's files and validates: the only

@@ -2,7 +2,7 @@
 //! where it trains is chosen before, by [`super::place`]): its data, its
 //! first weights or those of a checkpoint, and the output folder.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::PoisonError;
 
 use burn::module::Module;
@@ -11,14 +11,21 @@ use mbs_dataset::Manifest;
 
 use super::logs::truncate_log;
 use super::resume::check_resumable;
-use super::{CONFIG_FILE, Start, TRAIN_LOG, VAL_LOG, WEIGHT_DRAWING, initial_weights};
+use super::{
+    CONFIG_FILE, LOSS_PLOT, Start, TENSORBOARD_DIR, TRAIN_LOG, VAL_LOG, VAL_PLOT, VISUALS_DIR,
+    WEIGHT_DRAWING, initial_weights,
+};
 use crate::checkpoint::Checkpoint;
 use crate::config::RunConfig;
 use crate::data::{TrainingSamples, ValidationSet};
 use crate::error::TrainError;
 use crate::step::S3Trainer;
 use mbs_core::atomic::write_bytes_atomic;
+use mbs_core::inputs::InputFiles;
+use mbs_core::lock::{FolderLock, Share};
+use mbs_core::out_dir::{OutDir, Written};
 use mbs_nets::StereoNetwork;
+use mbs_nets::checkpoint::CHECKPOINTS_DIR;
 
 /// The training samples of `manifest` (their files checked) and the
 /// held-out pairs validation scores.
@@ -113,19 +120,101 @@ fn resume(
     Ok(())
 }
 
-/// Readies `out` for the run's writer: made (a file in its place
-/// refused), the temporary files a killed earlier run left in it removed
-/// (their number is returned), its checkpoints removed when it
-/// `restart`s, the logs cut back to a resumed run's step (or emptied for a
-/// fresh run), and the configuration written.
+/// The writer's hold on the run folder between the launch's first step
+/// and the folder's preparation.
+pub(crate) enum FolderHold {
+    /// This process does not write (a rank other than the writer).
+    NotWriter,
+    /// The folder exists and this process holds its lock.
+    Locked(FolderLock),
+    /// The folder does not exist yet: it is made, and taken, when the
+    /// run is prepared (refused if another process made it meanwhile).
+    Absent,
+}
+
+/// Who holds a run folder, as a refused second run names it.
+const HOLDER: &str = "mbs train";
+
+/// Takes the lock of the run folder `out` for its writer (`writes`), at
+/// once, so a second run, resume or restart into it is refused before
+/// it reads anything there.
+pub(crate) fn hold_folder(out: &Path, writes: bool) -> Result<FolderHold, TrainError> {
+    if !writes {
+        return Ok(FolderHold::NotWriter);
+    }
+    match out.is_dir() {
+        true => Ok(FolderHold::Locked(FolderLock::take(
+            out,
+            Share::Whole,
+            HOLDER,
+        )?)),
+        false => Ok(FolderHold::Absent),
+    }
+}
+
+/// Everything a run writes in its folder: files, then folders (with a
+/// trailing `/`, recorded as covering what is under them).
+fn run_outputs(out: &Path) -> (Vec<PathBuf>, Vec<PathBuf>) {
+    let files = [CONFIG_FILE, TRAIN_LOG, VAL_LOG, LOSS_PLOT, VAL_PLOT];
+    let folders = [CHECKPOINTS_DIR, VISUALS_DIR, TENSORBOARD_DIR];
+    (
+        files.iter().map(|f| out.join(f)).collect(),
+        folders.iter().map(|f| out.join(format!("{f}/"))).collect(),
+    )
+}
+
+/// Refuses, before anything in `out` is removed or written, a run whose
+/// outputs would replace one of its `inputs` (or whose folders, which it
+/// prunes, hold one), a file of the folder that mbs did not write, or a
+/// special file (a FIFO log, a folder named `config.json`).
+fn check_outputs(out: &Path, inputs: &InputFiles) -> Result<(), TrainError> {
+    let written = Written::read(out)?;
+    let (files, folders) = run_outputs(out);
+    for file in &files {
+        inputs.refuse(file)?;
+        mbs_core::atomic::refuse_special_target(file)?;
+    }
+    for folder in &folders {
+        if let Some(input) = inputs.inside(folder) {
+            return Err(TrainError::Input(format!(
+                "{}: the run writes and prunes {}, which holds its input {}; \
+                 move the input or choose another --out",
+                out.display(),
+                folder.display(),
+                input.display()
+            )));
+        }
+    }
+    for output in files.iter().chain(&folders) {
+        written.refuse_foreign(output)?;
+    }
+    Ok(())
+}
+
+/// Readies `out` for the run's writer (`hold`; nothing for the others):
+/// every check first (its outputs against the run's `inputs` and the files
+/// mbs did not write, see [`check_outputs`]); then the folder made or
+/// taken, the temporary files a killed earlier run left in it removed
+/// (their number is returned), the outputs recorded, its checkpoints
+/// removed when it `restart`s, the logs cut back to a resumed run's step
+/// (or emptied for a fresh run), and the configuration written.
 pub(crate) fn prepare_folder(
     out: &Path,
+    hold: FolderHold,
+    inputs: &InputFiles,
     config: &RunConfig,
-    start: Start,
-    restart: bool,
-) -> Result<usize, TrainError> {
-    mbs_core::confine::create_out_dir(out)?;
-    let removed = mbs_core::atomic::remove_stale_partials(out)?;
+    (start, restart): (Start, bool),
+) -> Result<Option<OutDir>, TrainError> {
+    let folder = match hold {
+        FolderHold::NotWriter => return Ok(None),
+        FolderHold::Locked(lock) => {
+            check_outputs(out, inputs)?;
+            OutDir::with_lock(out, lock)?
+        }
+        FolderHold::Absent => OutDir::take_new(out, Share::Whole, HOLDER)?,
+    };
+    let (files, folders) = run_outputs(out);
+    folder.record(files.iter().chain(&folders))?;
     if restart {
         crate::checkpoint::discard_all(out)?;
     }
@@ -140,5 +229,5 @@ pub(crate) fn prepare_folder(
     let config_json = serde_json::to_vec_pretty(&config.to_json()?)
         .map_err(|e| TrainError::Config(e.to_string()))?;
     write_bytes_atomic(&out.join(CONFIG_FILE), &config_json)?;
-    Ok(removed)
+    Ok(Some(folder))
 }

@@ -1,0 +1,494 @@
+//! The user's files, in every command (issue 57), through `mbs-tool`
+//! itself on copies of real Middlebury Teddy laid out as KITTI 2015, KITTI
+//! 2012 and MiddEval3: one process writes a run or output folder at a
+//! time (a `kill -9` releases it), inputs are indexed down to the file,
+//! no output replaces a file mbs did not write, and `train --restart`
+//! checks everything before it deletes. Every refused command leaves
+//! every input byte-identical.
+
+#![allow(clippy::unwrap_used)] // test code: a panic is the failure report
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use common::{mbs_tool, text};
+use mbs_core::FloatImage;
+use mbs_core::formats::pfm::{Endian, write_pfm_grey};
+use mbs_core::formats::{png16, read_disparity};
+use mbs_test_support::files::tree;
+
+const W: u32 = 96;
+const H: u32 = 64;
+
+fn teddy(file: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../testdata/middlebury-teddy")
+        .join(file)
+}
+
+/// Teddy's view `file` (im2.png, im6.png), cropped, saved as `path`.
+fn teddy_view(file: &str, path: &Path) {
+    let view = image::open(teddy(file)).unwrap().into_rgb8();
+    let view = image::imageops::crop_imm(&view, 200, 150, W, H).to_image();
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    view.save(path).unwrap();
+}
+
+/// Teddy's left-view ground truth, cropped (`inf` where unknown).
+fn teddy_truth() -> FloatImage {
+    let gt = read_disparity(&teddy("disp2.png"), Some(4.0)).unwrap();
+    image::imageops::crop_imm(&gt, 200, 150, W, H).to_image()
+}
+
+/// A KITTI 2015 split of one frame with both views' ground truth.
+fn kitti_2015(root: &Path) -> PathBuf {
+    let dir = root.join("kitti2015/training");
+    teddy_view("im2.png", &dir.join("image_2/000000_10.png"));
+    teddy_view("im6.png", &dir.join("image_3/000000_10.png"));
+    for truth in ["disp_occ_0", "disp_noc_0", "disp_occ_1"] {
+        let path = dir.join(truth).join("000000_10.png");
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        png16::write_kitti_disparity(&path, &teddy_truth()).unwrap();
+    }
+    dir
+}
+
+/// A KITTI 2012 split of one frame, with its reflective-surface truth.
+fn kitti_2012(root: &Path) -> PathBuf {
+    let dir = root.join("kitti2012/training");
+    teddy_view("im2.png", &dir.join("colored_0/000000_10.png"));
+    teddy_view("im6.png", &dir.join("colored_1/000000_10.png"));
+    for truth in ["disp_occ", "disp_noc", "disp_refl_occ"] {
+        let path = dir.join(truth).join("000000_10.png");
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        png16::write_kitti_disparity(&path, &teddy_truth()).unwrap();
+    }
+    dir
+}
+
+/// A MiddEval3 root with `trainingQ/Teddy`, whose ground truth includes a
+/// `disp0GTy.pfm` (a name `submit --name GTy` would write).
+fn middeval3(root: &Path) -> PathBuf {
+    let scene = root.join("MiddEval3/trainingQ/Teddy");
+    teddy_view("im2.png", &scene.join("im0.png"));
+    teddy_view("im6.png", &scene.join("im1.png"));
+    for name in ["disp0GT.pfm", "disp0GTy.pfm"] {
+        write_pfm_grey(&scene.join(name), &teddy_truth(), Endian::Little).unwrap();
+    }
+    std::fs::write(scene.join("calib.txt"), "ndisp=64\n").unwrap();
+    root.join("MiddEval3")
+}
+
+/// Exits non-zero (not a panic) and says every one of `words`.
+fn refused(output: &Output, words: &[&str]) {
+    let all = text(output);
+    assert!(!output.status.success(), "{all}");
+    assert_ne!(output.status.code(), Some(101), "panicked: {all}");
+    for word in words {
+        assert!(all.contains(word), "{word:?} not said: {all}");
+    }
+}
+
+/// Fails, naming the files that differ, unless `after` equals `before`
+/// (two listings from `tree`).
+fn unchanged(before: &Files, after: &Files, what: &str) {
+    let differing: Vec<String> = before
+        .iter()
+        .chain(after)
+        .filter(|file| !before.contains(file) || !after.contains(file))
+        .map(|(path, _)| path.display().to_string())
+        .collect();
+    assert!(differing.is_empty(), "{what}: {differing:?}");
+}
+
+/// A folder's files and their bytes, as `tree` lists them.
+type Files = Vec<(PathBuf, Vec<u8>)>;
+
+fn succeeded(output: &Output) {
+    assert!(output.status.success(), "{}", text(output));
+}
+
+/// `predict`, `submit` and `--overwrite` used to replace a dataset's files
+/// that bear an output's name: MiddEval3's `disp0GTy.pfm`, KITTI 2012's
+/// reflective-surface truth, KITTI 2015's right-view truth. Now a file
+/// mbs did not write is refused whatever the flags, while its own outputs
+/// are still replaced with `--overwrite` and skipped without.
+#[test]
+fn no_output_replaces_a_file_mbs_did_not_write() {
+    let dir = tempfile::tempdir().unwrap();
+    let middlebury = middeval3(dir.path());
+    let k12 = kitti_2012(dir.path());
+    let k15 = kitti_2015(dir.path());
+    let before = tree(dir.path());
+    let split = middlebury.join("trainingQ");
+    for overwrite in [false, true] {
+        let flag: &[&str] = if overwrite { &["--overwrite"] } else { &[] };
+        let output = mbs_tool()
+            .args(["submit", "--middlebury"])
+            .arg(&split)
+            .args(["--name", "GTy", "--out"])
+            .arg(&middlebury)
+            .args(flag)
+            .output()
+            .unwrap();
+        refused(&output, &["disp0GTy.pfm", "mbs did not write it"]);
+        let output = mbs_tool()
+            .arg("submit")
+            .arg("--kitti")
+            .arg(&k12)
+            .arg("--out")
+            .arg(k12.join("disp_refl_occ"))
+            .args(flag)
+            .output()
+            .unwrap();
+        refused(
+            &output,
+            &["disp_refl_occ/000000_10.png", "mbs did not write it"],
+        );
+        let output = mbs_tool()
+            .arg("predict")
+            .arg("--kitti")
+            .arg(&k15)
+            .args(["--format", "png16", "--out"])
+            .arg(k15.join("disp_occ_1"))
+            .args(flag)
+            .output()
+            .unwrap();
+        refused(
+            &output,
+            &["disp_occ_1/000000_10.png", "mbs did not write it"],
+        );
+    }
+    unchanged(&before, &tree(dir.path()), "a dataset file changed");
+    // mbs's own outputs: skipped on a second run, replaced with --overwrite.
+    let out = dir.path().join("pred");
+    let predict = |extra: &[&str]| {
+        mbs_tool()
+            .arg("predict")
+            .arg("--kitti")
+            .arg(&k15)
+            .args(["--max-disparity", "32", "--out"])
+            .arg(&out)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    succeeded(&predict(&[]));
+    let second = predict(&[]);
+    succeeded(&second);
+    assert!(
+        text(&second).contains("0 done, 1 skipped"),
+        "{}",
+        text(&second)
+    );
+    let third = predict(&["--overwrite"]);
+    succeeded(&third);
+    assert!(
+        text(&third).contains("1 done, 0 skipped"),
+        "{}",
+        text(&third)
+    );
+    let record = std::fs::read_to_string(out.join(".mbs-written")).unwrap();
+    assert_eq!(record, "000000_10.pfm\n");
+}
+
+/// `extrapolate` used to write its hole-filled disparities over the
+/// disparity files it read, and the left view over a right view named
+/// `image_2.png` in `--out`.
+#[test]
+fn extrapolate_never_writes_over_its_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let pair = dir.path().join("pair");
+    teddy_view("im2.png", &pair.join("left.png"));
+    teddy_view("im6.png", &pair.join("right.png"));
+    let disparities = dir.path().join("disparities");
+    std::fs::create_dir_all(&disparities).unwrap();
+    let left_disparity = disparities.join("disparity_2.pfm");
+    write_pfm_grey(&left_disparity, &teddy_truth(), Endian::Little).unwrap();
+    let kitti = kitti_2015(dir.path());
+    let own = kitti.join("disparity_2");
+    std::fs::create_dir_all(&own).unwrap();
+    write_pfm_grey(&own.join("000000_10.pfm"), &teddy_truth(), Endian::Little).unwrap();
+    let named = dir.path().join("named");
+    teddy_view("im6.png", &named.join("image_2.png"));
+    let before = tree(dir.path());
+    let (left, right) = (pair.join("left.png"), pair.join("right.png"));
+    let one_pair = |left: &Path, right: &Path, extra: &[&std::ffi::OsStr]| {
+        mbs_tool()
+            .arg("extrapolate")
+            .arg("--left")
+            .arg(left)
+            .arg("--right")
+            .arg(right)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let cases: Vec<(Output, &str)> = vec![
+        (
+            one_pair(
+                &left,
+                &right,
+                &[
+                    "--disparity-dir".as_ref(),
+                    disparities.as_os_str(),
+                    "--out".as_ref(),
+                    disparities.as_os_str(),
+                ],
+            ),
+            "disparity_2.pfm",
+        ),
+        (
+            one_pair(
+                &left,
+                &right,
+                &[
+                    "--left-disparity".as_ref(),
+                    left_disparity.as_os_str(),
+                    "--out".as_ref(),
+                    disparities.as_os_str(),
+                ],
+            ),
+            "disparity_2.pfm",
+        ),
+        (
+            mbs_tool()
+                .arg("extrapolate")
+                .arg("--kitti")
+                .arg(&kitti)
+                .arg("--left-disparity-dir")
+                .arg(&own)
+                .output()
+                .unwrap(),
+            "disparity_2/000000_10.pfm",
+        ),
+        (
+            one_pair(
+                &left,
+                &named.join("image_2.png"),
+                &[
+                    "--max-disparity".as_ref(),
+                    "32".as_ref(),
+                    "--out".as_ref(),
+                    named.as_os_str(),
+                ],
+            ),
+            "image_2.png",
+        ),
+    ];
+    for (output, file) in &cases {
+        refused(output, &[file, "refusing to replace an input"]);
+    }
+    unchanged(&before, &tree(dir.path()), "an input changed");
+}
+
+/// A small synthetic training set; its manifest.
+fn training_set(root: &Path) -> String {
+    common::synth(root)
+}
+
+/// `train` of the compact network into `out`, `steps` steps, with `extra`.
+fn train_command(manifest: &str, out: &Path, steps: &str, extra: &[&str]) -> Command {
+    let mut command = mbs_tool();
+    command
+        .args(["train", manifest, "--out"])
+        .arg(out)
+        .args(common::SMALL)
+        .args(["--steps", steps, "--val-every", "1000"])
+        .args(["--checkpoint-every", "2"])
+        .args(extra);
+    command
+}
+
+/// Runs `command`, failing the test if it runs over `seconds`.
+fn within(mut command: Command, seconds: u64) -> Output {
+    let mut child = command
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > Duration::from_secs(seconds) {
+            child.kill().unwrap();
+            panic!("{command:?} still ran after {seconds} s");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    child.wait_with_output().unwrap()
+}
+
+/// Two `train` processes into one folder used to both train; a
+/// `--restart` meanwhile deleted the running run's checkpoints. Now the
+/// second is refused at once, naming the first, and a `kill -9` of the
+/// first frees the folder for the next run.
+#[test]
+fn one_process_per_run_folder_and_kill_releases_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = training_set(&dir.path().join("data"));
+    let run = dir.path().join("run");
+    let mut first = train_command(&manifest, &run, "100000", &[])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let checkpoints = run.join("checkpoints");
+    let start = Instant::now();
+    while !checkpoints.join("step-0000002").is_dir() {
+        assert!(start.elapsed() < Duration::from_secs(300), "no checkpoint");
+        assert!(first.try_wait().unwrap().is_none(), "the first run ended");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let pid = first.id().to_string();
+    // Another run, a restart, and the same command again (a resume).
+    for (steps, extra) in [("4", &[][..]), ("4", &["--restart"]), ("100000", &[])] {
+        let output = within(train_command(&manifest, &run, steps, extra), 120);
+        refused(&output, &["is in use by process", &pid, "mbs train"]);
+        // The first run prunes its older checkpoints as it goes, but
+        // always keeps its newest: a restart would have removed them all.
+        assert!(!tree(&checkpoints).is_empty(), "the checkpoints went");
+    }
+    Command::new("kill").args(["-9", &pid]).status().unwrap();
+    first.wait().unwrap();
+    let output = within(train_command(&manifest, &run, "2", &["--restart"]), 300);
+    succeeded(&output);
+}
+
+/// A held output folder refuses a batch command too (here `predict`,
+/// while another process holds the folder's lock).
+#[test]
+fn a_held_output_folder_refuses_a_batch_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let k15 = kitti_2015(dir.path());
+    let out = dir.path().join("pred");
+    std::fs::create_dir_all(&out).unwrap();
+    let mut holder = Command::new("flock")
+        .arg(out.join(".mbs-lock"))
+        .args(["sleep", "120"])
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while !out.join(".mbs-lock").exists() {
+        assert!(start.elapsed() < Duration::from_secs(30));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(Duration::from_millis(200));
+    let mut command = mbs_tool();
+    command
+        .arg("predict")
+        .arg("--kitti")
+        .arg(&k15)
+        .arg("--out")
+        .arg(&out);
+    let output = within(command, 60);
+    holder.kill().unwrap();
+    holder.wait().unwrap();
+    refused(&output, &["pred: is in use by"]);
+    assert!(!out.join("000000_10.pfm").exists());
+}
+
+/// `benchmark --per-image` used to overwrite a file of the run it scores
+/// (indexed as a folder); `train` indexed none of its inputs, so a
+/// manifest named `config.json` in `--out` was replaced; `predict
+/// --manifest` indexed a sample's two views only.
+#[test]
+fn inputs_are_indexed_down_to_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    let manifest = training_set(&data);
+    let run = dir.path().join("run");
+    succeeded(&within(train_command(&manifest, &run, "2", &[]), 300));
+    let k15 = kitti_2015(dir.path());
+    let step = run.join("checkpoints/step-0000002");
+    let before = tree(dir.path());
+    for file in ["teacher.bpk", "state.json"] {
+        let output = mbs_tool()
+            .arg("benchmark")
+            .arg("--kitti")
+            .arg(&k15)
+            .arg("--checkpoint")
+            .arg(&run)
+            .arg("--per-image")
+            .arg(step.join(file))
+            .output()
+            .unwrap();
+        refused(&output, &[file, "refusing to replace an input"]);
+    }
+    // The manifest as the run's config.json or train.jsonl.
+    for name in ["config.json", "train.jsonl"] {
+        let copy = data.join(name);
+        std::fs::copy(&manifest, &copy).unwrap();
+        let output = within(train_command(copy.to_str().unwrap(), &data, "2", &[]), 120);
+        refused(&output, &[name, "refusing to replace an input"]);
+        std::fs::remove_file(&copy).unwrap();
+    }
+    // A sample's id naming another sample's file.
+    let text_manifest = std::fs::read_to_string(&manifest).unwrap();
+    let mut parsed: serde_json::Value = serde_json::from_str(&text_manifest).unwrap();
+    let samples = parsed["samples"].as_array_mut().unwrap();
+    let other = samples[0]["views"][3].as_str().unwrap().to_string();
+    let stem = other.strip_suffix(".png").unwrap().to_string();
+    samples[1]["id"] = stem.into();
+    let edited = data.join("edited.json");
+    std::fs::write(&edited, serde_json::to_vec(&parsed).unwrap()).unwrap();
+    let before_predict = tree(dir.path());
+    let output = mbs_tool()
+        .args(["predict", "--manifest"])
+        .arg(&edited)
+        .args(["--pair", "0:1", "--format", "png16", "--out"])
+        .arg(&data)
+        .output()
+        .unwrap();
+    refused(&output, &[&other, "refusing to replace an input"]);
+    unchanged(&before_predict, &tree(dir.path()), "an input changed");
+    std::fs::remove_file(&edited).unwrap();
+    unchanged(&before, &tree(dir.path()), "an input changed");
+}
+
+/// `train --restart` used to delete the checkpoints and only then refuse
+/// a FIFO `train.jsonl`, a folder named `config.json` or a `val.jsonl`
+/// linked to `/dev/null`.
+#[test]
+fn restart_checks_everything_before_it_deletes() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = training_set(&dir.path().join("data"));
+    let run = dir.path().join("run");
+    succeeded(&within(train_command(&manifest, &run, "2", &[]), 300));
+    let checkpoints = tree(&run.join("checkpoints"));
+    assert!(!checkpoints.is_empty());
+    type Spoil = fn(&Path);
+    let cases: [(&str, Spoil, &str); 3] = [
+        (
+            "train.jsonl",
+            |p| assert!(Command::new("mkfifo").arg(p).status().unwrap().success()),
+            "FIFO",
+        ),
+        (
+            "config.json",
+            |p| std::fs::create_dir(p).unwrap(),
+            "a folder",
+        ),
+        (
+            "val.jsonl",
+            |p| std::os::unix::fs::symlink("/dev/null", p).unwrap(),
+            "character device",
+        ),
+    ];
+    for (name, spoil, kind) in cases {
+        let path = run.join(name);
+        let saved = std::fs::read(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        spoil(&path);
+        let output = within(train_command(&manifest, &run, "2", &["--restart"]), 120);
+        refused(&output, &[name, kind, "not a regular file"]);
+        unchanged(&checkpoints, &tree(&run.join("checkpoints")), name);
+        match std::fs::symlink_metadata(&path).unwrap().is_dir() {
+            true => std::fs::remove_dir(&path).unwrap(),
+            false => std::fs::remove_file(&path).unwrap(),
+        }
+        std::fs::write(&path, saved).unwrap();
+    }
+}
