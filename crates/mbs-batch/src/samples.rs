@@ -134,3 +134,48 @@ impl TrainingSamples {
         Err(BatchError::data(manifest, message))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A FIFO given as a training view is named at once by the check
+    /// before training (its header is read through a handle opened without
+    /// blocking), with the sample, the path and what it is.
+    #[cfg(unix)]
+    #[test]
+    fn a_fifo_view_is_named_without_blocking() {
+        let dir = tempfile::tempdir().unwrap();
+        let image = image::RgbImage::new(8, 4);
+        let views: Vec<PathBuf> = (0..3)
+            .map(|v| dir.path().join(format!("v{v}.png")))
+            .collect();
+        image.save(&views[0]).unwrap();
+        image.save(&views[2]).unwrap();
+        let made = std::process::Command::new("mkfifo")
+            .arg(&views[1])
+            .status()
+            .unwrap();
+        assert!(made.success(), "mkfifo {}", views[1].display());
+        let samples = TrainingSamples {
+            rig: Rig::centred(3, 0.1, 100.0, 8, 4),
+            samples: vec![ViewPaths {
+                id: "s0".into(),
+                views: views.clone(),
+                size: (8, 4),
+            }],
+        };
+        let manifest = dir.path().join("manifest.json");
+        let (done, outcome) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            done.send(samples.check_files(&manifest).map_err(|e| e.to_string()))
+        });
+        let err = outcome
+            .recv_timeout(std::time::Duration::from_secs(10))
+            .expect("checking a FIFO view blocked")
+            .unwrap_err();
+        let named = format!("sample s0: {}: ", views[1].display());
+        assert!(err.contains(&named) && err.contains("a FIFO"), "{err}");
+        assert!(err.contains("1 training view(s) cannot be used"), "{err}");
+    }
+}

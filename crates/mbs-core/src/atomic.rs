@@ -252,8 +252,17 @@ pub fn link_or_copy(source: &Path, path: &Path) -> Result<()> {
     if !source.is_file() {
         return Err(FormatError::invalid(source, "missing, or not a file"));
     }
-    place_atomically(path, |partial| {
-        fs::hard_link(source, partial).or_else(|_| fs::copy(source, partial).map(|_| ()))
+    place_atomically(path, |partial| match fs::hard_link(source, partial) {
+        // A FIFO swapped in after the check is linked, not read: refused.
+        Ok(()) if fs::symlink_metadata(partial)?.is_file() => Ok(()),
+        Ok(()) => Err(std::io::Error::other(format!(
+            "{} is no longer a regular file",
+            source.display()
+        ))),
+        Err(_) => {
+            let mut from = crate::regular::open_regular(source).map_err(std::io::Error::other)?;
+            std::io::copy(&mut from, &mut fs::File::create(partial)?).map(|_| ())
+        }
     })
 }
 

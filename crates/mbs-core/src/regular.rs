@@ -92,19 +92,27 @@ fn open_without_blocking(path: &Path, options: &mut fs::OpenOptions) -> std::io:
 }
 
 /// Why `path`, the user's `what` (e.g. "left view", "manifest"), cannot
-/// be read as a file before any work starts: it is a folder or does not
-/// exist; `None` when it is a file. The message names the path, as the
-/// commands print it.
+/// be read as a file before any work starts: it is a folder, another kind
+/// of file (a FIFO, a socket, a device: named as [`describe`] names it),
+/// or does not exist; `None` when it is a regular file. The file is not
+/// opened (a FIFO's open could wait for a writer). The message names the
+/// path, as the commands print it.
 pub fn not_a_file(path: &Path, what: &str) -> Option<String> {
-    if path.is_dir() {
-        Some(format!(
+    match fs::metadata(path) {
+        Ok(metadata) if metadata.is_file() => None,
+        Ok(metadata) if metadata.is_dir() => Some(format!(
             "{}: is a folder, the {what} must be a file",
             path.display()
-        ))
-    } else if !path.is_file() {
-        Some(format!("{}: no such file (the {what})", path.display()))
-    } else {
-        None
+        )),
+        Ok(metadata) => Some(format!(
+            "{}: is {}, not a regular file (the {what})",
+            path.display(),
+            describe(&metadata.file_type())
+        )),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            Some(format!("{}: no such file (the {what})", path.display()))
+        }
+        Err(e) => Some(format!("{}: {e} (the {what})", path.display())),
     }
 }
 
@@ -208,5 +216,29 @@ mod tests {
         std::io::Write::write_all(&mut open_append(&log).unwrap(), b"{}\n").unwrap();
         std::io::Write::write_all(&mut open_append(&log).unwrap(), b"{}\n").unwrap();
         assert_eq!(read_text(&log).unwrap(), "{}\n{}\n");
+    }
+
+    /// `not_a_file` names what a special file is, without opening it (a
+    /// FIFO's open would wait for a writer): it used to call a FIFO or a
+    /// socket "no such file".
+    #[cfg(unix)]
+    #[test]
+    fn not_a_file_names_the_kind_of_a_special_file() {
+        use mbs_test_support::special::special_files;
+        let dir = tempfile::tempdir().unwrap();
+        for special in special_files(dir.path(), "json") {
+            let message = not_a_file(&special.path, "manifest").expect("refused");
+            let path = special.path.display().to_string();
+            assert!(message.starts_with(&path), "{message}");
+            assert!(message.contains(special.kind), "{message}");
+            assert!(!message.contains("no such file"), "{message}");
+        }
+        let file = dir.path().join("manifest.json");
+        assert_eq!(
+            not_a_file(&file, "manifest").as_deref(),
+            Some(format!("{}: no such file (the manifest)", file.display()).as_str())
+        );
+        fs::write(&file, "{}").unwrap();
+        assert_eq!(not_a_file(&file, "manifest"), None);
     }
 }

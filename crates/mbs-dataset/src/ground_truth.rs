@@ -2,8 +2,10 @@
 //! non-occluded pixels are; loading gives the disparity in pixels and the
 //! non-occluded mask. The pairs they belong to are listed by [`crate::pairs`].
 
+use std::io::ErrorKind;
 use std::path::{Path, PathBuf};
 
+use mbs_core::FormatError;
 use mbs_core::formats::{read_disparity, rgb::read_mask};
 use mbs_core::metrics::valid_mask;
 use mbs_core::{FloatImage, MaskImage};
@@ -71,6 +73,8 @@ pub struct GroundTruth {
 impl GroundTruthFile {
     /// Reads the disparity times `scale` (`png_scale`: codes per pixel of
     /// integer files, see [`read_disparity`]) with its non-occluded mask.
+    /// A mask that is missing or cannot be read is an error naming it:
+    /// scoring the frame without it would leave it out of NOC and OCC.
     pub fn load(&self, png_scale: Option<f32>) -> Result<GroundTruth, DatasetError> {
         let mut map = read_disparity(&self.disparity, png_scale)?;
         if self.scale != 1.0 {
@@ -78,24 +82,45 @@ impl GroundTruthFile {
         }
         let noc = match &self.noc {
             None => None,
-            Some(NocSource::Map(p)) => Some(valid_mask(&read_disparity(p, png_scale)?)),
-            Some(NocSource::Mask(p)) => Some(read_mask(p)?),
-            Some(NocSource::Levels(p)) => {
-                let mut mask = read_mask(p)?;
-                mask.iter_mut()
-                    .for_each(|v| *v = if *v == 255 { 255 } else { 0 });
-                Some(mask)
-            }
-            Some(NocSource::Occlusion(p)) => {
-                let mut mask = read_mask(p)?;
-                mask.iter_mut()
-                    .for_each(|v| *v = if *v == 0 { 255 } else { 0 });
-                Some(mask)
-            }
+            Some(source) => Some(source.read(png_scale).map_err(|e| match e {
+                FormatError::Io { path, source } if source.kind() == ErrorKind::NotFound => {
+                    DatasetError::Layout {
+                        path,
+                        message: format!(
+                            "no such file: the non-occluded pixels of {} (without them NOC \
+                             and OCC would leave this frame out)",
+                            self.disparity.display()
+                        ),
+                    }
+                }
+                e => e.into(),
+            })?),
         };
         Ok(GroundTruth {
             disparity: map,
             noc,
+        })
+    }
+}
+
+impl NocSource {
+    /// The mask of non-occluded pixels (non-zero) read from the file.
+    fn read(&self, png_scale: Option<f32>) -> Result<MaskImage, FormatError> {
+        Ok(match self {
+            NocSource::Map(p) => valid_mask(&read_disparity(p, png_scale)?),
+            NocSource::Mask(p) => read_mask(p)?,
+            NocSource::Levels(p) => {
+                let mut mask = read_mask(p)?;
+                mask.iter_mut()
+                    .for_each(|v| *v = if *v == 255 { 255 } else { 0 });
+                mask
+            }
+            NocSource::Occlusion(p) => {
+                let mut mask = read_mask(p)?;
+                mask.iter_mut()
+                    .for_each(|v| *v = if *v == 0 { 255 } else { 0 });
+                mask
+            }
         })
     }
 }

@@ -248,8 +248,11 @@ mod tests {
         }
     }
 
+    /// Every frame's non-occluded map is in `disp_noc_0` when the folder
+    /// is there (000000_10's is missing: loading it is an error, see
+    /// `kitti`'s tests).
     #[test]
-    fn kitti_ground_truth_is_listed_with_noc_maps_where_present() {
+    fn kitti_ground_truth_is_listed_with_the_noc_folder_maps() {
         let dir = tempfile::tempdir().unwrap();
         touch(&dir.path().join("disp_occ_0/000001_10.png"));
         touch(&dir.path().join("disp_occ_0/000000_10.png"));
@@ -257,7 +260,10 @@ mod tests {
         let pairs = kitti(dir.path()).scored_pairs().unwrap();
         let ids: Vec<&str> = pairs.iter().map(|p| p.id.as_str()).collect();
         assert_eq!(ids, ["000000_10", "000001_10"]);
-        assert_eq!(pairs[0].truth.as_ref().unwrap().noc, None);
+        assert_eq!(
+            pairs[0].truth.as_ref().unwrap().noc,
+            Some(NocSource::Map(dir.path().join("disp_noc_0/000000_10.png")))
+        );
         assert_eq!(
             pairs[1].truth.as_ref().unwrap().noc,
             Some(NocSource::Map(dir.path().join("disp_noc_0/000001_10.png")))

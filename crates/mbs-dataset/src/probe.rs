@@ -3,10 +3,10 @@
 //! decode in deep mode. Fast enough for 100k+ files.
 
 use std::fs::File;
-use std::io::{Read, Seek, SeekFrom};
+use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::path::Path;
 
-use image::{ColorType, ImageDecoder, ImageReader};
+use image::{ColorType, ImageDecoder, ImageFormat, ImageReader};
 
 /// What a probed file holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -46,62 +46,75 @@ pub enum ProbeError {
 const PNG_IEND: [u8; 12] = [0, 0, 0, 0, b'I', b'E', b'N', b'D', 0xAE, 0x42, 0x60, 0x82];
 
 /// Probes `path`. Fast mode reads the header and checks that the file is not
-/// truncated; `deep` decodes every pixel (and checks CRCs).
+/// truncated; `deep` decodes every pixel (and checks CRCs). The file is
+/// opened once, without blocking, and its type checked on the open handle
+/// ([`mbs_core::regular`]): a folder, a FIFO or another special file is
+/// refused at once, saying what it is, even one swapped in after a check.
 pub fn probe(path: &Path, deep: bool) -> Result<ImageInfo, ProbeError> {
-    match std::fs::metadata(path) {
-        Err(_) => return Err(ProbeError::Missing),
-        Ok(metadata) if metadata.is_dir() => {
-            return Err(ProbeError::Corrupt("is a folder, expected a file".into()));
-        }
-        Ok(metadata) if !metadata.is_file() => {
-            return Err(ProbeError::Corrupt(format!(
-                "is {}, not a regular file",
-                mbs_core::regular::describe(&metadata.file_type())
-            )));
-        }
-        Ok(_) => {}
-    }
+    let file = open(path)?;
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
     match ext.as_str() {
-        "pfm" | "exr" => probe_float(path, deep),
-        _ => probe_raster(path, deep),
+        "pfm" | "exr" => probe_float(path, file, deep),
+        _ => probe_raster(path, file, deep),
     }
 }
 
-fn probe_raster(path: &Path, deep: bool) -> Result<ImageInfo, ProbeError> {
+/// `path` opened as [`mbs_core::regular::open_regular`] does; nothing
+/// there is [`ProbeError::Missing`], anything else that cannot be opened
+/// (a folder, a FIFO, no permission) is [`ProbeError::Corrupt`] saying why.
+fn open(path: &Path) -> Result<File, ProbeError> {
+    mbs_core::regular::open_regular(path).map_err(|e| match e {
+        mbs_core::FormatError::Io { source, .. }
+            if source.kind() == std::io::ErrorKind::NotFound =>
+        {
+            ProbeError::Missing
+        }
+        e => ProbeError::Corrupt(e.reason()),
+    })
+}
+
+fn probe_raster(path: &Path, file: File, deep: bool) -> Result<ImageInfo, ProbeError> {
     let corrupt = |e: &dyn std::fmt::Display| ProbeError::Corrupt(e.to_string());
+    // A second handle on the same open file, for the checks after the header.
+    let mut tail_file = file.try_clone().map_err(|e| corrupt(&e))?;
+    let mut reader = ImageReader::new(BufReader::new(file));
     if deep {
-        let image = image::open(path).map_err(|e| classify_decode_error(&e))?;
+        // As `image::open`: the format the extension names.
+        reader.set_format(ImageFormat::from_path(path).map_err(|e| classify_decode_error(&e))?);
+        let image = reader.decode().map_err(|e| classify_decode_error(&e))?;
         return Ok(ImageInfo {
             width: image.width(),
             height: image.height(),
             pixels: PixelType::Raster(image.color()),
         });
     }
-    let reader = ImageReader::open(path)
-        .and_then(ImageReader::with_guessed_format)
-        .map_err(|e| corrupt(&e))?;
+    if let Ok(format) = ImageFormat::from_path(path) {
+        reader.set_format(format);
+    }
+    let reader = reader.with_guessed_format().map_err(|e| corrupt(&e))?;
     let format = reader.format();
     let decoder = reader
         .into_decoder()
         .map_err(|e| classify_decode_error(&e))?;
     let (width, height) = decoder.dimensions();
+    let (pixels, total_bytes) = (decoder.color_type(), decoder.total_bytes());
+    drop(decoder);
     let info = ImageInfo {
         width,
         height,
-        pixels: PixelType::Raster(decoder.color_type()),
+        pixels: PixelType::Raster(pixels),
     };
-    let file_len = std::fs::metadata(path).map_err(|e| corrupt(&e))?.len();
+    let file_len = tail_file.metadata().map_err(|e| corrupt(&e))?.len();
     match format {
-        Some(image::ImageFormat::Png) => {
-            let mut file = File::open(path).map_err(|e| corrupt(&e))?;
+        Some(ImageFormat::Png) => {
             let mut tail = [0u8; 12];
-            file.seek(SeekFrom::End(-12))
-                .and_then(|_| file.read_exact(&mut tail))
+            tail_file
+                .seek(SeekFrom::End(-12))
+                .and_then(|_| tail_file.read_exact(&mut tail))
                 .map_err(|e| corrupt(&e))?;
             if tail != PNG_IEND {
                 return Err(ProbeError::Truncated(
@@ -109,8 +122,8 @@ fn probe_raster(path: &Path, deep: bool) -> Result<ImageInfo, ProbeError> {
                 ));
             }
         }
-        Some(image::ImageFormat::Pnm) => {
-            let needed = pnm_header_len(path).map_err(|e| corrupt(&e))? + decoder.total_bytes();
+        Some(ImageFormat::Pnm) => {
+            let needed = pnm_header_len(&mut tail_file).map_err(|e| corrupt(&e))? + total_bytes;
             if file_len < needed {
                 return Err(ProbeError::Truncated(format!(
                     "{file_len} bytes, the header and pixel data need {needed}"
@@ -125,9 +138,10 @@ fn probe_raster(path: &Path, deep: bool) -> Result<ImageInfo, ProbeError> {
 /// The length of a binary PNM header: for P5/P6, magic, width, height and
 /// maxval tokens (with `#` comments between them), then one whitespace byte;
 /// for PAM (P7), everything up to the `ENDHDR` line.
-fn pnm_header_len(path: &Path) -> std::io::Result<u64> {
+fn pnm_header_len(file: &mut File) -> std::io::Result<u64> {
     let mut head = Vec::with_capacity(512);
-    File::open(path)?.take(512).read_to_end(&mut head)?;
+    file.seek(SeekFrom::Start(0))?;
+    file.by_ref().take(512).read_to_end(&mut head)?;
     if head.starts_with(b"P7") {
         const END: &[u8] = b"ENDHDR\n";
         return head
@@ -171,16 +185,18 @@ fn classify_decode_error(e: &image::ImageError) -> ProbeError {
     }
 }
 
-fn probe_float(path: &Path, deep: bool) -> Result<ImageInfo, ProbeError> {
+fn probe_float(path: &Path, file: File, deep: bool) -> Result<ImageInfo, ProbeError> {
     let is_exr = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
     let (width, height) = if deep || !is_exr {
         // PFM has no cheaper path than reading it: the header says nothing of truncation.
+        // (It opens the file again, as checked a handle as `file`.)
+        drop(file);
         let map = mbs_core::formats::read_float_map(path).map_err(|e| classify_format_error(&e))?;
         map.dimensions()
     } else {
-        let meta = exr::meta::MetaData::read_from_file(path, false)
+        let meta = exr::meta::MetaData::read_from_buffered(BufReader::new(file), false)
             .map_err(|e| ProbeError::Corrupt(e.to_string()))?;
         let header = meta
             .headers
@@ -274,7 +290,9 @@ mod tests {
         std::fs::create_dir(&folder).unwrap();
         assert_eq!(
             probe(&folder, false),
-            Err(ProbeError::Corrupt("is a folder, expected a file".into()))
+            Err(ProbeError::Corrupt(
+                "is a folder, not a regular file".into()
+            ))
         );
     }
 
@@ -293,6 +311,36 @@ mod tests {
                 (info.width, info.height, info.pixels),
                 (5, 4, PixelType::Float)
             );
+        }
+    }
+
+    /// A FIFO, a socket, a device or a folder named like an image (PNG,
+    /// EXR, PFM) is refused at once in fast and deep mode, saying what it
+    /// is: the reader opens it without blocking and checks the open handle
+    /// (a FIFO given to a plain open blocks until a writer comes).
+    #[cfg(unix)]
+    #[test]
+    fn special_files_are_refused_without_blocking() {
+        use mbs_test_support::special::special_files;
+        for extension in ["png", "exr", "pfm"] {
+            let dir = tempfile::tempdir().unwrap();
+            for special in special_files(dir.path(), extension) {
+                for deep in [false, true] {
+                    let path = special.path.clone();
+                    let (done, outcome) = std::sync::mpsc::channel();
+                    std::thread::spawn(move || done.send(probe(&path, deep)));
+                    let result = outcome
+                        .recv_timeout(std::time::Duration::from_secs(10))
+                        .unwrap_or_else(|_| panic!("probing {} blocked", special.path.display()));
+                    let expected = format!("is {}", special.kind);
+                    assert!(
+                        matches!(&result, Err(ProbeError::Corrupt(m)) if m.contains(&expected)
+                            && m.contains("not a regular file")),
+                        "{}: {result:?}",
+                        special.path.display()
+                    );
+                }
+            }
         }
     }
 }

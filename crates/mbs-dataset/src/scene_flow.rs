@@ -114,22 +114,39 @@ fn pass_above(dir: &Path) -> Result<PathBuf, DatasetError> {
     })
 }
 
-/// The folders named `left` under `dir` (itself included) that have a
-/// sibling `right`, in path order.
+/// The folders named `left` under `dir` (itself included), in path
+/// order, following symbolic links (a link back to a folder above is not
+/// walked twice). A `left` folder without a sibling `right` is an error
+/// naming it: its frames would be left out without a word.
 fn left_folders(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
     let mut found = Vec::new();
-    for entry in walkdir::WalkDir::new(dir).sort_by_file_name() {
-        let entry = entry.map_err(|e| DatasetError::Io {
-            path: e.path().unwrap_or(dir).to_path_buf(),
-            source: e.into(),
-        })?;
+    for entry in walkdir::WalkDir::new(dir)
+        .follow_links(true)
+        .sort_by_file_name()
+    {
+        let entry = match entry {
+            Ok(entry) => entry,
+            // Everything under a link to a folder above is reached by the
+            // folder's own path.
+            Err(e) if e.loop_ancestor().is_some() => continue,
+            Err(e) => {
+                return Err(DatasetError::Io {
+                    path: e.path().unwrap_or(dir).to_path_buf(),
+                    source: e.into(),
+                });
+            }
+        };
         let path = entry.path();
-        if entry.file_type().is_dir()
-            && entry.file_name() == "left"
-            && path.with_file_name("right").is_dir()
-        {
-            found.push(path.to_path_buf());
+        if !entry.file_type().is_dir() || entry.file_name() != "left" {
+            continue;
         }
+        if !path.with_file_name("right").is_dir() {
+            return Err(DatasetError::Layout {
+                path: path.to_path_buf(),
+                message: "has no sibling right/ folder: a SceneFlow frame needs both views".into(),
+            });
+        }
+        found.push(path.to_path_buf());
     }
     Ok(found)
 }
@@ -222,5 +239,51 @@ mod tests {
         std::fs::create_dir_all(dir.path().join("frames_cleanpass/TEST")).unwrap();
         let err = scene_flow_pairs(dir.path()).unwrap_err().to_string();
         assert!(err.contains("no SceneFlow frames"), "{err}");
+    }
+
+    /// A scene folder that is a symbolic link (data kept on another disk)
+    /// used to be skipped without a word; its frames are now listed under
+    /// the link's name, and a link back to a folder above lists nothing
+    /// twice.
+    #[cfg(unix)]
+    #[test]
+    fn linked_folders_are_followed_and_loops_walked_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path().join("flyingthings3d");
+        frame(&root, "frames_finalpass", "TEST/A/0000", "0006", true);
+        let elsewhere = dir.path().join("other-disk");
+        frame(&elsewhere, "frames_finalpass", "TEST/A/0001", "0007", false);
+        std::os::unix::fs::symlink(
+            elsewhere.join("frames_finalpass/TEST/A/0001"),
+            root.join("frames_finalpass/TEST/A/0001"),
+        )
+        .unwrap();
+        touch(&root.join("disparity/TEST/A/0001/left/0007.pfm"));
+        std::os::unix::fs::symlink("../..", root.join("frames_finalpass/TEST/A/up")).unwrap();
+        let pairs = scene_flow_pairs(&root).unwrap();
+        let ids: Vec<&str> = pairs.iter().map(|p| p.id.as_str()).collect();
+        assert_eq!(ids, ["TEST/A/0000/0006", "TEST/A/0001/0007"]);
+        assert_eq!(
+            pairs[1].truth.as_ref().unwrap().disparity,
+            root.join("disparity/TEST/A/0001/left/0007.pfm")
+        );
+    }
+
+    /// A `left/` folder without its `right/` sibling used to be skipped
+    /// without a word; now it is named.
+    #[test]
+    fn a_left_folder_without_right_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path();
+        frame(root, "frames_finalpass", "TEST/A/0000", "0006", true);
+        frame(root, "frames_finalpass", "TEST/A/0001", "0006", true);
+        let right = root.join("frames_finalpass/TEST/A/0001/right");
+        std::fs::remove_dir_all(&right).unwrap();
+        let err = scene_flow_pairs(root).unwrap_err().to_string();
+        let left = root.join("frames_finalpass/TEST/A/0001/left");
+        assert!(
+            err.contains(&left.display().to_string()) && err.contains("no sibling right/"),
+            "{err}"
+        );
     }
 }

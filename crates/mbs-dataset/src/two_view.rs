@@ -124,32 +124,16 @@ fn truth_dir(benchmark: TwoView, root: &Path, scene: &str) -> PathBuf {
 /// and `im1.png`) as a right-side pair named after its folder, in name
 /// order, with its ground truth where the benchmark has it and its
 /// `calib.txt`'s disparity bound. A folder with no scene is a layout
-/// error naming what was expected.
+/// error naming what was expected. When any scene's ground truth has its
+/// `mask0nocc.png`, every scene's must: one without is read as missing
+/// when it is scored (an error naming it), so that NOC and OCC are never
+/// pooled over fewer scenes than ALL.
 fn two_view_pairs(root: &Path, benchmark: TwoView) -> Result<Vec<StereoPair>, DatasetError> {
-    let entries = std::fs::read_dir(root).map_err(|e| DatasetError::Layout {
-        path: root.to_path_buf(),
-        message: format!(
-            "cannot be read ({e}); expected a {} folder of scenes",
-            benchmark.name()
-        ),
-    })?;
-    let mut scenes: Vec<String> = entries
-        .filter_map(Result::ok)
-        .filter(|entry| VIEWS.iter().all(|view| entry.path().join(view).is_file()))
-        .filter_map(|entry| entry.file_name().to_str().map(str::to_string))
-        .collect();
-    scenes.sort();
-    if scenes.is_empty() {
-        return Err(DatasetError::Layout {
-            path: root.to_path_buf(),
-            message: format!(
-                "no {} scene: expected folders holding {} and {}",
-                benchmark.name(),
-                VIEWS[0],
-                VIEWS[1]
-            ),
-        });
-    }
+    let scenes = scene_names(root, benchmark)?;
+    let masks = scenes.iter().any(|scene| {
+        let truth = truth_dir(benchmark, root, scene);
+        present(&truth.join(DISPARITY)) && present(&truth.join(MASK))
+    });
     scenes
         .into_iter()
         .map(|scene| {
@@ -167,12 +151,73 @@ fn two_view_pairs(root: &Path, benchmark: TwoView) -> Result<Vec<StereoPair>, Da
                 truth: disparity.is_file().then(|| GroundTruthFile {
                     disparity,
                     scale: 1.0,
-                    noc: mask.is_file().then_some(NocSource::Levels(mask)),
+                    noc: masks.then_some(NocSource::Levels(mask)),
                 }),
                 id: scene,
             })
         })
         .collect()
+}
+
+/// Whether anything is at `path` (a file, a folder, a FIFO, a link even
+/// to nothing).
+fn present(path: &Path) -> bool {
+    path.symlink_metadata().is_ok()
+}
+
+/// The scenes of `root`, sorted: its folders holding `im0.png` or
+/// `im1.png`. A folder holding one view and not the other, a folder that
+/// cannot be read or a scene name that is not UTF-8 is an error naming
+/// it (a scene left out would be missing from scores and submissions
+/// without a word); a view that is not a file is named when it is read.
+fn scene_names(root: &Path, benchmark: TwoView) -> Result<Vec<String>, DatasetError> {
+    let entries = std::fs::read_dir(root).map_err(|e| DatasetError::Layout {
+        path: root.to_path_buf(),
+        message: format!(
+            "cannot be read ({e}); expected a {} folder of scenes",
+            benchmark.name()
+        ),
+    })?;
+    let mut scenes = Vec::new();
+    for entry in entries {
+        let dir = entry
+            .map_err(|source| DatasetError::Io {
+                path: root.to_path_buf(),
+                source,
+            })?
+            .path();
+        match VIEWS.map(|view| present(&dir.join(view))) {
+            [false, false] => continue,
+            [true, true] => scenes.push(crate::utf8_file_name(&dir)?.to_string()),
+            [has_first, _] => {
+                let (there, missing) = if has_first { (0, 1) } else { (1, 0) };
+                return Err(DatasetError::Layout {
+                    path: dir.join(VIEWS[missing]),
+                    message: format!(
+                        "no such file: scene {} has {} but not {}; a {} scene needs both \
+                         views",
+                        crate::utf8_file_name(&dir)?,
+                        VIEWS[there],
+                        VIEWS[missing],
+                        benchmark.name()
+                    ),
+                });
+            }
+        }
+    }
+    scenes.sort();
+    if scenes.is_empty() {
+        return Err(DatasetError::Layout {
+            path: root.to_path_buf(),
+            message: format!(
+                "no {} scene: expected folders holding {} and {}",
+                benchmark.name(),
+                VIEWS[0],
+                VIEWS[1]
+            ),
+        });
+    }
+    Ok(scenes)
 }
 
 #[cfg(test)]
@@ -302,6 +347,79 @@ mod tests {
         assert!(
             err.contains("nowhere") && err.contains("expected a ETH3D folder"),
             "{err}"
+        );
+    }
+
+    /// A scene folder with one view and not the other used to be left
+    /// out without a word (a MiddEval3 submission then lacked the scene
+    /// and `submit` exited 0); now the listing names the scene and the
+    /// missing view, in both layouts.
+    #[test]
+    fn a_scene_with_one_view_is_named_not_left_out() {
+        let dir = tempfile::tempdir().unwrap();
+        for (root, list) in [
+            (
+                dir.path().join("testH"),
+                middlebury_pairs as fn(&Path) -> Result<Vec<StereoPair>, DatasetError>,
+            ),
+            (dir.path().join("two_view_test"), eth3d_pairs),
+        ] {
+            scene(&root.join("Australia"), None);
+            scene(&root.join("Bicycle2"), None);
+            assert_eq!(list(&root).unwrap().len(), 2);
+            std::fs::remove_file(root.join("Bicycle2").join(VIEWS[1])).unwrap();
+            let err = list(&root).unwrap_err().to_string();
+            let missing = root.join("Bicycle2").join(VIEWS[1]);
+            assert!(
+                err.contains(&missing.display().to_string())
+                    && err.contains("scene Bicycle2 has im0.png but not im1.png"),
+                "{err}"
+            );
+            touch(&root.join("Bicycle2").join(VIEWS[1]));
+            std::fs::remove_file(root.join("Australia").join(VIEWS[0])).unwrap();
+            let err = list(&root).unwrap_err().to_string();
+            assert!(
+                err.contains("scene Australia has im1.png but not im0.png"),
+                "{err}"
+            );
+        }
+    }
+
+    /// When a scene's ground truth has its mask0nocc.png, every scene's
+    /// has one to read: a missing one used to leave its scene out of NOC
+    /// and OCC only (their figures then over fewer scenes than ALL's);
+    /// now reading it is an error naming the mask. A folder without any
+    /// mask has no NOC at all.
+    #[test]
+    fn a_missing_noc_mask_is_an_error_when_the_other_scenes_have_theirs() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path().join("trainingQ");
+        for name in ["Adirondack", "Piano"] {
+            scene(&root.join(name), Some(&root.join(name)));
+        }
+        let mask = root.join("Piano").join(MASK);
+        std::fs::remove_file(&mask).unwrap();
+        let pairs = middlebury_pairs(&root).unwrap();
+        assert!(pairs[0].truth.as_ref().unwrap().load(None).is_ok());
+        let truth = pairs[1].truth.as_ref().unwrap();
+        assert_eq!(truth.noc, Some(NocSource::Levels(mask.clone())));
+        let err = truth.load(None).unwrap_err().to_string();
+        assert!(
+            err.starts_with(&format!("{}: no such file", mask.display()))
+                && err.contains(DISPARITY),
+            "{err}"
+        );
+        // A mask that does not decode is an error naming it too.
+        std::fs::write(&mask, b"not a PNG").unwrap();
+        let err = truth.load(None).unwrap_err().to_string();
+        assert!(err.starts_with(&mask.display().to_string()), "{err}");
+        std::fs::remove_file(&mask).unwrap();
+        std::fs::remove_file(root.join("Adirondack").join(MASK)).unwrap();
+        let pairs = middlebury_pairs(&root).unwrap();
+        assert!(
+            pairs
+                .iter()
+                .all(|p| p.truth.as_ref().unwrap().noc.is_none())
         );
     }
 }

@@ -278,10 +278,7 @@ fn copy_ground_truth(from: &Path, to: &Path, spec: &DatasetSpec) -> Result<(), D
         .into_iter()
         .filter(|f| !views.contains(f))
     {
-        let bytes = std::fs::read(from.join(&file)).map_err(|source| DatasetError::Io {
-            path: from.join(&file),
-            source,
-        })?;
+        let bytes = mbs_core::regular::read_bytes(&from.join(&file))?;
         mbs_core::atomic::write_bytes_atomic(&to.join(&file), &bytes)?;
     }
     Ok(())

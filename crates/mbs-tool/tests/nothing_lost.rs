@@ -141,6 +141,53 @@ fn a_fifo_where_a_file_belongs_is_named_not_read_for_ever() {
     assert!(!out.exists(), "predict wrote before it failed");
 }
 
+/// A MiddEval3 scene without `im1.png` used to be left out of the
+/// submission archive, `submit` exiting 0; now the listing stops it
+/// before anything is written, naming the scene and the file. A FIFO
+/// where a finished output would be (the resume check decodes it) is
+/// named at once, not read for ever.
+#[test]
+fn submit_names_a_scene_without_a_view_and_a_fifo_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let split = middlebury(dir.path());
+    let other = split.join("Other");
+    std::fs::create_dir_all(&other).unwrap();
+    for file in ["im0.png", "disp0GT.pfm", "mask0nocc.png", "calib.txt"] {
+        std::fs::copy(split.join("Scene").join(file), other.join(file)).unwrap();
+    }
+    let before = tree(dir.path());
+    let out = dir.path().join("out");
+    let submit = || {
+        let mut command = mbs_tool();
+        command
+            .args(["submit", "--middlebury", split.to_str().unwrap()])
+            .args(["--name", "MBS", "--max-disparity", "16", "--out"])
+            .arg(&out);
+        within(command, 120)
+    };
+    let output = submit();
+    let missing = other.join("im1.png").display().to_string();
+    refused(
+        &output,
+        &[&missing, "scene Other has im0.png but not im1.png"],
+    );
+    assert!(!out.exists(), "submit wrote before it failed");
+    assert_eq!(tree(dir.path()), before, "an input changed");
+
+    std::fs::remove_dir_all(&other).unwrap();
+    let fifo = out.join("trainingQ/Scene/disp0MBS.pfm");
+    std::fs::create_dir_all(fifo.parent().unwrap()).unwrap();
+    assert!(
+        Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    let output = submit();
+    refused(&output, &[&fifo.display().to_string(), "FIFO"]);
+}
+
 /// A synthetic training set, as `train`'s own tests make it.
 fn training_set(root: &Path) -> String {
     common::synth(root)

@@ -908,6 +908,64 @@ fn frame_lists_keep_their_frames_and_frames_without_truth_are_named() {
     assert_eq!(json["unscored"], serde_json::json!(["Fifo", "NoTruth"]));
 }
 
+/// A frame whose non-occluded ground truth is missing (KITTI's
+/// `disp_noc_0` file, a Middlebury or ETH3D `mask0nocc.png`) while the
+/// other frames have theirs used to be scored in ALL and left out of NOC
+/// and OCC without a word, so that NOC and ALL were figures over different
+/// frames. Now `eval` and `benchmark` name the frame and the missing file,
+/// count the frame as failed and exit 1, scoring the others; a mask that
+/// does not decode is named too; no input changes.
+#[test]
+fn a_frame_without_its_noc_ground_truth_is_named_not_left_out_of_noc() {
+    let dir = tempfile::tempdir().unwrap();
+    let layouts = [
+        kitti_layout(dir.path(), 2015),
+        middlebury_layout(dir.path()),
+        eth3d_layout(dir.path()),
+    ];
+    let masks = [
+        layouts[0].dir.join("disp_noc_0/000001_10.png"),
+        layouts[1].dir.join("Teddy4/mask0nocc.png"),
+        dir.path().join("two_view_training_gt/teddy4/mask0nocc.png"),
+    ];
+    for mask in &masks {
+        std::fs::remove_file(mask).unwrap();
+    }
+    let before = mbs_test_support::files::tree(dir.path());
+    let mut folders = Vec::new();
+    for (layout, mask) in layouts.iter().zip(&masks) {
+        let output = eval(layout, &layout.predictions, "pixels", &[]);
+        let named = format!(
+            "{}: {}: no such file",
+            layout.frames[1].name,
+            mask.display()
+        );
+        assert_eq!(output.status.code(), Some(1), "{}", text(&output));
+        assert!(text(&output).contains(&named), "{named}: {}", text(&output));
+        let json: Value = serde_json::from_slice(&output.stdout).unwrap();
+        assert_eq!(json["images"].as_array().map(Vec::len), Some(1));
+        folders.extend([layout.flag, layout.dir.to_str().unwrap()]);
+    }
+    let output = run(&[
+        &["benchmark", "--max-disparity", "16", "--json"],
+        &folders[..],
+    ]
+    .concat());
+    assert_eq!(output.status.code(), Some(1), "{}", text(&output));
+    let json: Value = serde_json::from_slice(&output.stdout).unwrap();
+    for (column, mask) in masks.iter().enumerate() {
+        assert_eq!(json["benchmarks"][column]["failed"], 1, "{json:#}");
+        assert!(text(&output).contains(&mask.display().to_string()));
+    }
+    assert_eq!(mbs_test_support::files::tree(dir.path()), before);
+
+    std::fs::write(&masks[1], b"not a PNG").unwrap();
+    let output = eval(&layouts[1], &layouts[1].predictions, "pixels", &[]);
+    assert_eq!(output.status.code(), Some(1), "{}", text(&output));
+    let named = format!("Teddy4: {}", masks[1].display());
+    assert!(text(&output).contains(&named), "{named}: {}", text(&output));
+}
+
 /// `predict FLAG DIR` with the built-in matcher over 64 disparities into
 /// `out`, read back into `layout`'s frames (the predictions `benchmark`
 /// makes of the same pairs).

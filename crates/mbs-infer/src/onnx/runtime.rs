@@ -180,21 +180,8 @@ fn same_file(a: &Path, b: &Path) -> bool {
 /// Opens `model` as a session on `options.device`, returning it with the
 /// device it actually runs on (the CPU after an allowed fallback).
 pub fn open_session(model: &Path, options: &RuntimeOptions) -> Result<(Session, Device)> {
+    let bytes = model_bytes(model)?;
     let env = environment(options.library.as_deref())?;
-    // A FIFO or a folder is named here: ONNX Runtime would block on one.
-    let unusable = if model.exists() {
-        mbs_core::regular::open_regular(model)
-            .err()
-            .map(|e| e.reason())
-    } else {
-        Some("no such file".to_string())
-    };
-    if let Some(message) = unusable {
-        return Err(OnnxError::Model {
-            path: model.to_path_buf(),
-            message,
-        });
-    }
     let model_error = |message: String| OnnxError::Model {
         path: model.to_path_buf(),
         message,
@@ -223,10 +210,39 @@ pub fn open_session(model: &Path, options: &RuntimeOptions) -> Result<(Session, 
             Err(failure) => (failure.0, Device::Cpu),
         },
     };
+    // Weights kept in files beside the model are looked for in its folder.
+    if let Some(folder) = model.parent().and_then(Path::to_str) {
+        builder = builder
+            .with_config_entry(EXTERNAL_DATA_FOLDER, folder)
+            .map_err(|e| model_error(e.to_string()))?;
+    }
     let session = builder
-        .commit_from_file(model)
+        .commit_from_memory(&bytes)
         .map_err(|e| model_error(e.to_string()))?;
     Ok((session, device))
+}
+
+/// ONNX Runtime's session setting for the folder of the files holding a
+/// model's external weights, when the model is given as bytes.
+const EXTERNAL_DATA_FOLDER: &str = "session.model_external_initializers_file_folder_path";
+
+/// The whole of the model file `model`, read through a handle opened
+/// without blocking and checked to be a regular file: a FIFO, a socket or
+/// a folder is named at once (ONNX Runtime, reading the path itself, would
+/// block on a FIFO, also on one swapped in after a check), and ONNX
+/// Runtime is given these very bytes.
+fn model_bytes(model: &Path) -> Result<Vec<u8>> {
+    mbs_core::regular::read_bytes(model).map_err(|e| OnnxError::Model {
+        path: model.to_path_buf(),
+        message: match e {
+            mbs_core::FormatError::Io { source, .. }
+                if source.kind() == std::io::ErrorKind::NotFound =>
+            {
+                "no such file".to_string()
+            }
+            e => e.reason(),
+        },
+    })
 }
 
 /// Registers the CUDA execution provider on GPU `n`; on failure gives the
@@ -298,6 +314,37 @@ mod tests {
         assert_eq!(
             project_library(dir.path()),
             Some(dir.path().join("libonnxruntime.so.1.31.1"))
+        );
+    }
+
+    /// A FIFO, a socket, a device or a folder given as the model is named
+    /// at once, before ONNX Runtime is looked for: mbs reads the model
+    /// through a handle opened without blocking and gives ONNX Runtime
+    /// the bytes (it used to open the path again itself, and a FIFO
+    /// swapped in between blocked it for ever).
+    #[cfg(unix)]
+    #[test]
+    fn special_files_as_the_model_are_named_without_blocking() {
+        use mbs_test_support::special::special_files;
+        let dir = tempfile::tempdir().unwrap();
+        for special in special_files(dir.path(), "onnx") {
+            let path = special.path.clone();
+            let (done, outcome) = std::sync::mpsc::channel();
+            std::thread::spawn(move || {
+                let result = open_session(&path, &RuntimeOptions::default());
+                done.send(result.err().map(|e| e.to_string()))
+            });
+            let err = outcome
+                .recv_timeout(std::time::Duration::from_secs(10))
+                .unwrap_or_else(|_| panic!("opening {} blocked", special.path.display()))
+                .expect("refused");
+            assert!(special.is_refused_in(&err), "{err}");
+        }
+        let missing = dir.path().join("none.onnx");
+        let err = model_bytes(&missing).unwrap_err().to_string();
+        assert!(
+            err.contains("none.onnx") && err.contains("no such file"),
+            "{err}"
         );
     }
 }
