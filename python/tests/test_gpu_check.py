@@ -681,3 +681,12 @@ def test_prepare_force_puts_back_a_bundle_given_results_as_it_is_moved(tmp_path:
     assert line.startswith(f"prepare.sh: {bundle} holds results") and "results/results.json" in line, line
     assert snapshot(bundle) == {**before, "results": None, "results/results.json": b"{}\n"}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bin", "bundle", "mbs-tool", "other"]
+
+
+def test_an_unknown_phase_is_refused_before_anything_is_written(tmp_path: Path) -> None:
+    tool, env = stub_tools(tmp_path)
+    out = tmp_path / "results"
+    done = run_check(tool, env, out, "probe,igevv")
+    assert done.returncode == 2, done.stderr
+    assert "no phase named igevv" in done.stderr
+    assert not out.exists()

@@ -765,6 +765,10 @@ def main():
     parser = arguments()
     args = parser.parse_args()
     wanted = set(args.phases.split(",")) if args.phases else None
+    unknown = sorted((wanted or set()) - {name for name, _, _ in PHASES})
+    if unknown:
+        known = ", ".join(name for name, _, _ in PHASES)
+        parser.error(f"--phases: no phase named {', '.join(unknown)} (the phases: {known})")
     try:
         previous, samples = check_output(args)
         binaries(parser, args)
