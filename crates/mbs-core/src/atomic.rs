@@ -45,7 +45,7 @@ fn partial_owner(name: &str) -> Option<u32> {
 
 /// Whether process `pid` still runs. Without `/proc` (not Linux) every
 /// process is assumed alive, so nothing is removed.
-fn is_running(pid: u32) -> bool {
+pub(crate) fn is_running(pid: u32) -> bool {
     let proc_root = Path::new("/proc");
     !proc_root.is_dir() || proc_root.join(pid.to_string()).exists()
 }
@@ -244,9 +244,7 @@ fn publish_exclusively(_: &Path, _: &Path) -> Option<std::result::Result<(), Unp
 /// file system allows it (no space used), else a copy. Nothing is done when
 /// `path` already is `source`.
 pub fn link_or_copy(source: &Path, path: &Path) -> Result<()> {
-    if let (Ok(a), Ok(b)) = (fs::canonicalize(source), fs::canonicalize(path))
-        && a == b
-    {
+    if crate::inputs::same_file(source, path) {
         return Ok(());
     }
     if !source.is_file() {

@@ -36,60 +36,54 @@ pub enum Share {
 /// releases it.
 #[derive(Debug)]
 pub struct FolderLock {
-    /// The files held, kept open for as long as the lock lasts: the
-    /// folder's lock file first.
-    held: Vec<fs::File>,
-    /// The folder's lock file, where [`FolderLock::announce`] writes the
-    /// holder of a whole folder.
-    path: PathBuf,
-    /// Who holds it, as a refused process is told.
-    holder: String,
-    /// Whether this lock holds the whole folder.
-    whole: bool,
+    /// The files held, kept open for as long as the lock lasts.
+    _held: Vec<fs::File>,
+    /// Whether the file system refused locks altogether (see
+    /// [`FolderLock::warning`]).
+    unsupported: bool,
 }
 
 impl FolderLock {
     /// Locks the existing folder `dir` for `share`, as `holder` (e.g.
-    /// "mbs-tool train"); a folder another process holds is refused at
-    /// once, naming that process. A whole folder's lock file is made when
-    /// missing but not written: the holder says who it is with
-    /// [`FolderLock::announce`] once its checks have passed, so a command
-    /// refused later leaves the folder's files as they were. A shard's own
-    /// lock file names it at once (shards lock after their checks).
+    /// "mbs-tool train"), and writes who holds it in the lock file it
+    /// holds alone; a folder another process holds is refused at once,
+    /// naming that process. On a file system without locks (Lustre
+    /// mounted without `flock`, some FUSE mounts) the folder is taken
+    /// unlocked, which [`FolderLock::warning`] says.
     pub fn take(dir: &Path, share: Share, holder: &str) -> Result<Self> {
         let main = dir.join(LOCK_FILE);
         let main_file = open_lock_file(&main)?;
-        let (held, holder) = match share {
+        let (held, supported) = match share {
             Share::Whole => {
-                lock(&main_file, dir, Mode::Exclusive)?;
-                (vec![main_file], holder.to_string())
+                let supported = lock(&main_file, dir, Mode::Exclusive)?;
+                write_holder(&main_file, &main, holder)?;
+                (vec![main_file], supported)
             }
             Share::Shard { index, count } => {
-                lock(&main_file, dir, Mode::Shared)?;
+                let supported = lock(&main_file, dir, Mode::Shared)?;
                 let own = dir.join(format!("{LOCK_FILE}.shard-{index}-of-{count}"));
                 let own_file = open_lock_file(&own)?;
                 lock(&own_file, dir, Mode::Exclusive)?;
-                let holder = format!("{holder}, shard {index}/{count}");
-                write_holder(&own_file, &own, &holder)?;
-                (vec![main_file, own_file], holder)
+                write_holder(&own_file, &own, &format!("{holder}, shard {index}/{count}"))?;
+                (vec![main_file, own_file], supported)
             }
         };
         Ok(Self {
-            held,
-            path: main,
-            holder,
-            whole: share == Share::Whole,
+            _held: held,
+            unsupported: !supported,
         })
     }
 
-    /// Writes who holds a whole folder into its lock file, for a process
-    /// refused meanwhile to name (a shard's holder is written by
-    /// [`FolderLock::take`]).
-    pub fn announce(&self) -> Result<()> {
-        match self.whole {
-            true => write_holder(&self.held[0], &self.path, &self.holder),
-            false => Ok(()),
-        }
+    /// A warning for the user when the folder could not be locked (its
+    /// file system has no locks), naming `dir`.
+    pub fn warning(&self, dir: &Path) -> Option<String> {
+        self.unsupported.then(|| {
+            format!(
+                "{}: this file system does not support locks (flock), so nothing stops \
+                 another process from writing this folder at the same time",
+                dir.display()
+            )
+        })
     }
 }
 
@@ -148,18 +142,20 @@ pub(crate) fn open_own(path: &Path, options: &mut fs::OpenOptions) -> Result<fs:
     }
 }
 
-/// Takes `file`'s lock in `mode` without waiting; a lock held elsewhere is
-/// an error about `dir` that names its holders.
+/// Takes `file`'s lock in `mode` without waiting: `true` when taken,
+/// `false` when the file system has no locks; a lock held elsewhere is an
+/// error about `dir` that names its holders.
 #[cfg(unix)]
-fn lock(file: &fs::File, dir: &Path, mode: Mode) -> Result<()> {
+fn lock(file: &fs::File, dir: &Path, mode: Mode) -> Result<bool> {
     use rustix::fs::{FlockOperation, flock};
+    use rustix::io::Errno;
     let operation = match mode {
         Mode::Exclusive => FlockOperation::NonBlockingLockExclusive,
         Mode::Shared => FlockOperation::NonBlockingLockShared,
     };
     match flock(file, operation) {
-        Ok(()) => Ok(()),
-        Err(rustix::io::Errno::WOULDBLOCK) => Err(FormatError::invalid(
+        Ok(()) => Ok(true),
+        Err(Errno::WOULDBLOCK) => Err(FormatError::invalid(
             dir,
             format!(
                 "is in use by {}; one process writes an output folder at a time: \
@@ -167,14 +163,15 @@ fn lock(file: &fs::File, dir: &Path, mode: Mode) -> Result<()> {
                 holders(dir)
             ),
         )),
+        Err(Errno::NOSYS | Errno::OPNOTSUPP | Errno::NOLCK) => Ok(false),
         Err(e) => Err(FormatError::io(&dir.join(LOCK_FILE), e.into())),
     }
 }
 
 /// Without `flock`, folders are not locked.
 #[cfg(not(unix))]
-fn lock(_: &fs::File, _: &Path, _: Mode) -> Result<()> {
-    Ok(())
+fn lock(_: &fs::File, _: &Path, _: Mode) -> Result<bool> {
+    Ok(false)
 }
 
 /// Seconds since the Unix epoch, now.
@@ -184,15 +181,20 @@ fn now_seconds() -> u64 {
         .map_or(0, |d| d.as_secs())
 }
 
+/// This machine's name, as the holders' lines give it ("" when unknown).
+fn hostname() -> String {
+    fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|h| h.trim().to_string())
+        .unwrap_or_default()
+}
+
 /// Replaces the content of the held lock file `file` with who holds it:
 /// a line naming the process, then `since=SECONDS` (from the Unix epoch).
 fn write_holder(mut file: &fs::File, path: &Path, holder: &str) -> Result<()> {
-    let host = fs::read_to_string("/proc/sys/kernel/hostname")
-        .map(|h| format!(" on {}", h.trim()))
-        .unwrap_or_default();
     let text = format!(
-        "process {} ({holder}){host}\nsince={}\n",
+        "process {} ({holder}) on {}\nsince={}\n",
         std::process::id(),
+        hostname(),
         now_seconds()
     );
     file.set_len(0)
@@ -218,18 +220,18 @@ fn describe_holder(text: &str) -> Option<String> {
 }
 
 /// Whether the process a holder's line `who` names ("process PID (...) on
-/// HOST") may still run: a process of this host that has ended wrote a
-/// line that a holder which has not announced itself yet left in place.
+/// HOST") may still run: one of this machine that has ended left a line
+/// behind it (a holder that has not written its own yet, or a shared lock).
 fn may_be_running(who: &str) -> bool {
-    let Some(pid) = who
+    let pid = who
         .strip_prefix("process ")
         .and_then(|rest| rest.split_whitespace().next())
-    else {
-        return true;
-    };
-    let this_host = fs::read_to_string("/proc/sys/kernel/hostname")
-        .is_ok_and(|host| who.ends_with(&format!(" on {}", host.trim())));
-    !this_host || Path::new("/proc").join(pid).exists()
+        .and_then(|pid| pid.parse().ok());
+    let this_host = who.ends_with(&format!(" on {}", hostname()));
+    match pid {
+        Some(pid) if this_host => crate::atomic::is_running(pid),
+        _ => true,
+    }
 }
 
 /// Who holds `dir`'s locks, in words, from the lock files of the holders
@@ -296,7 +298,6 @@ mod tests {
     fn a_held_folder_is_refused_naming_its_holder_and_released_on_drop() {
         let dir = tempfile::tempdir().unwrap();
         let first = FolderLock::take(dir.path(), Share::Whole, "mbs-tool train").unwrap();
-        first.announce().unwrap();
         let err = FolderLock::take(dir.path(), Share::Whole, "mbs-tool train")
             .unwrap_err()
             .to_string();

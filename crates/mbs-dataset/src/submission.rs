@@ -200,7 +200,11 @@ impl SubmissionLayout {
     /// other split of the same resolution in `out` (`trainingH` for
     /// `testH` and the other way round: one upload is one resolution);
     /// nothing for the other layouts.
-    fn other_splits(&self, out: &Path) -> Result<Vec<PathBuf>, DatasetError> {
+    fn other_splits(
+        &self,
+        out: &Path,
+        ours: &dyn Fn(&Path) -> bool,
+    ) -> Result<Vec<PathBuf>, DatasetError> {
         let SubmissionLayout::Middlebury {
             method,
             split,
@@ -226,8 +230,9 @@ impl SubmissionLayout {
         };
         let mut files = Vec::new();
         for scene in sorted_folders(&out.join(&other))? {
-            if layout.is_written(out, &scene) {
-                files.extend(layout.files(&scene));
+            let scene_files = layout.files(&scene);
+            if layout.is_written(out, &scene) && scene_files.iter().all(|f| ours(&out.join(f))) {
+                files.extend(scene_files);
             }
         }
         Ok(files)
@@ -245,13 +250,19 @@ impl SubmissionLayout {
     /// Zips the files of pairs `ids` found under `out` into `out`'s
     /// archive (paths relative to `out`, `/`-separated, in `ids`' order;
     /// for Middlebury, after them, the method's complete scenes of the
-    /// other splits in `out`); returns its path. A pair whose files are
-    /// missing is an error naming the file.
-    pub fn archive(&self, out: &Path, ids: &[String]) -> Result<PathBuf, DatasetError> {
+    /// other splits in `out` whose files `ours` says this tool wrote);
+    /// returns its path. A pair whose files are missing is an error naming
+    /// the file.
+    pub fn archive(
+        &self,
+        out: &Path,
+        ids: &[String],
+        ours: &dyn Fn(&Path) -> bool,
+    ) -> Result<PathBuf, DatasetError> {
         let path = out.join(self.archive_name());
         let mut entries = Vec::new();
         let mut files: Vec<PathBuf> = ids.iter().flat_map(|id| self.files(id)).collect();
-        files.extend(self.other_splits(out)?);
+        files.extend(self.other_splits(out, ours)?);
         for file in files {
             let bytes = mbs_core::regular::read_bytes(&out.join(&file))?;
             let name = file
@@ -340,7 +351,7 @@ mod tests {
         // disparity × 256, rounded; no prediction is 0.
         assert_eq!(codes.as_raw(), &[256, 640, 0, 64, 25600, 65533]);
         let ids = ["000000_10".to_string(), "000001_10".to_string()];
-        let zip = layout.archive(dir.path(), &ids).unwrap();
+        let zip = layout.archive(dir.path(), &ids, &|_| true).unwrap();
         assert_eq!(zip, dir.path().join("kitti_submission.zip"));
         let entries = unzip(&zip);
         let names: Vec<&str> = entries.iter().map(|(n, _)| n.as_str()).collect();
@@ -374,7 +385,7 @@ mod tests {
             "runtime 0.030000\n"
         );
         let zip = eth3d
-            .archive(dir.path(), &["lakeside_1l".to_string()])
+            .archive(dir.path(), &["lakeside_1l".to_string()], &|_| true)
             .unwrap();
         let names: Vec<String> = unzip(&zip).into_iter().map(|(n, _)| n).collect();
         assert_eq!(
@@ -385,7 +396,7 @@ mod tests {
             ]
         );
         let err = eth3d
-            .archive(dir.path(), &["missing".to_string()])
+            .archive(dir.path(), &["missing".to_string()], &|_| true)
             .unwrap_err()
             .to_string();
         assert!(err.contains("low_res_two_view/missing.pfm"), "{err}");
@@ -412,7 +423,7 @@ mod tests {
         layout.write(dir.path(), "000000_10", &map(), 0.5).unwrap();
         assert!(dir.path().join("000000_10.png").is_file());
         let zip = layout
-            .archive(dir.path(), &["000000_10".to_string()])
+            .archive(dir.path(), &["000000_10".to_string()], &|_| true)
             .unwrap();
         let names: Vec<String> = unzip(&zip).into_iter().map(|(n, _)| n).collect();
         assert_eq!(names, ["000000_10.png"]);
@@ -442,7 +453,7 @@ mod tests {
             layout.write(dir.path(), "Australia", &map(), 1.0).unwrap();
         }
         let zip = training
-            .archive(dir.path(), &["Adirondack".to_string()])
+            .archive(dir.path(), &["Adirondack".to_string()], &|_| true)
             .unwrap();
         let names: Vec<String> = unzip(&zip).into_iter().map(|(n, _)| n).collect();
         assert_eq!(

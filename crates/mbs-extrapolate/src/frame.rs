@@ -177,14 +177,10 @@ impl Frame {
     /// Every file processing writes (the contact sheet too with
     /// `preview`): the outputs, less the places of the input views and
     /// ground truth that already are those inputs (a KITTI folder
-    /// extrapolated in place), which are left as they are.
+    /// extrapolated in place, or the hard links an earlier run made), which
+    /// are left as they are.
     pub fn written(&self, preview: bool) -> Vec<&Path> {
-        let in_place = |input: &Path, place: &Path| {
-            matches!(
-                (input.canonicalize(), place.canonicalize()),
-                (Ok(a), Ok(b)) if a == b
-            )
-        };
+        let in_place = |input: &Path, place: &Path| mbs_core::inputs::same_file(input, place);
         let mut links = vec![(&self.left, &self.image_2), (&self.right, &self.image_3)];
         links.extend(
             self.ground_truth

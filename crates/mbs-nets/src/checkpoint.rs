@@ -154,6 +154,19 @@ impl TrainedNetworks {
         [STATE_FILE, TEACHER_FILE, STUDENT_FILE].map(|name| self.dir.join(name))
     }
 
+    /// The files a command reads from `path` (a checkpoint or run folder,
+    /// through its newest checkpoint's files; a weights file itself), so
+    /// that no output replaces one; a folder that holds no checkpoint
+    /// gives itself (the command reports it when it opens it).
+    pub fn files_read_from(path: &Path) -> Vec<PathBuf> {
+        match path.is_dir() {
+            true => {
+                Self::open(path).map_or_else(|_| vec![path.to_path_buf()], |n| n.files().into())
+            }
+            false => vec![path.to_path_buf()],
+        }
+    }
+
     /// The teacher (the network used for inference) on `device`.
     pub fn teacher(&self, device: &Device) -> Result<StereoNetwork, NetError> {
         load_module(self.network.init(device)?, &self.dir.join(TEACHER_FILE))

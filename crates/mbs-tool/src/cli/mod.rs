@@ -45,12 +45,12 @@ pub fn exit_status(error: &anyhow::Error) -> u8 {
     if error.chain().any(usage) { 2 } else { 1 }
 }
 
-/// Takes the output folder `dir` for `command` ([`OutDir::take`]: made,
-/// locked for this process or its `shard`, cleared of the temporary files
-/// killed runs left), once every one of `outputs` has passed the checks,
-/// before and again under the lock: none replaces one of `inputs` or a
-/// file mbs did not write there. The outputs are then recorded as the
-/// command's, so a later `--overwrite` may replace them.
+/// Takes the output folder `dir` for `command` ([`OutDir::take`]: made and
+/// locked for this process or its `shard`) once every one of `outputs`
+/// has passed the checks, before and again under the lock: none replaces
+/// one of `inputs` or a file mbs did not write there. The outputs are then
+/// recorded as the command's (so a later `--overwrite` may replace them)
+/// and the temporary files killed runs left are removed.
 pub fn take_out(
     dir: &Path,
     shard: Option<shard::Shard>,
@@ -61,6 +61,7 @@ pub fn take_out(
     let check = |written: &Written| -> anyhow::Result<()> {
         for output in outputs {
             inputs.refuse(output)?;
+            mbs_core::atomic::refuse_special_target(output)?;
             written.refuse_foreign(output)?;
         }
         Ok(())
@@ -74,9 +75,12 @@ pub fn take_out(
         None => Share::Whole,
     };
     let out = OutDir::take(dir, share, &format!("mbs-tool {command}"))?;
+    if let Some(warning) = out.lock_warning() {
+        eprintln!("warning: {warning}");
+    }
     check(out.written())?;
     out.record(outputs)?;
-    let removed = out.removed_partials();
+    let removed = out.remove_stale_partials()?;
     if removed > 0 {
         eprintln!(
             "removed {removed} temporary file(s) left in {} by a killed run",

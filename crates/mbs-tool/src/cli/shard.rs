@@ -114,10 +114,10 @@ impl Shard {
             if let Some(shard) = variable_pair(&var, pair[0], pair[1])? {
                 if shard.index >= shard.count {
                     return Err(format!(
-                        "{}={} and {}={} give a rank that is not one of the launch's \
-                         processes (0 to size - 1): unset them to run one process, or start \
-                         the processes with mpirun or srun",
-                        pair[0], shard.index, pair[1], shard.count
+                        "{}={} and {}={} give shard {}/{}, a rank that is not one of the \
+                         launch's processes (0 to size - 1): unset them to run one process, \
+                         or start the processes with mpirun or srun",
+                        pair[0], shard.index, pair[1], shard.count, shard.index, shard.count
                     ));
                 }
                 return Ok(Some(shard));

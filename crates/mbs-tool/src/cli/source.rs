@@ -15,6 +15,7 @@ use mbs_core::inputs::InputFiles;
 use mbs_dataset::StereoPair;
 use mbs_infer::onnx::{ModelCard, OnnxStereo};
 use mbs_infer::{Disparity, InferError, Sgm, SgmConfig, SgmPaths, StereoMatcher};
+use mbs_nets::checkpoint::TrainedNetworks;
 use mbs_nets::device::DeviceName;
 use mbs_nets::{BackboneKind, NetworkConfig, NetworkMatcher};
 
@@ -158,14 +159,14 @@ impl StereoSourceArgs {
     }
 
     /// Adds the files the source reads to `inputs`, so that no output
-    /// replaces one: the model, the card file, and the weights file or
-    /// every file of the run or checkpoint folder.
+    /// replaces one: the model, the card file, the weights file, and the
+    /// files of the run's or checkpoint's newest checkpoint.
     pub fn add_files_to(&self, inputs: &mut InputFiles) {
         let card = self.card.as_ref().map(PathBuf::from);
-        [&self.model, &card, &self.checkpoint, &self.weights]
-            .into_iter()
-            .flatten()
-            .for_each(|path| inputs.add_tree(path));
+        inputs.extend([&self.model, &card, &self.weights].into_iter().flatten());
+        if let Some(checkpoint) = &self.checkpoint {
+            inputs.extend(TrainedNetworks::files_read_from(checkpoint));
+        }
     }
 
     /// Whether a network (ONNX, a run, weights) predicts, not the built-in

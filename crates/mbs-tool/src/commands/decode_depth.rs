@@ -28,7 +28,11 @@ use crate::cli::shard::Shard;
 Outputs per frame: depth_0.exr (or .pfm, or depth_0_mm.png) and disp_0_T.png
 (KITTI 16-bit, value/256) or disp_0_T.pfm for each requested pair 0:T.
 Invalid pixels (depth beyond --max-depth) are +inf in EXR/PFM and 0 in PNGs.
-Finished outputs are skipped, so an interrupted run resumes where it stopped.")]
+Finished outputs are skipped, so an interrupted run resumes where it stopped.
+One process writes the output folder (without --out, the input's folder) at
+a time; an output that would replace an input or a file mbs did not write
+there (FOLDER/.mbs-written lists what it did) is refused before anything is
+written.")]
 pub struct Args {
     /// An MBS20K folder (searched recursively for depth_0.png) or a manifest (.json).
     pub input: PathBuf,

@@ -73,7 +73,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     inputs.refuse(&out)?;
     // The default name in the dataset's own folder: a manifest.json there
     // that mbs did not write is the dataset's, never replaced.
-    let _held = match named {
+    let _out = match named {
         true => None,
         false => Some(crate::cli::take_out(
             &args.root,

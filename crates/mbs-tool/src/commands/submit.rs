@@ -78,7 +78,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     args.source.add_files_to(&mut inputs);
     let outputs = layout.outputs(&args.out, &ids);
     let matcher = args.source.matcher(SgmConfig::default())?;
-    let _out = crate::cli::take_out(&args.out, None, "submit", &inputs, &outputs)?;
+    let out = crate::cli::take_out(&args.out, None, "submit", &inputs, &outputs)?;
     let seconds = std::sync::Mutex::new(Vec::new());
     let summary = batch::run_in_order(
         &pairs,
@@ -96,7 +96,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
     );
     summary.finish("submit", "pairs")?;
-    let archive = layout.archive(&args.out, &ids)?;
+    let archive = layout.archive(&args.out, &ids, &|path| out.written().lists(path))?;
     let seconds = seconds.into_inner().unwrap_or_default();
     if !seconds.is_empty() {
         eprintln!(

@@ -22,7 +22,10 @@ Writes <out>/<Town>/<Weather>/<frame>/rgb_0.png … rgb_{N-1}.png, depth_0.png
 (CARLA-encoded), gt/disp_k.pfm (exact disparity of camera k for a one-baseline
 step; multiply by |t - k| for pair k:t), gt/occ_r_t.png (255 = pixel of r not
 visible from t) and <out>/manifest.json. Deterministic for a given --seed;
-finished frames are skipped when re-run.")]
+finished frames are skipped when re-run. One process writes <out> at a time
+(the shards of --shard share it); a file there under an output's name that
+mbs did not write (<out>/.mbs-written lists what it did) is refused before
+anything is written.")]
 pub struct Args {
     /// Output folder.
     #[arg(long)]

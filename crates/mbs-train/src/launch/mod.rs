@@ -7,7 +7,8 @@
 //! run; [`settle`] is how the ranks end on an error.
 //!
 //! Every check comes before anything is removed or written: a refused
-//! launch leaves the output folder as it was (or absent).
+//! launch leaves the output folder as it was (or absent), but for its lock
+//! file, which the run takes first and writes its name in.
 
 mod devices;
 mod ranks;
@@ -17,7 +18,7 @@ use std::rc::Rc;
 
 use mbs_core::inputs::InputFiles;
 use mbs_core::out_dir::OutDir;
-use mbs_nets::checkpoint::CHECKPOINTS_DIR;
+use mbs_nets::checkpoint::{CHECKPOINTS_DIR, TrainedNetworks};
 use mbs_nets::device::{DeviceList, DeviceName};
 use thiserror::Error;
 
@@ -103,7 +104,7 @@ impl Launch<'_> {
             Some(processes) => all_succeeded(processes, hold)?,
             None => hold?,
         };
-        let warnings = self.check_memory(&names, strategy.writes())?;
+        let mut warnings = self.check_memory(&names, strategy.writes())?;
         self.check_inputs()?;
         self.config.validate()?;
         let (samples, validation) = open::load_data(self.manifest, &self.config)?;
@@ -129,7 +130,9 @@ impl Launch<'_> {
             Some(processes) => all_succeeded(processes, folder)?,
             None => folder?,
         };
-        let removed_partials = folder.as_ref().map_or(0, OutDir::removed_partials);
+        let removed_partials = folder.as_ref().map_or(0, |p| p.removed_partials);
+        let folder = folder.map(|p| p.folder);
+        warnings.extend(folder.as_ref().and_then(OutDir::lock_warning));
         let data = (samples, validation);
         let run = TrainingRun::assemble(self.out, self.config, data, trainer, strategy, start)
             .holding(folder);
@@ -193,14 +196,15 @@ impl Launch<'_> {
     }
 
     /// Every file the run reads: the manifest, every file of its samples,
-    /// and the files of `init` (a file, or a run or checkpoint folder).
+    /// and the files of `init` (a weights file, or the newest checkpoint's
+    /// files of a run or checkpoint folder).
     fn input_files(&self) -> Result<InputFiles, TrainError> {
         let mut inputs = InputFiles::new();
         inputs.add(self.manifest);
         let manifest = mbs_dataset::Manifest::load(self.manifest)?;
         inputs.extend(mbs_dataset::pairs::manifest_files(self.manifest, &manifest));
         if let Some(init) = self.beginning.init {
-            inputs.add_tree(init);
+            inputs.extend(TrainedNetworks::files_read_from(init));
         }
         Ok(inputs)
     }

@@ -133,23 +133,32 @@ pub(crate) enum FolderHold {
 }
 
 /// Who holds a run folder, as a refused second run names it.
-const HOLDER: &str = "mbs train";
+const HOLDER: &str = "mbs-tool train";
 
 /// Takes the lock of the run folder `out` for its writer (`writes`), at
-/// once, so a second run, resume or restart into it is refused before
-/// it reads anything there.
+/// once, so a second run, resume or restart into it is refused before it
+/// changes anything there (the lock file is made, and names this run); a
+/// file or a link to nothing in the folder's place is refused.
 pub(crate) fn hold_folder(out: &Path, writes: bool) -> Result<FolderHold, TrainError> {
     if !writes {
         return Ok(FolderHold::NotWriter);
     }
-    match out.is_dir() {
-        true => Ok(FolderHold::Locked(FolderLock::take(
+    if out.exists() {
+        // Refuses a file in the folder's place; makes nothing.
+        mbs_core::confine::create_out_dir(out)?;
+        return Ok(FolderHold::Locked(FolderLock::take(
             out,
             Share::Whole,
             HOLDER,
-        )?)),
-        false => Ok(FolderHold::Absent),
+        )?));
     }
+    if std::fs::symlink_metadata(out).is_ok() {
+        return Err(TrainError::Input(format!(
+            "{}: is a symbolic link to nothing; give the run's folder itself",
+            out.display()
+        )));
+    }
+    Ok(FolderHold::Absent)
 }
 
 /// Everything a run writes in its folder: files, then folders (with a
@@ -185,36 +194,59 @@ fn check_outputs(out: &Path, inputs: &InputFiles) -> Result<(), TrainError> {
             )));
         }
     }
+    for folder in &folders {
+        if std::fs::symlink_metadata(folder).is_ok_and(|m| m.file_type().is_symlink()) {
+            return Err(TrainError::Input(format!(
+                "{}: is a symbolic link; the run prunes what is under it, so it must be \
+                 the run's own folder",
+                folder.display()
+            )));
+        }
+    }
+    // A run folder an mbs older than the record wrote is known by its
+    // checkpoints' own state.json.
+    if written.is_empty() && Checkpoint::latest(out).is_ok_and(|c| c.is_some()) {
+        return Ok(());
+    }
     for output in files.iter().chain(&folders) {
         written.refuse_foreign(output)?;
     }
     Ok(())
 }
 
+/// A run folder its writer has prepared: held as long as the run lives.
+pub(crate) struct Prepared {
+    /// The folder, locked.
+    pub(crate) folder: OutDir,
+    /// How many temporary files of killed runs were removed.
+    pub(crate) removed_partials: usize,
+}
+
 /// Readies `out` for the run's writer (`hold`; nothing for the others):
 /// every check first (its outputs against the run's `inputs` and the files
 /// mbs did not write, see [`check_outputs`]); then the folder made or
-/// taken, the temporary files a killed earlier run left in it removed
-/// (their number is returned), the outputs recorded, its checkpoints
-/// removed when it `restart`s, the logs cut back to a resumed run's step
-/// (or emptied for a fresh run), and the configuration written.
+/// taken, the outputs recorded, the temporary files a killed earlier run
+/// left in it removed, its checkpoints removed when it `restart`s, the
+/// logs cut back to a resumed run's step (or emptied for a fresh run), and
+/// the configuration written.
 pub(crate) fn prepare_folder(
     out: &Path,
     hold: FolderHold,
     inputs: &InputFiles,
     config: &RunConfig,
     (start, restart): (Start, bool),
-) -> Result<Option<OutDir>, TrainError> {
+) -> Result<Option<Prepared>, TrainError> {
     let folder = match hold {
         FolderHold::NotWriter => return Ok(None),
         FolderHold::Locked(lock) => {
             check_outputs(out, inputs)?;
-            OutDir::with_lock(out, lock)?
+            OutDir::with_lock(out, Share::Whole, lock)?
         }
         FolderHold::Absent => OutDir::take_new(out, Share::Whole, HOLDER)?,
     };
     let (files, folders) = run_outputs(out);
     folder.record(files.iter().chain(&folders))?;
+    let removed_partials = folder.remove_stale_partials()?;
     if restart {
         crate::checkpoint::discard_all(out)?;
     }
@@ -229,5 +261,8 @@ pub(crate) fn prepare_folder(
     let config_json = serde_json::to_vec_pretty(&config.to_json()?)
         .map_err(|e| TrainError::Config(e.to_string()))?;
     write_bytes_atomic(&out.join(CONFIG_FILE), &config_json)?;
-    Ok(Some(folder))
+    Ok(Some(Prepared {
+        folder,
+        removed_partials,
+    }))
 }
