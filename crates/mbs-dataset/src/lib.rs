@@ -18,6 +18,7 @@ pub mod stereo_pair;
 pub mod submission;
 pub mod two_view;
 pub mod validate;
+mod walk;
 
 pub use error::DatasetError;
 pub use manifest::{Manifest, PairGroundTruth, Provenance, Sample, Split};

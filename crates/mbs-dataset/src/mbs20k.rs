@@ -62,22 +62,8 @@ pub fn depth_images_in_folder(
     let mut images = Vec::new();
     let mut not_a_file = None;
     // walkdir follows linked towns and stops at link cycles.
-    for entry in walkdir::WalkDir::new(root)
-        .follow_links(true)
-        .sort_by_file_name()
-    {
-        let entry = match entry {
-            Ok(entry) => entry,
-            // A link back to a folder above holds nothing the walk does
-            // not reach by its real path.
-            Err(e) if e.loop_ancestor().is_some() => continue,
-            Err(e) => {
-                return Err(DatasetError::Io {
-                    path: e.path().unwrap_or(root).to_path_buf(),
-                    source: e.into(),
-                });
-            }
-        };
+    for entry in crate::walk::entries(root) {
+        let entry = entry?;
         if entry.file_name() == DEPTH_FILE && !entry.file_type().is_file() {
             not_a_file.get_or_insert_with(|| entry.path().to_path_buf());
         }

@@ -120,22 +120,8 @@ fn pass_above(dir: &Path) -> Result<PathBuf, DatasetError> {
 /// naming it: its frames would be left out without a word.
 fn left_folders(dir: &Path) -> Result<Vec<PathBuf>, DatasetError> {
     let mut found = Vec::new();
-    for entry in walkdir::WalkDir::new(dir)
-        .follow_links(true)
-        .sort_by_file_name()
-    {
-        let entry = match entry {
-            Ok(entry) => entry,
-            // Everything under a link to a folder above is reached by the
-            // folder's own path.
-            Err(e) if e.loop_ancestor().is_some() => continue,
-            Err(e) => {
-                return Err(DatasetError::Io {
-                    path: e.path().unwrap_or(dir).to_path_buf(),
-                    source: e.into(),
-                });
-            }
-        };
+    for entry in crate::walk::entries(dir) {
+        let entry = entry?;
         let path = entry.path();
         if !entry.file_type().is_dir() || entry.file_name() != "left" {
             continue;

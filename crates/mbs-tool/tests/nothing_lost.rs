@@ -10,9 +10,8 @@ mod common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-use std::time::{Duration, Instant};
 
-use common::{mbs_tool, text};
+use common::{mbs_tool, refused, text, within};
 use mbs_core::FloatImage;
 use mbs_core::formats::pfm::{Endian, write_pfm_grey};
 use mbs_test_support::files::tree;
@@ -41,35 +40,6 @@ fn middlebury(root: &Path) -> PathBuf {
         .unwrap();
     std::fs::write(scene.join("calib.txt"), "ndisp=16\n").unwrap();
     split
-}
-
-/// Runs `command` with a deadline: a read that blocks fails the test
-/// instead of hanging it.
-fn within(mut command: Command, seconds: u64) -> Output {
-    let mut child = command
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > Duration::from_secs(seconds) {
-            child.kill().unwrap();
-            panic!("{command:?} still ran after {seconds} s (a blocked read?)");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    child.wait_with_output().unwrap()
-}
-
-/// Exits non-zero and says `words`, or fails with the command's output.
-fn refused(output: &Output, words: &[&str]) {
-    let all = text(output);
-    assert!(!output.status.success(), "{all}");
-    assert_ne!(output.status.code(), Some(101), "panicked: {all}");
-    for word in words {
-        assert!(all.contains(word), "{word:?} not said: {all}");
-    }
 }
 
 /// `submit --name GT --out M` used to write `disp0GT.pfm` over every

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{mbs_tool, text};
+use common::{mbs_tool, refused, text, within};
 use mbs_core::FloatImage;
 use mbs_core::formats::pfm::{Endian, write_pfm_grey};
 use mbs_core::formats::{png16, read_disparity};
@@ -80,16 +80,6 @@ fn middeval3(root: &Path) -> PathBuf {
     }
     std::fs::write(scene.join("calib.txt"), "ndisp=64\n").unwrap();
     root.join("MiddEval3")
-}
-
-/// Exits non-zero (not a panic) and says every one of `words`.
-fn refused(output: &Output, words: &[&str]) {
-    let all = text(output);
-    assert!(!output.status.success(), "{all}");
-    assert_ne!(output.status.code(), Some(101), "panicked: {all}");
-    for word in words {
-        assert!(all.contains(word), "{word:?} not said: {all}");
-    }
 }
 
 /// Fails, naming the files that differ, unless `after` equals `before`
@@ -303,24 +293,6 @@ fn train_command(manifest: &str, out: &Path, steps: &str, extra: &[&str]) -> Com
         .args(["--checkpoint-every", "2"])
         .args(extra);
     command
-}
-
-/// Runs `command`, failing the test if it runs over `seconds`.
-fn within(mut command: Command, seconds: u64) -> Output {
-    let mut child = command
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > Duration::from_secs(seconds) {
-            child.kill().unwrap();
-            panic!("{command:?} still ran after {seconds} s");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    child.wait_with_output().unwrap()
 }
 
 /// A child process killed when the test ends, passed or failed.

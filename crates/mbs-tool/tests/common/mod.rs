@@ -3,7 +3,8 @@
 #![allow(dead_code)] // each test file uses a different subset
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
 
 use mbs_core::FloatImage;
 use mbs_core::formats::{carla, rgb};
@@ -127,4 +128,40 @@ pub fn lines(path: &Path) -> Vec<serde_json::Value> {
         .lines()
         .map(|l| serde_json::from_str(l).expect("a JSON line"))
         .collect()
+}
+
+/// Runs `command` with a deadline: a read that blocks, or a run that does
+/// not end, fails the test instead of hanging it.
+pub fn within(mut command: Command, seconds: u64) -> Output {
+    let mut child = command
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the command starts");
+    let start = Instant::now();
+    while child
+        .try_wait()
+        .expect("the command is waited for")
+        .is_none()
+    {
+        if start.elapsed() > Duration::from_secs(seconds) {
+            let _ = child.kill();
+            panic!("{command:?} still ran after {seconds} s (a blocked read?)");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    child
+        .wait_with_output()
+        .expect("the command's output is read")
+}
+
+/// Asserts that `output` exits non-zero (not a panic) and says every one
+/// of `words`.
+pub fn refused(output: &Output, words: &[&str]) {
+    let all = text(output);
+    assert!(!output.status.success(), "{all}");
+    assert_ne!(output.status.code(), Some(101), "panicked: {all}");
+    for word in words {
+        assert!(all.contains(word), "{word:?} not said: {all}");
+    }
 }
