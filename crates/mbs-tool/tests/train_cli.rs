@@ -66,6 +66,7 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     let (train, val) = trains_and_logs(&args, &trained.out);
     tensorboard_shows_the_logs_and_the_sheets(&trained.out, &train);
     draws_sheets_and_checkpoints(&trained.out);
+    the_best_teacher_is_kept_and_served(&trained, &val);
     a_finished_run_is_not_trained_again(&args, &trained.out);
     let validated_epe = val[2]["ALL"]["epe"].as_f64().unwrap();
     eval_scores_the_teacher_as_validated(&trained, validated_epe);
@@ -182,6 +183,36 @@ fn draws_sheets_and_checkpoints(out: &Path) {
     let sheet = image::open(&sheets[0]).unwrap();
     assert_eq!((sheet.width(), sheet.height()), SHEET_SIZE);
     assert!(out.join("checkpoints/step-0000006/teacher.bpk").is_file());
+}
+
+/// The best validation's teacher is kept in `checkpoints/best/`, a
+/// checkpoint `export` (and `predict`, `eval`) take like any other.
+fn the_best_teacher_is_kept_and_served(trained: &Trained, val: &[Value]) {
+    let best = trained.out.join("checkpoints/best");
+    let state: Value =
+        serde_json::from_str(&std::fs::read_to_string(best.join("state.json")).unwrap()).unwrap();
+    let out3 = |line: &Value| line["ALL"]["out3"].as_f64().unwrap();
+    let lowest = val[1..].iter().map(out3).fold(f64::INFINITY, f64::min);
+    let step = state["steps"].as_u64().unwrap();
+    let scored = val.iter().find(|l| l["step"] == step).unwrap();
+    assert_eq!(out3(scored), lowest, "{state}");
+    for line in val {
+        let range = &line["range"];
+        assert!(
+            range["predicted_p95"].as_f64().unwrap().is_finite(),
+            "{line}"
+        );
+        assert!(range["truth_p95"].as_f64().unwrap() > 0.0, "{line}");
+    }
+    let exported = trained.dir.join("best.safetensors");
+    let output = run(&[
+        "export",
+        &best.display().to_string(),
+        "--out",
+        &exported.display().to_string(),
+    ]);
+    assert!(output.status.success(), "{}", text(&output));
+    assert!(exported.is_file());
 }
 
 /// The same command again finds the run complete, and logs nothing, so it

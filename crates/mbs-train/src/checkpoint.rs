@@ -61,6 +61,10 @@ pub struct RngState {
     pub next_step: usize,
 }
 
+/// Folder, under a run's `checkpoints/`, of the checkpoint of its best
+/// validation so far ([`save_best`]); pruning never removes it.
+pub const BEST_DIR: &str = "best";
+
 /// Writes a checkpoint of a run's `trainer` into `run/checkpoints/` and
 /// keeps the newest `keep` of them; returns its folder.
 pub fn save<B: Backbone>(
@@ -69,6 +73,43 @@ pub fn save<B: Backbone>(
     config: &RunConfig,
     keep: usize,
 ) -> Result<PathBuf, TrainError> {
+    let root = run.join(CHECKPOINTS_DIR);
+    let done = root.join(folder_name(trainer.steps_taken()));
+    write(&done, trainer, config)?;
+    mbs_core::atomic::remove_stale_partials(&root)
+        .map_err(|e| TrainError::checkpoint(e.path(), e.to_string()))?;
+    prune(&root, keep)?;
+    Ok(done)
+}
+
+/// Writes a checkpoint of `trainer` into `run/checkpoints/best/` (see
+/// [`BEST_DIR`]), replacing the one there: the run's best validation so
+/// far. A checkpoint like the others (`predict --checkpoint
+/// RUN/checkpoints/best`, `export RUN/checkpoints/best`), which resuming
+/// and pruning, reading only `step-N` folders, leave alone.
+pub fn save_best<B: Backbone>(
+    run: &Path,
+    trainer: &S3Trainer<B>,
+    config: &RunConfig,
+) -> Result<PathBuf, TrainError> {
+    let done = run.join(CHECKPOINTS_DIR).join(BEST_DIR);
+    write(&done, trainer, config)?;
+    Ok(done)
+}
+
+/// The steps of the run folder `run`'s best checkpoint, if it has one.
+pub fn best_steps(run: &Path) -> Option<usize> {
+    let dir = run.join(CHECKPOINTS_DIR).join(BEST_DIR);
+    read_state::<CheckpointState>(&dir).ok().map(|s| s.steps)
+}
+
+/// Writes `trainer`'s checkpoint into the folder `done` through a
+/// temporary `.partial` folder renamed when complete.
+fn write<B: Backbone>(
+    done: &Path,
+    trainer: &S3Trainer<B>,
+    config: &RunConfig,
+) -> Result<(), TrainError> {
     let steps = trainer.steps_taken();
     for (which, network) in [
         ("student", trainer.student()),
@@ -81,9 +122,7 @@ pub fn save<B: Backbone>(
             });
         }
     }
-    let root = run.join(CHECKPOINTS_DIR);
-    let done = root.join(folder_name(steps));
-    let partial = partial_path(&done);
+    let partial = partial_path(done);
     let io = |path: &Path, e: std::io::Error| TrainError::checkpoint(path, e);
     fs::create_dir_all(&partial).map_err(|e| io(&partial, e))?;
     write_module(&partial.join(STUDENT_FILE), trainer.student())?;
@@ -106,13 +145,9 @@ pub fn save<B: Backbone>(
     let json = serde_json::to_vec_pretty(&state).map_err(|e| io(&partial, e.into()))?;
     write_file(&partial.join(STATE_FILE), &json)?;
     if done.exists() {
-        fs::remove_dir_all(&done).map_err(|e| io(&done, e))?;
+        fs::remove_dir_all(done).map_err(|e| io(done, e))?;
     }
-    fs::rename(&partial, &done).map_err(|e| io(&done, e))?;
-    mbs_core::atomic::remove_stale_partials(&root)
-        .map_err(|e| TrainError::checkpoint(e.path(), e.to_string()))?;
-    prune(&root, keep)?;
-    Ok(done)
+    fs::rename(&partial, done).map_err(|e| io(done, e))
 }
 
 /// Writes one file of a checkpoint; it sits in the `.partial` folder, whose
@@ -151,11 +186,20 @@ pub struct Checkpoint {
 }
 
 /// Removes the completed checkpoints of the run folder `run` (a run
-/// started again from fresh weights); anything else in its checkpoints
-/// folder is left where it is.
+/// started again from fresh weights), its best one too; anything else in
+/// its checkpoints folder is left where it is.
 pub fn discard_all(run: &Path) -> Result<(), TrainError> {
     for (_, path) in completed(&run.join(CHECKPOINTS_DIR))? {
         fs::remove_dir_all(&path).map_err(|e| TrainError::checkpoint(&path, e))?;
+    }
+    discard_best(run)
+}
+
+/// Removes the best checkpoint of the run folder `run`, if it has one.
+pub fn discard_best(run: &Path) -> Result<(), TrainError> {
+    let best = run.join(CHECKPOINTS_DIR).join(BEST_DIR);
+    if best.join(STATE_FILE).is_file() {
+        fs::remove_dir_all(&best).map_err(|e| TrainError::checkpoint(&best, e))?;
     }
     Ok(())
 }

@@ -27,6 +27,7 @@ pub mod clip;
 pub mod config;
 pub mod data;
 pub mod distributed;
+pub mod drift;
 pub mod ema;
 pub mod error;
 pub mod launch;

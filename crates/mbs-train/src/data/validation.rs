@@ -129,6 +129,7 @@ impl ValidationSet {
         device: &Device,
     ) -> Result<ValidationMetrics, TrainError> {
         let mut pooled = RegionSums::default();
+        let (mut predicted, mut truth) = (Vec::new(), Vec::new());
         for pair in &self.pairs {
             let loaded = pair.load()?;
             let prediction =
@@ -136,12 +137,51 @@ impl ValidationSet {
             let sums = evaluate(&prediction, &loaded.gt, loaded.noc.as_ref(), &THRESHOLDS)
                 .map_err(|e| TrainError::data(&pair.truth.disparity, e))?;
             pooled.merge(&sums);
+            for (p, t) in prediction.as_raw().iter().zip(loaded.gt.as_raw().iter()) {
+                if t.is_finite() && p.is_finite() {
+                    predicted.push(*p);
+                    truth.push(*t);
+                }
+            }
         }
         Ok(ValidationMetrics {
             pairs: self.pairs.len(),
             pooled,
+            range: DisparityRange::of(predicted, truth),
         })
     }
+}
+
+/// Share of the pixels below the percentile that measures a range.
+pub const RANGE_PERCENTILE: f64 = 0.95;
+
+/// How far the disparities reach over the scored pixels (those with
+/// ground truth): the [`RANGE_PERCENTILE`] of the prediction and of the
+/// ground truth, in pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DisparityRange {
+    /// The prediction's percentile.
+    pub predicted: f32,
+    /// The ground truth's percentile.
+    pub truth: f32,
+}
+
+impl DisparityRange {
+    /// The percentiles of `predicted` and `truth` (the same pixels);
+    /// `None` when there is no pixel.
+    pub fn of(predicted: Vec<f32>, truth: Vec<f32>) -> Option<Self> {
+        Some(Self {
+            predicted: percentile(predicted, RANGE_PERCENTILE)?,
+            truth: percentile(truth, RANGE_PERCENTILE)?,
+        })
+    }
+}
+
+/// The value below which the share `p` of `values` lies (nearest rank).
+fn percentile(mut values: Vec<f32>, p: f64) -> Option<f32> {
+    let last = values.len().checked_sub(1)?;
+    let rank = ((last as f64) * p).round() as usize;
+    Some(*values.select_nth_unstable_by(rank, f32::total_cmp).1)
 }
 
 /// Validation metrics pooled over pixels.
@@ -151,6 +191,9 @@ pub struct ValidationMetrics {
     pub pairs: usize,
     /// The error sums of every region, over all pairs' pixels.
     pub pooled: RegionSums,
+    /// How far the prediction and the ground truth reach (`None` without
+    /// a scored pixel).
+    pub range: Option<DisparityRange>,
 }
 
 impl ValidationMetrics {

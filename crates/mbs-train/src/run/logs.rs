@@ -185,11 +185,18 @@ pub fn validation_json(steps: usize, metrics: &ValidationMetrics) -> Value {
             })
         })
     };
+    let range = metrics.range.map(|r| {
+        json!({
+            "predicted_p95": r.predicted,
+            "truth_p95": r.truth,
+        })
+    });
     json!({
         "step": steps,
         "pairs": metrics.pairs,
         "ALL": region(metrics.region(Region::All)),
         "NOC": region(metrics.region(Region::Noc)),
         "OCC": region(metrics.region(Region::Occ)),
+        "range": range,
     })
 }

@@ -10,6 +10,7 @@
 //! <out>/visuals/step-N/     contact sheets of the first validation pairs
 //! <out>/tensorboard/        TensorBoard events: every logged number, the sheets
 //! <out>/checkpoints/step-N/ student, teacher, optimiser, state.json
+//! <out>/checkpoints/best/   the same, of the best validation so far
 //! ```
 //!
 //! Opening a folder that has a checkpoint resumes from it: logs are cut

@@ -15,8 +15,10 @@ use mbs_batch::HostBatch;
 
 use super::logs::{Interval, open_log, write_line};
 use super::{End, Observer, TRAIN_LOG, TrainingRun, VAL_LOG, read_log, warn};
+use crate::checkpoint;
 use crate::data::validation::ValidationMetrics;
 use crate::data::{BatchLoader, StepBatch};
+use crate::drift::DriftWatch;
 use crate::error::TrainError;
 use crate::step::StepReport;
 use crate::supervision::{CollapseWatch, worse_than_untrained};
@@ -39,6 +41,8 @@ struct StepLoop {
     metrics: Option<ValidationMetrics>,
     /// The untrained network's held-out Out-3, from this session or the log.
     untrained_out3: Option<f64>,
+    /// The validations' watch, with the best so far.
+    drift: DriftWatch,
 }
 
 impl TrainingRun {
@@ -103,10 +107,19 @@ impl TrainingRun {
             true => self.validate(observer)?,
             false => None,
         };
-        let untrained_out3 = read_log(&self.out.join(VAL_LOG))
-            .ok()
-            .and_then(|lines| lines.into_iter().find(|l| l["step"] == 0))
+        let validations = read_log(&self.out.join(VAL_LOG)).unwrap_or_default();
+        let untrained_out3 = validations
+            .iter()
+            .find(|l| l["step"] == 0)
             .and_then(|line| line["ALL"]["out3"].as_f64());
+        let drift = DriftWatch::resumed(self.config.steps(), &validations);
+        // A best checkpoint past the one resumed from belongs to steps
+        // that are taken again (and its validation is no longer logged).
+        if self.is_writer()
+            && checkpoint::best_steps(&self.out).is_some_and(|s| s > self.trainer.steps_taken())
+        {
+            checkpoint::discard_best(&self.out)?;
+        }
         Ok(StepLoop {
             log: open_log(&self.out.join(TRAIN_LOG))?,
             interval: Interval::new(),
@@ -117,6 +130,7 @@ impl TrainingRun {
             alert: None,
             metrics,
             untrained_out3,
+            drift,
         })
     }
 
@@ -151,11 +165,21 @@ impl TrainingRun {
         }
         state.metrics = self.validate(observer)?;
         let out3 = state.metrics.as_ref().and_then(|m| m.all().out(3.0));
-        if let (Some(untrained), Some(out3)) = (state.untrained_out3, out3)
-            && let Some(message) = worse_than_untrained(taken, untrained, out3)
-        {
+        let Some(out3) = out3 else {
+            return Ok(());
+        };
+        let mut warnings = Vec::new();
+        if let Some(untrained) = state.untrained_out3 {
+            warnings.extend(worse_than_untrained(taken, untrained, out3));
+        }
+        let range = state.metrics.as_ref().and_then(|m| m.range);
+        let verdict = state.drift.observe(taken, out3, range);
+        if verdict.best {
+            checkpoint::save_best(&self.out, &self.trainer, &self.config)?;
+        }
+        for message in warnings.into_iter().chain(verdict.warnings) {
             observer.on_alert(&message);
-            state.alert = Some(message);
+            state.alert(message);
         }
         Ok(())
     }
@@ -227,7 +251,15 @@ impl StepLoop {
         observer.on_step(report, self.interval.samples_per_second(batch_size));
         if let Some(message) = self.watch.observe(report.step, &report.supervision) {
             observer.on_alert(&message);
-            self.alert = Some(message);
+            self.alert(message);
         }
+    }
+
+    /// Adds `message` to the warning of the next log line.
+    fn alert(&mut self, message: String) {
+        self.alert = Some(match self.alert.take() {
+            Some(earlier) => format!("{earlier}; {message}"),
+            None => message,
+        });
     }
 }

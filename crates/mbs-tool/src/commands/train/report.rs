@@ -7,12 +7,16 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
+use mbs_nets::checkpoint::CHECKPOINTS_DIR;
+use mbs_train::checkpoint::BEST_DIR;
 use mbs_train::data::validation::ValidationMetrics;
+use mbs_train::drift::DRIFT_POINTS;
 use mbs_train::run::{
     LOSS_PLOT, Observer, TENSORBOARD_DIR, TRAIN_LOG, VAL_LOG, VAL_PLOT, VISUALS_DIR, read_log,
 };
 use mbs_train::step::StepReport;
 use mbs_train::{RunConfig, TrainError};
+use serde_json::Value;
 
 /// The progress bar and lines of one run.
 pub struct Report {
@@ -59,26 +63,24 @@ impl Report {
         }
     }
 
-    /// Prints the first and last validation and where the outputs are.
+    /// Prints the first, the best and the last validation, which teacher
+    /// to use when the last is worse than the best, and where the outputs
+    /// are.
     pub fn summary(&self, last: Option<&ValidationMetrics>) {
         let val = read_log(&self.out.join(VAL_LOG)).unwrap_or_default();
         if let (Some(first), Some(_)) = (val.first(), last) {
             eprintln!("\nteacher on held-out pairs   EPE ALL   Out-3 ALL   Out-3 NOC   Out-3 OCC");
-            for line in [first, val.last().unwrap_or(first)] {
-                let get = |region: &str, key: &str| {
-                    line[region][key]
-                        .as_f64()
-                        .map_or("-".to_string(), |v| format!("{v:.2}"))
-                };
-                eprintln!(
-                    "step {:<7}                {:>7} {:>9} % {:>9} % {:>9} %",
-                    line["step"].as_u64().unwrap_or(0),
-                    get("ALL", "epe"),
-                    get("ALL", "out3"),
-                    get("NOC", "out3"),
-                    get("OCC", "out3"),
-                );
+            let final_line = val.last().unwrap_or(first);
+            let best = best_validation(&val);
+            let mut lines = vec![("", first)];
+            if let Some(best) = best.filter(|b| b["step"] != final_line["step"]) {
+                lines.push((" (best)", best));
             }
+            lines.push(("", final_line));
+            for (label, line) in lines {
+                print_validation(label, line);
+            }
+            self.best_teacher(best, final_line);
         }
         eprintln!(
             "\nOutputs in {}: {TRAIN_LOG}, {VAL_LOG}, {LOSS_PLOT}, {VAL_PLOT}, {VISUALS_DIR}/, checkpoints/,\n\
@@ -87,6 +89,59 @@ impl Report {
             self.out.display()
         );
     }
+
+    /// Says where the best teacher is, and warns when the final one is
+    /// worse by more than [`DRIFT_POINTS`].
+    fn best_teacher(&self, best: Option<&Value>, final_line: &Value) {
+        let out3 = |line: &Value| line["ALL"]["out3"].as_f64();
+        let Some(best) = best else { return };
+        let (Some(best_out3), Some(final_out3)) = (out3(best), out3(final_line)) else {
+            return;
+        };
+        let dir = self.out.join(CHECKPOINTS_DIR).join(BEST_DIR);
+        let step = best["step"].as_u64().unwrap_or(0);
+        if final_out3 > best_out3 + DRIFT_POINTS {
+            eprintln!(
+                "\nwarning: the final teacher (Out-3 ALL {final_out3:.2} %) is worse than the best, \
+                 {best_out3:.2} % at step {step}; use that one: --checkpoint {}",
+                dir.display()
+            );
+        } else {
+            eprintln!(
+                "\nbest validation: step {step} (Out-3 ALL {best_out3:.2} %), its teacher in {}",
+                dir.display()
+            );
+        }
+    }
+}
+
+/// The validation after step 0 with the lowest Out-3 ALL (the first of
+/// equals), as the run's [`mbs_train::drift::DriftWatch`] picks it.
+fn best_validation(val: &[Value]) -> Option<&Value> {
+    val.iter()
+        .filter(|line| line["step"] != 0)
+        .filter(|line| line["ALL"]["out3"].is_f64())
+        .fold(None, |best: Option<&Value>, line| match best {
+            Some(b) if b["ALL"]["out3"].as_f64() <= line["ALL"]["out3"].as_f64() => Some(b),
+            _ => Some(line),
+        })
+}
+
+/// One row of the summary's table.
+fn print_validation(label: &str, line: &Value) {
+    let get = |region: &str, key: &str| {
+        line[region][key]
+            .as_f64()
+            .map_or("-".to_string(), |v| format!("{v:.2}"))
+    };
+    let step = format!("{}{label}", line["step"].as_u64().unwrap_or(0));
+    eprintln!(
+        "step {step:<14}         {:>7} {:>9} % {:>9} % {:>9} %",
+        get("ALL", "epe"),
+        get("ALL", "out3"),
+        get("NOC", "out3"),
+        get("OCC", "out3"),
+    );
 }
 
 impl Observer for Report {
