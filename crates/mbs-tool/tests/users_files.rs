@@ -102,11 +102,43 @@ fn succeeded(output: &Output) {
     assert!(output.status.success(), "{}", text(output));
 }
 
+/// `submit --middlebury --name GTy`, `submit --kitti` (2012) into
+/// `disp_refl_occ` and `predict --kitti --out disp_occ_1`, with or without
+/// `--overwrite` (`flag`): each would write over a dataset file.
+fn over_dataset_files(middlebury: &Path, k12: &Path, k15: &Path, flag: &[&str]) -> [Output; 3] {
+    let submit_middlebury = mbs_tool()
+        .args(["submit", "--middlebury"])
+        .arg(middlebury.join("trainingQ"))
+        .args(["--name", "GTy", "--out"])
+        .arg(middlebury)
+        .args(flag)
+        .output()
+        .unwrap();
+    let submit_kitti = mbs_tool()
+        .arg("submit")
+        .arg("--kitti")
+        .arg(k12)
+        .arg("--out")
+        .arg(k12.join("disp_refl_occ"))
+        .args(flag)
+        .output()
+        .unwrap();
+    let predict = mbs_tool()
+        .arg("predict")
+        .arg("--kitti")
+        .arg(k15)
+        .args(["--format", "png16", "--out"])
+        .arg(k15.join("disp_occ_1"))
+        .args(flag)
+        .output()
+        .unwrap();
+    [submit_middlebury, submit_kitti, predict]
+}
+
 /// `predict`, `submit` and `--overwrite` used to replace a dataset's files
 /// that bear an output's name: MiddEval3's `disp0GTy.pfm`, KITTI 2012's
 /// reflective-surface truth, KITTI 2015's right-view truth. Now a file
-/// mbs did not write is refused whatever the flags, while its own outputs
-/// are still replaced with `--overwrite` and skipped without.
+/// mbs did not write is refused whatever the flags.
 #[test]
 fn no_output_replaces_a_file_mbs_did_not_write() {
     let dir = tempfile::tempdir().unwrap();
@@ -114,50 +146,29 @@ fn no_output_replaces_a_file_mbs_did_not_write() {
     let k12 = kitti_2012(dir.path());
     let k15 = kitti_2015(dir.path());
     let before = tree(dir.path());
-    let split = middlebury.join("trainingQ");
-    for overwrite in [false, true] {
-        let flag: &[&str] = if overwrite { &["--overwrite"] } else { &[] };
-        let output = mbs_tool()
-            .args(["submit", "--middlebury"])
-            .arg(&split)
-            .args(["--name", "GTy", "--out"])
-            .arg(&middlebury)
-            .args(flag)
-            .output()
-            .unwrap();
-        refused(&output, &["disp0GTy.pfm", "mbs did not write it"]);
-        let output = mbs_tool()
-            .arg("submit")
-            .arg("--kitti")
-            .arg(&k12)
-            .arg("--out")
-            .arg(k12.join("disp_refl_occ"))
-            .args(flag)
-            .output()
-            .unwrap();
-        refused(
-            &output,
-            &["disp_refl_occ/000000_10.png", "mbs did not write it"],
-        );
-        let output = mbs_tool()
-            .arg("predict")
-            .arg("--kitti")
-            .arg(&k15)
-            .args(["--format", "png16", "--out"])
-            .arg(k15.join("disp_occ_1"))
-            .args(flag)
-            .output()
-            .unwrap();
-        refused(
-            &output,
-            &["disp_occ_1/000000_10.png", "mbs did not write it"],
-        );
+    let files = [
+        "disp0GTy.pfm",
+        "disp_refl_occ/000000_10.png",
+        "disp_occ_1/000000_10.png",
+    ];
+    for flag in [&[][..], &["--overwrite"]] {
+        let outputs = over_dataset_files(&middlebury, &k12, &k15, flag);
+        for (output, file) in outputs.iter().zip(files) {
+            refused(output, &[file, "mbs did not write it"]);
+        }
     }
     unchanged(&before, &tree(dir.path()), "a dataset file changed");
-    // mbs's own outputs: skipped on a second run, replaced with --overwrite.
+}
+
+/// mbs's own outputs are skipped on a second run and replaced with
+/// `--overwrite`, as its record lists them.
+#[test]
+fn own_outputs_are_skipped_or_replaced_with_overwrite() {
+    let dir = tempfile::tempdir().unwrap();
+    let k15 = kitti_2015(dir.path());
     let out = dir.path().join("pred");
     let predict = |extra: &[&str]| {
-        mbs_tool()
+        let output = mbs_tool()
             .arg("predict")
             .arg("--kitti")
             .arg(&k15)
@@ -165,26 +176,70 @@ fn no_output_replaces_a_file_mbs_did_not_write() {
             .arg(&out)
             .args(extra)
             .output()
-            .unwrap()
+            .unwrap();
+        succeeded(&output);
+        text(&output)
     };
-    succeeded(&predict(&[]));
+    predict(&[]);
     let second = predict(&[]);
-    succeeded(&second);
-    assert!(
-        text(&second).contains("0 done, 1 skipped"),
-        "{}",
-        text(&second)
-    );
+    assert!(second.contains("0 done, 1 skipped"), "{second}");
     let third = predict(&["--overwrite"]);
-    succeeded(&third);
-    assert!(
-        text(&third).contains("1 done, 0 skipped"),
-        "{}",
-        text(&third)
-    );
+    assert!(third.contains("1 done, 0 skipped"), "{third}");
     let record = std::fs::read_to_string(out.join(".mbs-written")).unwrap();
     assert_eq!(record, "000000_10.pfm\n");
     assert!(out.join(".mbs-lock").is_file());
+}
+
+/// `mbs-tool extrapolate ARGS`.
+fn extrapolate(args: &[&str]) -> Output {
+    mbs_tool().arg("extrapolate").args(args).output().unwrap()
+}
+
+/// The four `extrapolate` commands that would write over their inputs,
+/// each with the file it would replace: `--disparity-dir D --out D`,
+/// `--left-disparity D/disparity_2.pfm --out D`, `--kitti K
+/// --left-disparity-dir K/disparity_2`, and a right view already named
+/// `image_2.png` in `--out`.
+fn extrapolations(
+    root: &Path,
+    (disparities, left_disparity): (&Path, &Path),
+    (kitti, own): (&Path, &Path),
+    named: &Path,
+) -> Vec<(Output, &'static str)> {
+    let pair = root.join("pair");
+    let text = |path: &Path| path.to_str().unwrap().to_string();
+    let (left, right) = (text(&pair.join("left.png")), text(&pair.join("right.png")));
+    let (d, d2) = (text(disparities), text(left_disparity));
+    let (k, own, named_dir) = (text(kitti), text(own), text(named));
+    let named_right = text(&named.join("image_2.png"));
+    let views = ["--left", left.as_str(), "--right", right.as_str()];
+    vec![
+        (
+            extrapolate(&[&views[..], &["--disparity-dir", &d, "--out", &d]].concat()),
+            "disparity_2.pfm",
+        ),
+        (
+            extrapolate(&[&views[..], &["--left-disparity", &d2, "--out", &d]].concat()),
+            "disparity_2.pfm",
+        ),
+        (
+            extrapolate(&["--kitti", &k, "--left-disparity-dir", &own]),
+            "disparity_2/000000_10.pfm",
+        ),
+        (
+            extrapolate(&[
+                "--left",
+                &left,
+                "--right",
+                &named_right,
+                "--max-disparity",
+                "32",
+                "--out",
+                &named_dir,
+            ]),
+            "image_2.png",
+        ),
+    ]
 }
 
 /// `extrapolate` used to write its hole-filled disparities over the
@@ -207,70 +262,12 @@ fn extrapolate_never_writes_over_its_inputs() {
     let named = dir.path().join("named");
     teddy_view("im6.png", &named.join("image_2.png"));
     let before = tree(dir.path());
-    let (left, right) = (pair.join("left.png"), pair.join("right.png"));
-    let one_pair = |left: &Path, right: &Path, extra: &[&std::ffi::OsStr]| {
-        mbs_tool()
-            .arg("extrapolate")
-            .arg("--left")
-            .arg(left)
-            .arg("--right")
-            .arg(right)
-            .args(extra)
-            .output()
-            .unwrap()
-    };
-    let cases: Vec<(Output, &str)> = vec![
-        (
-            one_pair(
-                &left,
-                &right,
-                &[
-                    "--disparity-dir".as_ref(),
-                    disparities.as_os_str(),
-                    "--out".as_ref(),
-                    disparities.as_os_str(),
-                ],
-            ),
-            "disparity_2.pfm",
-        ),
-        (
-            one_pair(
-                &left,
-                &right,
-                &[
-                    "--left-disparity".as_ref(),
-                    left_disparity.as_os_str(),
-                    "--out".as_ref(),
-                    disparities.as_os_str(),
-                ],
-            ),
-            "disparity_2.pfm",
-        ),
-        (
-            mbs_tool()
-                .arg("extrapolate")
-                .arg("--kitti")
-                .arg(&kitti)
-                .arg("--left-disparity-dir")
-                .arg(&own)
-                .output()
-                .unwrap(),
-            "disparity_2/000000_10.pfm",
-        ),
-        (
-            one_pair(
-                &left,
-                &named.join("image_2.png"),
-                &[
-                    "--max-disparity".as_ref(),
-                    "32".as_ref(),
-                    "--out".as_ref(),
-                    named.as_os_str(),
-                ],
-            ),
-            "image_2.png",
-        ),
-    ];
+    let cases = extrapolations(
+        dir.path(),
+        (&disparities, &left_disparity),
+        (&kitti, &own),
+        &named,
+    );
     for (output, file) in &cases {
         refused(output, &[file, "refusing to replace an input"]);
     }
@@ -385,6 +382,51 @@ fn a_held_output_folder_refuses_a_batch_command() {
     assert!(!out.join("000000_10.pfm").exists());
 }
 
+/// `predict --manifest` with a sample whose id names another sample's
+/// file (not one of the pair's): refused, the file unchanged.
+fn predict_over_another_samples_file(root: &Path, data: &Path, manifest: &str) {
+    let text_manifest = std::fs::read_to_string(manifest).unwrap();
+    let mut parsed: serde_json::Value = serde_json::from_str(&text_manifest).unwrap();
+    let samples = parsed["samples"].as_array_mut().unwrap();
+    let other = samples[0]["views"][3].as_str().unwrap().to_string();
+    let stem = other.strip_suffix(".png").unwrap().to_string();
+    samples[1]["id"] = stem.into();
+    let edited = data.join("edited.json");
+    std::fs::write(&edited, serde_json::to_vec(&parsed).unwrap()).unwrap();
+    let before_predict = tree(root);
+    let output = mbs_tool()
+        .args(["predict", "--manifest"])
+        .arg(&edited)
+        .args(["--pair", "0:1", "--format", "png16", "--out"])
+        .arg(data)
+        .output()
+        .unwrap();
+    refused(&output, &[&other, "refusing to replace an input"]);
+    unchanged(&before_predict, &tree(root), "an input changed");
+    std::fs::remove_file(&edited).unwrap();
+}
+
+/// Outputs kept inside the run that predicts them are not its inputs: a
+/// second `predict --checkpoint RUN --out RUN/pred` resumes, and
+/// `--overwrite` replaces them.
+fn predict_inside_the_run(k15: &Path, run: &Path) {
+    let inside = run.join("pred");
+    for extra in [&[][..], &[][..], &["--overwrite"]] {
+        let output = mbs_tool()
+            .arg("predict")
+            .arg("--kitti")
+            .arg(k15)
+            .arg("--checkpoint")
+            .arg(run)
+            .arg("--out")
+            .arg(&inside)
+            .args(extra)
+            .output()
+            .unwrap();
+        succeeded(&output);
+    }
+}
+
 /// `benchmark --per-image` used to overwrite a file of the run it scores
 /// (indexed as a folder); `train` indexed none of its inputs, so a
 /// manifest named `config.json` in `--out` was replaced; `predict
@@ -420,44 +462,9 @@ fn inputs_are_indexed_down_to_the_file() {
         refused(&output, &[name, "refusing to replace an input"]);
         std::fs::remove_file(&copy).unwrap();
     }
-    // A sample's id naming another sample's file.
-    let text_manifest = std::fs::read_to_string(&manifest).unwrap();
-    let mut parsed: serde_json::Value = serde_json::from_str(&text_manifest).unwrap();
-    let samples = parsed["samples"].as_array_mut().unwrap();
-    let other = samples[0]["views"][3].as_str().unwrap().to_string();
-    let stem = other.strip_suffix(".png").unwrap().to_string();
-    samples[1]["id"] = stem.into();
-    let edited = data.join("edited.json");
-    std::fs::write(&edited, serde_json::to_vec(&parsed).unwrap()).unwrap();
-    let before_predict = tree(dir.path());
-    let output = mbs_tool()
-        .args(["predict", "--manifest"])
-        .arg(&edited)
-        .args(["--pair", "0:1", "--format", "png16", "--out"])
-        .arg(&data)
-        .output()
-        .unwrap();
-    refused(&output, &[&other, "refusing to replace an input"]);
-    unchanged(&before_predict, &tree(dir.path()), "an input changed");
-    std::fs::remove_file(&edited).unwrap();
+    predict_over_another_samples_file(dir.path(), &data, &manifest);
     unchanged(&before, &tree(dir.path()), "an input changed");
-    // Outputs kept inside the run that predicts them are not its inputs:
-    // a second run resumes, --overwrite replaces them.
-    let inside = run.join("pred");
-    for extra in [&[][..], &[][..], &["--overwrite"]] {
-        let output = mbs_tool()
-            .arg("predict")
-            .arg("--kitti")
-            .arg(&k15)
-            .arg("--checkpoint")
-            .arg(&run)
-            .arg("--out")
-            .arg(&inside)
-            .args(extra)
-            .output()
-            .unwrap();
-        succeeded(&output);
-    }
+    predict_inside_the_run(&k15, &run);
     // A run folder written before the record: its checkpoints say it is
     // mbs's, so it is taken again (here to start over).
     std::fs::remove_file(run.join(".mbs-written")).unwrap();
