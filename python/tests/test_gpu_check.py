@@ -639,6 +639,19 @@ def test_prepare_force_refuses_a_bundle_holding_results_and_changes_nothing(
     assert not (bundle / "mbs-tool").exists() and not (bundle / "bench" / "__pycache__").exists()
 
 
+def assert_refused_with_late_results(
+    done: subprocess.CompletedProcess[str], bundle: Path, before: dict[str, object], tmp_path: Path
+) -> None:
+    """`prepare.sh --force` refused (exit 2, naming the results that
+    appeared in the bundle while it ran) and left the bundle as it was
+    with those results, and nothing else beside it."""
+    assert done.returncode == 2, done.stdout + done.stderr
+    line = done.stderr.strip().splitlines()[-1]
+    assert line.startswith(f"prepare.sh: {bundle} holds results") and "results/results.json" in line, line
+    assert snapshot(bundle) == {**before, "results": None, "results/results.json": b"{}\n"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bin", "bundle", "mbs-tool", "other"]
+
+
 def test_prepare_force_refuses_results_made_during_the_build(tmp_path: Path) -> None:
     bundle, other = made_bundle(tmp_path)
     # An xz that starts a run in the bundle while the new one is compressed.
@@ -654,11 +667,7 @@ def test_prepare_force_refuses_results_made_during_the_build(tmp_path: Path) -> 
     env = dict(os.environ, PATH=f"{fake}{os.pathsep}{os.environ['PATH']}")
     before = snapshot(bundle)
     done = prepare(str(bundle), "--force", "--binary", str(other), "--no-autotune", env=env)
-    assert done.returncode == 2, done.stdout + done.stderr
-    line = done.stderr.strip().splitlines()[-1]
-    assert line.startswith(f"prepare.sh: {bundle} holds results") and "results/results.json" in line, line
-    assert snapshot(bundle) == {**before, "results": None, "results/results.json": b"{}\n"}
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["bin", "bundle", "mbs-tool", "other"]
+    assert_refused_with_late_results(done, bundle, before, tmp_path)
 
 
 def test_prepare_force_puts_back_a_bundle_given_results_as_it_is_moved(tmp_path: Path) -> None:
@@ -676,11 +685,7 @@ def test_prepare_force_puts_back_a_bundle_given_results_as_it_is_moved(tmp_path:
     env = dict(os.environ, PATH=f"{fake}{os.pathsep}{os.environ['PATH']}")
     before = snapshot(bundle)
     done = prepare(str(bundle), "--force", "--binary", str(other), "--no-autotune", env=env)
-    assert done.returncode == 2, done.stdout + done.stderr
-    line = done.stderr.strip().splitlines()[-1]
-    assert line.startswith(f"prepare.sh: {bundle} holds results") and "results/results.json" in line, line
-    assert snapshot(bundle) == {**before, "results": None, "results/results.json": b"{}\n"}
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["bin", "bundle", "mbs-tool", "other"]
+    assert_refused_with_late_results(done, bundle, before, tmp_path)
 
 
 def test_an_unknown_phase_is_refused_before_anything_is_written(tmp_path: Path) -> None:

@@ -43,12 +43,13 @@ fn teddy_truth() -> FloatImage {
     image::imageops::crop_imm(&gt, 200, 150, W, H).to_image()
 }
 
-/// A KITTI 2015 split of one frame with both views' ground truth.
-fn kitti_2015(root: &Path) -> PathBuf {
-    let dir = root.join("kitti2015/training");
-    teddy_view("im2.png", &dir.join("image_2/000000_10.png"));
-    teddy_view("im6.png", &dir.join("image_3/000000_10.png"));
-    for truth in ["disp_occ_0", "disp_noc_0", "disp_occ_1"] {
+/// A KITTI split `root/folder` of one frame: Teddy's views in `views`,
+/// its ground truth in each of `truths`.
+fn kitti(root: &Path, folder: &str, views: [&str; 2], truths: [&str; 3]) -> PathBuf {
+    let dir = root.join(folder);
+    teddy_view("im2.png", &dir.join(views[0]).join("000000_10.png"));
+    teddy_view("im6.png", &dir.join(views[1]).join("000000_10.png"));
+    for truth in truths {
         let path = dir.join(truth).join("000000_10.png");
         std::fs::create_dir_all(path.parent().unwrap()).unwrap();
         png16::write_kitti_disparity(&path, &teddy_truth()).unwrap();
@@ -56,17 +57,21 @@ fn kitti_2015(root: &Path) -> PathBuf {
     dir
 }
 
+/// A KITTI 2015 split of one frame with both views' ground truth.
+fn kitti_2015(root: &Path) -> PathBuf {
+    let truths = ["disp_occ_0", "disp_noc_0", "disp_occ_1"];
+    kitti(root, "kitti2015/training", ["image_2", "image_3"], truths)
+}
+
 /// A KITTI 2012 split of one frame, with its reflective-surface truth.
 fn kitti_2012(root: &Path) -> PathBuf {
-    let dir = root.join("kitti2012/training");
-    teddy_view("im2.png", &dir.join("colored_0/000000_10.png"));
-    teddy_view("im6.png", &dir.join("colored_1/000000_10.png"));
-    for truth in ["disp_occ", "disp_noc", "disp_refl_occ"] {
-        let path = dir.join(truth).join("000000_10.png");
-        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-        png16::write_kitti_disparity(&path, &teddy_truth()).unwrap();
-    }
-    dir
+    let truths = ["disp_occ", "disp_noc", "disp_refl_occ"];
+    kitti(
+        root,
+        "kitti2012/training",
+        ["colored_0", "colored_1"],
+        truths,
+    )
 }
 
 /// A MiddEval3 root with `trainingQ/Teddy`, whose ground truth includes a
