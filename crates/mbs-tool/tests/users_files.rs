@@ -348,7 +348,8 @@ fn one_process_per_run_folder_and_kill_releases_it() {
         // always keeps its newest: a restart would have removed them all.
         assert!(!tree(&checkpoints).is_empty(), "the checkpoints went");
     }
-    Command::new("kill").args(["-9", &pid]).status().unwrap();
+    // SIGKILL, as `kill -9` sends: the run gets no chance to clean up.
+    first.0.kill().unwrap();
     first.0.wait().unwrap();
     let output = within(train_command(&manifest, &run, "2", &["--restart"]), 300);
     succeeded(&output);
