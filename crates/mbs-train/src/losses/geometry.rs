@@ -95,9 +95,10 @@ pub fn match_scale_neutral(target: Tensor<4>, student: Tensor<4>, weights: Tenso
     let factors: Vec<f32> = (0..batch)
         .map(|b| {
             let range = b * per_item..(b + 1) * per_item;
-            let votes = range.clone().filter_map(|i| {
-                (w[i] > 0.0 && d[i] > 0.0 && t[i] > 0.0).then(|| (d[i] / t[i], w[i] * d[i]))
-            });
+            let votes = range
+                .clone()
+                .filter(|&i| w[i] > 0.0 && d[i] > 0.0 && t[i] > 0.0)
+                .map(|i| (d[i] / t[i], w[i] * d[i]));
             weighted_median(votes.collect())
                 .unwrap_or_else(|| mean_factor(&t[range.clone()], &f[range]))
         })
