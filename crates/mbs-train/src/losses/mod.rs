@@ -21,7 +21,7 @@ use mbs_core::geometry::Side;
 
 use crate::error::TrainError;
 use crate::mask::{MaskParts, validity_mask, weight_map};
-use geometry::geometry_consistency;
+use geometry::{ScaleMatch, geometry_consistency};
 use mbs_nets::ranges;
 use photometric::photometric_map;
 use range::{out_of_range, out_of_view};
@@ -107,6 +107,14 @@ pub struct LossConfig {
     /// weights").
     #[config(default = false)]
     pub geometry_scale_match: bool,
+    /// With [`LossConfig::geometry_scale_match`], rescale the target to
+    /// the scale at which the L1 term has no net pull on the student's
+    /// scale (a weighted median of the per-pixel ratios,
+    /// [`geometry::match_scale_neutral`]) instead of to equal means, which
+    /// leave a pull toward the teacher's median; `false` (the default)
+    /// keeps the means.
+    #[config(default = false)]
+    pub geometry_scale_neutral: bool,
     /// Count pixels whose warp leaves the target image as invalid in both
     /// masks. The warp clamps to the border column there, and a border
     /// that happens to resemble the reference pixel would pass the paper's
@@ -139,6 +147,15 @@ impl LossConfig {
     /// Smoothness weight `lambda_s = lambda_s_ratio * lambda_p`.
     pub fn lambda_s(&self) -> f64 {
         self.lambda_s_ratio * self.lambda_p
+    }
+
+    /// How the geometry target is rescaled to the student's scale.
+    pub fn scale_match(&self) -> ScaleMatch {
+        match (self.geometry_scale_match, self.geometry_scale_neutral) {
+            (false, _) => ScaleMatch::Off,
+            (true, false) => ScaleMatch::Mean,
+            (true, true) => ScaleMatch::Neutral,
+        }
     }
 
     /// The mask parts switched on.
@@ -421,7 +438,7 @@ impl S3Loss {
                 &inputs.ratios,
                 a.clone(),
                 (config.max_target_disparity > 0.0).then_some(config.max_target_disparity),
-                config.geometry_scale_match,
+                config.scale_match(),
             );
             total = total + term.clone() * inputs.geometry_weight;
             out.terms.set(Term::Geometry, term);
