@@ -548,7 +548,9 @@ def test_run_writes_under_a_fresh_temporary_name_not_through_a_link(tmp_path: Pa
     assert os.readlink(out / "results.json.partial") == str(elsewhere)
     assert json.loads((out / "results.json").read_text())["phases"]["probe"]["status"] == "ok"
     assert not (out / "results.json").is_symlink()
-    assert sorted(p.name for p in out.iterdir()) == [
+    # lib/ (a libnccl.so link) is made only where the Python environment has
+    # NCCL, as PyTorch's CUDA wheels bring it: the test environment's does.
+    assert sorted(p.name for p in out.iterdir() if p.name != "lib") == [
         "data",
         "gpu_samples.csv",
         "logs",
