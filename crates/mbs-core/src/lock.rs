@@ -32,6 +32,37 @@ pub enum Share {
     },
 }
 
+impl Share {
+    /// The name of this share's own file of the kind `base` (the lock, the
+    /// record): `base` for a whole job, `base.shard-K-of-N` for a shard.
+    pub fn file_name(self, base: &str) -> String {
+        match self {
+            Share::Whole => base.to_string(),
+            Share::Shard { index, count } => format!("{base}.shard-{index}-of-{count}"),
+        }
+    }
+}
+
+/// Every share's file of the kind `base` in `dir` (`base` and its shards'
+/// `base.shard-K-of-N`), sorted; none when `dir` cannot be listed.
+pub(crate) fn files_of_every_share(dir: &Path, base: &str) -> Vec<PathBuf> {
+    let Ok(entries) = fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let shards = format!("{base}.shard-");
+    let mut found: Vec<PathBuf> = entries
+        .flatten()
+        .map(|entry| entry.path())
+        .filter(|path| {
+            path.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n == base || n.starts_with(&shards))
+        })
+        .collect();
+    found.sort();
+    found
+}
+
 /// A held lock on an output folder; dropping it (or the process ending)
 /// releases it.
 #[derive(Debug)]
@@ -61,7 +92,7 @@ impl FolderLock {
             }
             Share::Shard { index, count } => {
                 let supported = lock(&main_file, dir, Mode::Shared)?;
-                let own = dir.join(format!("{LOCK_FILE}.shard-{index}-of-{count}"));
+                let own = dir.join(share.file_name(LOCK_FILE));
                 let own_file = open_lock_file(&own)?;
                 lock(&own_file, dir, Mode::Exclusive)?;
                 write_holder(&own_file, &own, &format!("{holder}, shard {index}/{count}"))?;
@@ -237,7 +268,7 @@ fn may_be_running(who: &str) -> bool {
 /// Who holds `dir`'s locks, in words, from the lock files of the holders
 /// still holding them.
 fn holders(dir: &Path) -> String {
-    let mut found: Vec<String> = lock_files(dir)
+    let mut found: Vec<String> = files_of_every_share(dir, LOCK_FILE)
         .iter()
         .filter(|path| is_held(path))
         .filter_map(|path| {
@@ -251,22 +282,6 @@ fn holders(dir: &Path) -> String {
         true => "another process".into(),
         false => found.join("; "),
     }
-}
-
-/// The lock files in `dir`: the main one and the shards'.
-fn lock_files(dir: &Path) -> Vec<PathBuf> {
-    let Ok(entries) = fs::read_dir(dir) else {
-        return Vec::new();
-    };
-    entries
-        .filter_map(|entry| entry.ok())
-        .map(|entry| entry.path())
-        .filter(|path| {
-            path.file_name()
-                .and_then(|n| n.to_str())
-                .is_some_and(|n| n == LOCK_FILE || n.starts_with(&format!("{LOCK_FILE}.shard-")))
-        })
-        .collect()
 }
 
 /// Whether some process holds `path`'s lock (exclusively or shared).

@@ -21,7 +21,7 @@ use std::sync::Mutex;
 
 use crate::confine::name_inside;
 use crate::error::{FormatError, Result};
-use crate::lock::{FolderLock, Share, open_own};
+use crate::lock::{FolderLock, Share, files_of_every_share, open_own};
 
 /// The record of the files mbs wrote in an output folder; each shard of a
 /// `--shard K/N` job keeps its own beside it (`.mbs-written.shard-K-of-N`),
@@ -44,7 +44,7 @@ impl Written {
     /// (a record being written) is left out.
     pub fn read(root: &Path) -> Result<Self> {
         let mut names = HashSet::new();
-        for record in record_files(root) {
+        for record in files_of_every_share(root, RECORD_FILE) {
             let mut text = String::new();
             open_own(&record, fs::OpenOptions::new().read(true))?
                 .read_to_string(&mut text)
@@ -94,24 +94,6 @@ impl Written {
             ),
         ))
     }
-}
-
-/// The record files in `root`: the whole job's and the shards'.
-fn record_files(root: &Path) -> Vec<PathBuf> {
-    let Ok(entries) = fs::read_dir(root) else {
-        return Vec::new();
-    };
-    let mut found: Vec<PathBuf> = entries
-        .flatten()
-        .map(|entry| entry.path())
-        .filter(|path| {
-            path.file_name().and_then(|n| n.to_str()).is_some_and(|n| {
-                n == RECORD_FILE || n.starts_with(&format!("{RECORD_FILE}.shard-"))
-            })
-        })
-        .collect();
-    found.sort();
-    found
 }
 
 /// `path`'s confined name inside `root` ([`crate::confine::name_inside`]);
@@ -178,12 +160,7 @@ impl OutDir {
     /// outputs in between), its records read and this process's opened.
     pub fn with_lock(root: &Path, share: Share, lock: FolderLock) -> Result<Self> {
         let written = Written::read(root)?;
-        let record_path = match share {
-            Share::Whole => root.join(RECORD_FILE),
-            Share::Shard { index, count } => {
-                root.join(format!("{RECORD_FILE}.shard-{index}-of-{count}"))
-            }
-        };
+        let record_path = root.join(share.file_name(RECORD_FILE));
         let record = open_own(
             &record_path,
             fs::OpenOptions::new().append(true).create(true),

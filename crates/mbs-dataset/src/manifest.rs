@@ -306,6 +306,15 @@ impl Manifest {
     }
 }
 
+/// The folder of the manifest file `manifest_path`, which its paths are
+/// relative to (`.` for a bare file name).
+pub fn folder(manifest_path: &Path) -> PathBuf {
+    match manifest_path.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
 /// Resolves a manifest-relative path against the manifest's folder.
 pub fn resolve(manifest_path: &Path, relative: &str) -> PathBuf {
     manifest_path

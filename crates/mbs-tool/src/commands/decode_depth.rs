@@ -1,6 +1,6 @@
 //! `mbs-tool decode-depth`: CARLA depth PNGs -> metric depth and disparity.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::bail;
 use clap::Parser;
@@ -75,7 +75,8 @@ pub struct Args {
 /// Runs `decode-depth`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
-    let (jobs, rig, camera, manifest_max) = input_images(&args)?;
+    let mut inputs = InputFiles::new();
+    let (jobs, rig, camera, manifest_max) = input_images(&args, &mut inputs)?;
     let max_depth_m = args
         .max_depth
         .or(manifest_max)
@@ -99,18 +100,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(shard) => shard.select(jobs),
         None => jobs,
     };
-    let mut inputs = InputFiles::new();
-    inputs.add(&args.input);
     inputs.extend(jobs.iter().map(|j| &j.encoded));
-    if !args.input.is_dir() {
-        let manifest = Manifest::load(&args.input)?;
-        inputs.extend(manifest_files(&args.input, &manifest));
-    }
     let outputs: Vec<PathBuf> = jobs.iter().flat_map(|j| plan.outputs(j)).collect();
     let root = match (&args.out, args.input.is_dir()) {
         (Some(out), _) => out.clone(),
         (None, true) => args.input.clone(),
-        (None, false) => manifest_folder(&args.input),
+        (None, false) => mbs_dataset::manifest::folder(&args.input),
     };
     let _out = crate::cli::take_out(&root, args.shard, "decode-depth", &inputs, &outputs)?;
     let summary = batch::run(
@@ -129,8 +124,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 /// The depth images of the input (a folder, or a manifest's samples),
 /// the rig that took them, the depth camera and the manifest's largest
-/// depth.
-fn input_images(args: &Args) -> anyhow::Result<(Vec<DepthImage>, Rig, usize, Option<f64>)> {
+/// depth; the input and, for a manifest, every file of its samples are
+/// added to `inputs`.
+fn input_images(
+    args: &Args,
+    inputs: &mut InputFiles,
+) -> anyhow::Result<(Vec<DepthImage>, Rig, usize, Option<f64>)> {
+    inputs.add(&args.input);
     if args.input.is_dir() {
         let rig = Rig {
             num_views: args.views,
@@ -142,19 +142,11 @@ fn input_images(args: &Args) -> anyhow::Result<(Vec<DepthImage>, Rig, usize, Opt
         return Ok((jobs, rig, 0, None));
     }
     let manifest = Manifest::load(&args.input)?;
+    inputs.extend(manifest_files(&args.input, &manifest));
     let depth = manifest.depth.as_ref();
     let camera = depth.map_or(0, |d| d.camera);
     let jobs = depth_images_in_manifest(&args.input, &manifest, args.out.as_deref())?;
     Ok((jobs, manifest.rig, camera, depth.map(|d| d.max_depth_m)))
-}
-
-/// The folder of the manifest file `path`, which its samples' paths are
-/// relative to.
-fn manifest_folder(path: &Path) -> PathBuf {
-    match path.parent() {
-        Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
-        _ => PathBuf::from("."),
-    }
 }
 
 fn requested_targets(

@@ -46,16 +46,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut manifest = scan(&args.root, &options)?;
     let named = args.out.is_some();
     let out = args.out.unwrap_or_else(|| args.root.join("manifest.json"));
-    let out_dir = out.parent().unwrap_or(std::path::Path::new(""));
-    let out_dir = if out_dir.as_os_str().is_empty() {
-        std::path::Path::new(".")
-    } else {
-        out_dir
-    };
+    let out_dir = mbs_dataset::manifest::folder(&out);
     // A manifest's paths stay inside its folder (mbs_core::confine), so it
     // is written in ROOT or in a folder above it.
     let (out_abs, root_abs) = (
-        std::path::absolute(out_dir)?,
+        std::path::absolute(&out_dir)?,
         std::path::absolute(&args.root)?,
     );
     if out_abs != root_abs {
