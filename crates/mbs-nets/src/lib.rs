@@ -54,6 +54,14 @@ pub trait Backbone: Module {
     fn disparities(&self, reference: Tensor<4>, target: Tensor<4>) -> Vec<Tensor<4>> {
         vec![self.disparity(reference, target)]
     }
+
+    /// How many of [`Backbone::disparities`]' predictions, first, are
+    /// direct estimates made before the iterative updates
+    /// (IGEV-Stereo's initial disparity: 1), which training weighs apart
+    /// from the updates' sequence; 0 for the others.
+    fn initial_estimates(&self) -> usize {
+        0
+    }
 }
 
 /// Disparity for pairs whose targets lie on either side: left-side items

@@ -229,4 +229,12 @@ impl Backbone for StereoNetwork {
             StereoNetwork::Igev(net) => net.disparities(reference, target),
         }
     }
+
+    fn initial_estimates(&self) -> usize {
+        match self {
+            StereoNetwork::Compact(net) => net.initial_estimates(),
+            StereoNetwork::RaftStereo(net) => net.initial_estimates(),
+            StereoNetwork::Igev(net) => net.initial_estimates(),
+        }
+    }
 }

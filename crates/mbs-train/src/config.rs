@@ -210,8 +210,9 @@ fn overlay_users(
 /// runs did before them: the S3 safeguards (docs/training.md, "S3 from random
 /// weights"), all off before they existed, the teacher's iterations, and
 /// the photometric term's reduction.
-fn legacy_values() -> [(&'static str, Value); 8] {
+fn legacy_values() -> [(&'static str, Value); 9] {
     [
+        ("trainer.initial_weight", Value::Null),
         ("trainer.teacher_test_iters", Value::from(true)),
         ("trainer.geometry_start", Value::from(0.0)),
         ("trainer.geometry_warmup", Value::from(0.0)),
@@ -360,6 +361,7 @@ mod tests {
         trainer.remove("geometry_start");
         trainer.remove("geometry_warmup");
         trainer.remove("teacher_test_iters");
+        trainer.remove("initial_weight");
         let loss = trainer["loss"].as_object_mut().expect("an object");
         loss.remove("range_weight");
         loss.remove("out_of_view_invalid");
@@ -377,6 +379,7 @@ mod tests {
         assert_eq!(old.trainer.loss.outside_mask_weight, 0.0);
         assert_eq!(old.trainer.loss.view_weight, 0.0);
         assert!(old.trainer.teacher_test_iters);
+        assert_eq!(old.trainer.initial_weight, None);
         // A document that has the keys keeps them.
         let new = RunConfig::layered(None, &overrides).expect("valid");
         assert_eq!(new.trainer.geometry_start, Some(0.3));

@@ -380,6 +380,11 @@ impl Backbone for IgevStereo {
             .map(crop)
             .collect()
     }
+
+    /// The initial disparity regressed from the geometry encoding volume.
+    fn initial_estimates(&self) -> usize {
+        1
+    }
 }
 
 impl OfficialLayout for IgevStereo {

@@ -50,6 +50,17 @@ pub struct TrainerConfig {
     /// Supervise only an iterative student's final prediction.
     #[config(default = false)]
     pub final_prediction_only: bool,
+    /// Loss weight of each direct estimate an iterative student makes
+    /// before its updates (IGEV-Stereo's initial disparity from its
+    /// geometry encoding volume), apart from the updates' sequence, as the
+    /// official IGEV-Stereo loss weighs it (1). `None` (the default) weighs
+    /// it as the first prediction of the sequence (`gamma'^n`, 0.2 at 3
+    /// iterations). Measured from random weights on four seeds
+    /// (docs/quality.md, "The update that marches, and the initial
+    /// disparity's weight"), 1 helped one seed and made another drift:
+    /// offered, not the default.
+    #[config(default = "None")]
+    pub initial_weight: Option<f64>,
     /// An iterative teacher (RAFT-Stereo, IGEV-Stereo) makes its
     /// pseudo-labels with the network's test iterations (`test_iters`);
     /// `false` (the default) uses the training ones, the iterations the
@@ -87,7 +98,48 @@ pub fn sequence_weights(n: usize, gamma: f64, final_only: bool) -> Vec<f64> {
     (0..n).map(|i| adjusted.powi((n - 1 - i) as i32)).collect()
 }
 
+/// How an iterative student's predictions are weighted in its loss
+/// ([`PredictionWeights::of`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PredictionWeights {
+    /// [`TrainerConfig::sequence_gamma`].
+    pub gamma: f64,
+    /// [`TrainerConfig::final_prediction_only`].
+    pub final_only: bool,
+    /// [`TrainerConfig::initial_weight`].
+    pub initial_weight: Option<f64>,
+}
+
+impl PredictionWeights {
+    /// The weight of each of `n` predictions, first to last, whose first
+    /// `initial` are direct estimates made before the updates
+    /// (`Backbone::initial_estimates`): each of those weighs
+    /// `initial_weight`, and the updates' predictions follow
+    /// [`sequence_weights`] among themselves, as the official IGEV-Stereo
+    /// loss; with `initial_weight` `None` all `n` form one sequence. With
+    /// `final_only`, all but the last weigh 0.
+    pub fn of(&self, n: usize, initial: usize) -> Vec<f64> {
+        match self.initial_weight {
+            Some(weight) if !self.final_only && initial < n => {
+                let mut weights = vec![weight; initial];
+                weights.extend(sequence_weights(n - initial, self.gamma, false));
+                weights
+            }
+            _ => sequence_weights(n, self.gamma, self.final_only),
+        }
+    }
+}
+
 impl TrainerConfig {
+    /// How the student's predictions are weighted.
+    pub fn prediction_weights(&self) -> PredictionWeights {
+        PredictionWeights {
+            gamma: self.sequence_gamma,
+            final_only: self.final_prediction_only,
+            initial_weight: self.initial_weight,
+        }
+    }
+
     /// Checks the loss, schedule, EMA and clipping settings.
     pub fn validate(&self) -> Result<(), TrainError> {
         self.loss.validate()?;
@@ -105,6 +157,9 @@ impl TrainerConfig {
             )));
         }
         ranges::unit("sequence_gamma", self.sequence_gamma)?;
+        if let Some(weight) = self.initial_weight {
+            ranges::non_negative("initial_weight", weight)?;
+        }
         self.optimizer.validate()?;
         ranges::positive("initial_loss_scale", self.initial_loss_scale)?;
         ranges::positive("grad_clip_norm", self.grad_clip_norm)?;

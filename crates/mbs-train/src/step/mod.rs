@@ -27,7 +27,7 @@ use crate::supervision::Supervision;
 use mbs_nets::host::read_all;
 use mbs_nets::{Backbone, predict};
 
-pub use config::{TrainerConfig, sequence_weights};
+pub use config::{PredictionWeights, TrainerConfig, sequence_weights};
 use objective::{LossValues, Objective};
 pub use reduce::{GradientReduction, HostAllReduce, InProcessSum, LocalGradients, ShareGradients};
 pub use shares::Sharing;
@@ -110,8 +110,7 @@ impl<B: Backbone> S3Trainer<B> {
             optimizer,
             objective: Objective {
                 loss,
-                sequence_gamma: config.sequence_gamma,
-                final_prediction_only: config.final_prediction_only,
+                weights: config.prediction_weights(),
                 precision: config.precision,
                 teacher_test_iters: config.teacher_test_iters,
             },

@@ -6,7 +6,7 @@
 use burn::optim::GradientsParams;
 use burn::tensor::{FloatDType, Tensor};
 
-use super::sequence_weights;
+use super::PredictionWeights;
 use crate::data::StepBatch;
 use crate::error::TrainError;
 use crate::losses::{LossInputs, LossOutput, S3Loss, Terms};
@@ -23,8 +23,7 @@ use mbs_nets::{Backbone, predict, predict_sequence};
 #[derive(Debug, Clone)]
 pub(super) struct Objective {
     pub(super) loss: S3Loss,
-    pub(super) sequence_gamma: f64,
-    pub(super) final_prediction_only: bool,
+    pub(super) weights: PredictionWeights,
     pub(super) precision: Precision,
     /// The teacher's pseudo-labels come from its test iterations.
     pub(super) teacher_test_iters: bool,
@@ -157,11 +156,9 @@ impl Objective {
             .into_iter()
             .map(|prediction| prediction.cast(FloatDType::F32))
             .collect();
-        let weights = sequence_weights(
-            predictions.len(),
-            self.sequence_gamma,
-            self.final_prediction_only,
-        );
+        let weights = self
+            .weights
+            .of(predictions.len(), student.initial_estimates());
         let last = predictions
             .pop()
             .ok_or_else(|| TrainError::Shape("the student returned no prediction".into()))?;

@@ -376,6 +376,35 @@ fn sequence_weights_follow_the_official_adjusted_gamma() {
     assert_eq!(sequence_weights(1, 0.9, false), [1.0]);
 }
 
+#[test]
+fn an_initial_estimate_weighs_apart_from_the_sequence_as_the_official_igev_loss() {
+    use crate::step::PredictionWeights;
+    let weights = |initial_weight, final_only| PredictionWeights {
+        gamma: 0.9,
+        final_only,
+        initial_weight,
+    };
+    // IGEV-Stereo at 3 iterations: the initial disparity weighs 1, the
+    // iterations 0.9^(15/2)^2, 0.9^(15/2), 1 (official `sequence_loss`).
+    let official = weights(Some(1.0), false).of(4, 1);
+    let adjusted = 0.9f64.powf(7.5);
+    let expected = [1.0, adjusted * adjusted, adjusted, 1.0];
+    for (got, want) in official.iter().zip(expected) {
+        assert!((got - want).abs() < 1e-12, "{official:?}");
+    }
+    // Before the setting: one sequence of 4, the initial weighing 0.9^15.
+    let legacy = weights(None, false).of(4, 1);
+    assert_eq!(legacy, sequence_weights(4, 0.9, false));
+    assert!((legacy[0] - 0.9f64.powi(15)).abs() < 1e-12);
+    // No initial estimate (RAFT-Stereo), final only, a single prediction.
+    assert_eq!(
+        weights(Some(1.0), false).of(3, 0),
+        sequence_weights(3, 0.9, false)
+    );
+    assert_eq!(weights(Some(1.0), true).of(4, 1), [0.0, 0.0, 0.0, 1.0]);
+    assert_eq!(weights(Some(0.5), false).of(2, 1), [0.5, 1.0]);
+}
+
 /// A batch of one item twice shared by two devices: each share is that
 /// item, so the data-parallel step must report the whole batch's loss and
 /// gradient norm (the shares weigh one half each) and move the weights as
