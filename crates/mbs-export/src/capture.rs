@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 
 use burn::backend::capture::{CaptureBackend, CapturedGraph, TensorId};
-use burn::module::{Module, ModuleVisitor, Param};
+use burn::module::{ModuleVisitor, Param};
 use burn::tensor::{Bool, Device, Int, Tensor};
 use mbs_nets::Backbone;
 
