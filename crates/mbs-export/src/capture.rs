@@ -41,12 +41,15 @@ pub fn capture<B: Backbone + Clone>(
         let network = network.clone().to_device(&device);
         let mut names = ParameterNames::default();
         network.visit(&mut names);
-        let image = || Tensor::<4>::zeros([1, 3, height, width], &Device::flex()).to_device(&device);
+        let image =
+            || Tensor::<4>::zeros([1, 3, height, width], &Device::flex()).to_device(&device);
         let (left, right) = (image(), image());
         let ids = (id(&left, "left"), id(&right, "right"));
         let disparity = network.disparity(left, right);
         let result = match (ids, id(&disparity, "the disparity"), names.error) {
-            ((Ok(left), Ok(right)), Ok(out), None) => Ok((vec![left, right], vec![out], names.names)),
+            ((Ok(left), Ok(right)), Ok(out), None) => {
+                Ok((vec![left, right], vec![out], names.names))
+            }
             ((Err(e), _), _, _) | ((_, Err(e)), _, _) | (_, Err(e), _) | (_, _, Some(e)) => Err(e),
         };
         let (inputs, outputs) = match &result {
@@ -56,7 +59,8 @@ pub fn capture<B: Backbone + Clone>(
         outcome = Some(result);
         scope.complete(inputs, outputs)
     });
-    let (_, _, parameter_names) = outcome.ok_or_else(|| CaptureError::Capture("the scope did not run".into()))??;
+    let (_, _, parameter_names) =
+        outcome.ok_or_else(|| CaptureError::Capture("the scope did not run".into()))??;
     let graph = graph.map_err(|e| CaptureError::Capture(e.to_string()))?;
     Ok(Captured {
         graph,
@@ -106,14 +110,20 @@ impl ModuleVisitor for ParameterNames {
     }
 
     fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
-        self.record(param.val().try_into_primitive::<CaptureBackend>(), |t| t.id());
+        self.record(param.val().try_into_primitive::<CaptureBackend>(), |t| {
+            t.id()
+        });
     }
 
     fn visit_int<const D: usize>(&mut self, param: &Param<Tensor<D, Int>>) {
-        self.record(param.val().try_into_primitive::<CaptureBackend>(), |t| t.id());
+        self.record(param.val().try_into_primitive::<CaptureBackend>(), |t| {
+            t.id()
+        });
     }
 
     fn visit_bool<const D: usize>(&mut self, param: &Param<Tensor<D, Bool>>) {
-        self.record(param.val().try_into_primitive::<CaptureBackend>(), |t| t.id());
+        self.record(param.val().try_into_primitive::<CaptureBackend>(), |t| {
+            t.id()
+        });
     }
 }

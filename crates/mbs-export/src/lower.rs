@@ -6,14 +6,16 @@ use std::collections::{BTreeMap, HashMap};
 
 use burn::backend::capture::TensorId;
 use burn::backend::ir::{
-    ActivationOperationIr, BaseOperationIr, BinaryOpIr, BoolOperationIr, FloatOperationIr,
-    IntOperationIr, ModuleOperationIr, NumericOperationIr, OperationIr, PadModeIr, ScalarIr,
-    ScalarOpIr, TensorIr,
+    ActivationOperationIr, AvgPool2dOpIr, BaseOperationIr, BinaryOpIr, BoolOperationIr,
+    FloatOperationIr, IntOperationIr, ModuleOperationIr, NumericOperationIr, OperationIr,
+    PadModeIr, ScalarIr, ScalarOpIr, TensorIr,
 };
 use burn::tensor::{DType, TensorData};
 
 use crate::capture::Captured;
-use crate::proto::{AttributeProto, BOOL, FLOAT, GraphProto, INT64, NodeProto, TensorProto, ValueInfoProto};
+use crate::proto::{
+    AttributeProto, BOOL, FLOAT, GraphProto, INT64, NodeProto, TensorProto, ValueInfoProto,
+};
 
 /// The ONNX operator set versions an export may target.
 pub const OPSETS: std::ops::RangeInclusive<i64> = 16..=18;
@@ -125,7 +127,13 @@ impl<'a> Lowering<'a> {
     }
 
     /// A node `op_type` from `inputs` to `out`.
-    fn node(&mut self, op_type: &str, inputs: Vec<String>, out: &TensorIr, attribute: Vec<AttributeProto>) {
+    fn node(
+        &mut self,
+        op_type: &str,
+        inputs: Vec<String>,
+        out: &TensorIr,
+        attribute: Vec<AttributeProto>,
+    ) {
         let output = self.name(out);
         let name = format!("{op_type}_{}", self.nodes.len());
         self.nodes.push(NodeProto {
@@ -138,7 +146,13 @@ impl<'a> Lowering<'a> {
     }
 
     /// A node `op_type` over tensors.
-    fn apply(&mut self, op_type: &str, inputs: &[&TensorIr], out: &TensorIr, attribute: Vec<AttributeProto>) {
+    fn apply(
+        &mut self,
+        op_type: &str,
+        inputs: &[&TensorIr],
+        out: &TensorIr,
+        attribute: Vec<AttributeProto>,
+    ) {
         let inputs = inputs.iter().map(|t| self.name(t)).collect();
         self.node(op_type, inputs, out, attribute);
     }
@@ -231,8 +245,8 @@ impl<'a> Lowering<'a> {
 
     fn base(&mut self, op: &BaseOperationIr) -> Result<()> {
         match op {
-            BaseOperationIr::Reshape(op) => self.to_shape("Reshape", &op.input, &op.out),
-            BaseOperationIr::Expand(op) => self.to_shape("Expand", &op.input, &op.out),
+            BaseOperationIr::Reshape(op) => self.reshape_like("Reshape", &op.input, &op.out),
+            BaseOperationIr::Expand(op) => self.reshape_like("Expand", &op.input, &op.out),
             BaseOperationIr::SwapDims(op) => {
                 let mut perm: Vec<i64> = (0..op.input.shape.num_dims() as i64).collect();
                 perm.swap(op.dim1, op.dim2);
@@ -247,7 +261,12 @@ impl<'a> Lowering<'a> {
             BaseOperationIr::Slice(op) => self.slice(&op.tensor, &op.ranges, &op.out)?,
             BaseOperationIr::Gather(op) => {
                 let axis = AttributeProto::int("axis", op.dim as i64);
-                self.apply("GatherElements", &[&op.tensor, &op.indices], &op.out, vec![axis]);
+                self.apply(
+                    "GatherElements",
+                    &[&op.tensor, &op.indices],
+                    &op.out,
+                    vec![axis],
+                );
             }
             BaseOperationIr::Cat(op) => {
                 let inputs: Vec<&TensorIr> = op.tensors.iter().collect();
@@ -258,7 +277,13 @@ impl<'a> Lowering<'a> {
             BaseOperationIr::Zeros(op) => {
                 let (data_type, _) = (onnx_type(op.out.dtype)?, ());
                 let size: usize = op.out.shape.iter().product();
-                let width = if data_type == BOOL { 1 } else if data_type == INT64 { 8 } else { 4 };
+                let width = if data_type == BOOL {
+                    1
+                } else if data_type == INT64 {
+                    8
+                } else {
+                    4
+                };
                 let dims: Vec<i64> = op.out.shape.iter().map(|&d| d as i64).collect();
                 let name = self.constant(data_type, &dims, vec![0; size * width]);
                 self.names.insert(op.out.id, name);
@@ -269,7 +294,7 @@ impl<'a> Lowering<'a> {
     }
 
     /// `Reshape` or `Expand` of `input` to `out`'s fixed shape.
-    fn to_shape(&mut self, op_type: &str, input: &TensorIr, out: &TensorIr) {
+    fn reshape_like(&mut self, op_type: &str, input: &TensorIr, out: &TensorIr) {
         let dims: Vec<i64> = out.shape.iter().map(|&d| d as i64).collect();
         let input = self.name(input);
         let shape = self.ints(&dims);
@@ -277,12 +302,19 @@ impl<'a> Lowering<'a> {
     }
 
     /// A `Slice` with positive steps.
-    fn slice(&mut self, input: &TensorIr, ranges: &[burn::tensor::Slice], out: &TensorIr) -> Result<()> {
+    fn slice(
+        &mut self,
+        input: &TensorIr,
+        ranges: &[burn::tensor::Slice],
+        out: &TensorIr,
+    ) -> Result<()> {
         let (mut starts, mut ends, mut axes, mut steps) = (vec![], vec![], vec![], vec![]);
         for (axis, (range, &size)) in ranges.iter().zip(input.shape.iter()).enumerate() {
             let (bounds, step) = range.to_range_and_step(size);
             if step <= 0 {
-                return Err(LowerError::Unsupported("a slice with a negative step".into()));
+                return Err(LowerError::Unsupported(
+                    "a slice with a negative step".into(),
+                ));
             }
             starts.push(bounds.start as i64);
             ends.push(bounds.end as i64);
@@ -290,7 +322,13 @@ impl<'a> Lowering<'a> {
             steps.push(step as i64);
         }
         let input = self.name(input);
-        let inputs = vec![input, self.ints(&starts), self.ints(&ends), self.ints(&axes), self.ints(&steps)];
+        let inputs = vec![
+            input,
+            self.ints(&starts),
+            self.ints(&ends),
+            self.ints(&axes),
+            self.ints(&steps),
+        ];
         self.node("Slice", inputs, out, Vec::new());
         Ok(())
     }
@@ -301,7 +339,12 @@ impl<'a> Lowering<'a> {
         if onnx_type(input.dtype)? == to {
             self.apply("Identity", &[input], out, Vec::new());
         } else {
-            self.apply("Cast", &[input], out, vec![AttributeProto::int("to", i64::from(to))]);
+            self.apply(
+                "Cast",
+                &[input],
+                out,
+                vec![AttributeProto::int("to", i64::from(to))],
+            );
         }
         Ok(())
     }
@@ -322,7 +365,9 @@ impl<'a> Lowering<'a> {
             NumericOperationIr::LowerElem(op) => self.with_scalar("Less", op)?,
             NumericOperationIr::Neg(op) => self.apply("Neg", &[&op.input], &op.out, Vec::new()),
             NumericOperationIr::Abs(op) => self.apply("Abs", &[&op.input], &op.out, Vec::new()),
-            NumericOperationIr::MeanDim(op) => self.reduce("ReduceMean", &op.input, op.axis, &op.out),
+            NumericOperationIr::MeanDim(op) => {
+                self.reduce("ReduceMean", &op.input, op.axis, &op.out)
+            }
             NumericOperationIr::SumDim(op) => self.reduce("ReduceSum", &op.input, op.axis, &op.out),
             NumericOperationIr::Clamp(op) => {
                 let input = self.name(&op.tensor);
@@ -382,7 +427,9 @@ impl<'a> Lowering<'a> {
             FloatOperationIr::Floor(op) => self.apply("Floor", &[&op.input], &op.out, Vec::new()),
             FloatOperationIr::Exp(op) => self.apply("Exp", &[&op.input], &op.out, Vec::new()),
             FloatOperationIr::IntoInt(op) => self.cast(&op.input, &op.out)?,
-            FloatOperationIr::Matmul(op) => self.apply("MatMul", &[&op.lhs, &op.rhs], &op.out, Vec::new()),
+            FloatOperationIr::Matmul(op) => {
+                self.apply("MatMul", &[&op.lhs, &op.rhs], &op.out, Vec::new())
+            }
             other => return Err(LowerError::Unsupported(short_name(other))),
         }
         Ok(())
@@ -409,7 +456,9 @@ impl<'a> Lowering<'a> {
 
     fn activation(&mut self, op: &ActivationOperationIr) -> Result<()> {
         match op {
-            ActivationOperationIr::Relu(op) => self.apply("Relu", &[&op.input], &op.out, Vec::new()),
+            ActivationOperationIr::Relu(op) => {
+                self.apply("Relu", &[&op.input], &op.out, Vec::new())
+            }
             ActivationOperationIr::Sigmoid(op) => {
                 self.apply("Sigmoid", &[&op.input], &op.out, Vec::new())
             }
@@ -428,63 +477,82 @@ impl<'a> Lowering<'a> {
     }
 
     fn module(&mut self, op: &ModuleOperationIr) -> Result<()> {
-        match op {
+        let (op_type, inputs, out, attributes) = match op {
             ModuleOperationIr::Conv2d(op) => {
-                let o = &op.options;
-                let pads = [o.padding[0].0, o.padding[1].0, o.padding[0].1, o.padding[1].1];
-                let attributes = conv_attributes(&o.stride, &pads, &o.dilation, o.groups, &op.weight);
-                self.conv("Conv", &op.x, &op.weight, op.bias.as_ref(), &op.out, attributes);
+                let (o, p) = (&op.options, op.options.padding);
+                let pads = [p[0].0, p[1].0, p[0].1, p[1].1];
+                let attributes =
+                    conv_attributes(&o.stride, &pads, &o.dilation, o.groups, &op.weight);
+                (
+                    "Conv",
+                    conv_inputs(&op.x, &op.weight, &op.bias),
+                    &op.out,
+                    attributes,
+                )
             }
             ModuleOperationIr::Conv3d(op) => {
                 let o = &op.options;
                 let pads = [o.padding, o.padding].concat();
-                let attributes = conv_attributes(&o.stride, &pads, &o.dilation, o.groups, &op.weight);
-                self.conv("Conv", &op.x, &op.weight, op.bias.as_ref(), &op.out, attributes);
+                let attributes =
+                    conv_attributes(&o.stride, &pads, &o.dilation, o.groups, &op.weight);
+                (
+                    "Conv",
+                    conv_inputs(&op.x, &op.weight, &op.bias),
+                    &op.out,
+                    attributes,
+                )
             }
             ModuleOperationIr::ConvTranspose2d(op) => {
                 let o = &op.options;
                 let pads = [o.padding, o.padding].concat();
-                let mut attributes = conv_attributes(&o.stride, &pads, &o.dilation, o.groups, &op.weight);
+                let mut attributes =
+                    conv_attributes(&o.stride, &pads, &o.dilation, o.groups, &op.weight);
                 attributes.push(usize_list("output_padding", &o.padding_out));
-                self.conv("ConvTranspose", &op.x, &op.weight, op.bias.as_ref(), &op.out, attributes);
+                let inputs = conv_inputs(&op.x, &op.weight, &op.bias);
+                ("ConvTranspose", inputs, &op.out, attributes)
             }
             ModuleOperationIr::ConvTranspose3d(op) => {
                 let o = &op.options;
                 let pads = [o.padding, o.padding].concat();
-                let mut attributes = conv_attributes(&o.stride, &pads, &o.dilation, o.groups, &op.weight);
+                let mut attributes =
+                    conv_attributes(&o.stride, &pads, &o.dilation, o.groups, &op.weight);
                 attributes.push(usize_list("output_padding", &o.padding_out));
-                self.conv("ConvTranspose", &op.x, &op.weight, op.bias.as_ref(), &op.out, attributes);
+                let inputs = conv_inputs(&op.x, &op.weight, &op.bias);
+                ("ConvTranspose", inputs, &op.out, attributes)
             }
             ModuleOperationIr::AvgPool2d(op) => {
-                let pads = [op.padding, op.padding].concat();
-                let attributes = vec![
-                    usize_list("kernel_shape", &op.kernel_size),
-                    usize_list("strides", &op.stride),
-                    usize_list("pads", &pads),
-                    AttributeProto::int("count_include_pad", i64::from(op.count_include_pad)),
-                    AttributeProto::int("ceil_mode", i64::from(op.ceil_mode)),
-                ];
-                self.apply("AveragePool", &[&op.x], &op.out, attributes);
+                self.average_pool(op);
+                return Ok(());
             }
             other => return Err(LowerError::Unsupported(short_name(other))),
-        }
+        };
+        self.apply(op_type, &inputs, out, attributes);
         Ok(())
     }
 
-    /// A `Conv` or `ConvTranspose` node, with its bias when it has one.
-    fn conv(
-        &mut self,
-        op_type: &str,
-        x: &TensorIr,
-        weight: &TensorIr,
-        bias: Option<&TensorIr>,
-        out: &TensorIr,
-        attributes: Vec<AttributeProto>,
-    ) {
-        let mut inputs = vec![x, weight];
-        inputs.extend(bias);
-        self.apply(op_type, &inputs, out, attributes);
+    /// An `AveragePool` node.
+    fn average_pool(&mut self, op: &AvgPool2dOpIr) {
+        let pads = [op.padding, op.padding].concat();
+        let attributes = vec![
+            usize_list("kernel_shape", &op.kernel_size),
+            usize_list("strides", &op.stride),
+            usize_list("pads", &pads),
+            AttributeProto::int("count_include_pad", i64::from(op.count_include_pad)),
+            AttributeProto::int("ceil_mode", i64::from(op.ceil_mode)),
+        ];
+        self.apply("AveragePool", &[&op.x], &op.out, attributes);
     }
+}
+
+/// A convolution's inputs: the input, the weight and the bias when it has one.
+fn conv_inputs<'t>(
+    x: &'t TensorIr,
+    weight: &'t TensorIr,
+    bias: &'t Option<TensorIr>,
+) -> Vec<&'t TensorIr> {
+    let mut inputs = vec![x, weight];
+    inputs.extend(bias.as_ref());
+    inputs
 }
 
 /// A convolution's attributes; `kernel_shape` from the weight's shape.
@@ -523,16 +591,23 @@ fn scalar_value(scalar: &ScalarIr) -> f64 {
 /// An operation's variant name, for an error.
 fn short_name(operation: &impl std::fmt::Debug) -> String {
     let text = format!("{operation:?}");
-    text.chars().take_while(|c| *c != '(' && *c != '{' && *c != ' ').collect()
+    text.chars()
+        .take_while(|c| *c != '(' && *c != '{' && *c != ' ')
+        .collect()
 }
 
 /// The ONNX element type of `dtype`.
 fn onnx_type(dtype: DType) -> Result<i32> {
     match dtype {
         DType::F32 | DType::Flex32 => Ok(FLOAT),
-        DType::I64 | DType::I32 | DType::I16 | DType::I8 | DType::U64 | DType::U32 | DType::U16 | DType::U8 => {
-            Ok(INT64)
-        }
+        DType::I64
+        | DType::I32
+        | DType::I16
+        | DType::I8
+        | DType::U64
+        | DType::U32
+        | DType::U16
+        | DType::U8 => Ok(INT64),
         DType::Bool(_) => Ok(BOOL),
         other => Err(LowerError::DType(other)),
     }
@@ -543,11 +618,19 @@ fn onnx_type(dtype: DType) -> Result<i32> {
 fn tensor_bytes(data: &TensorData) -> Result<(i32, Vec<u8>)> {
     match onnx_type(data.dtype())? {
         FLOAT => {
-            let values = data.clone().convert::<f32>().try_to_vec::<f32>().unwrap_or_default();
+            let values = data
+                .clone()
+                .convert::<f32>()
+                .try_to_vec::<f32>()
+                .unwrap_or_default();
             Ok((FLOAT, values.iter().flat_map(|v| v.to_le_bytes()).collect()))
         }
         INT64 => {
-            let values = data.clone().convert::<i64>().try_to_vec::<i64>().unwrap_or_default();
+            let values = data
+                .clone()
+                .convert::<i64>()
+                .try_to_vec::<i64>()
+                .unwrap_or_default();
             Ok((INT64, values.iter().flat_map(|v| v.to_le_bytes()).collect()))
         }
         _ => {

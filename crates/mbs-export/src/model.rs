@@ -45,7 +45,10 @@ pub struct Export<'a> {
 /// `network`'s disparity as an ONNX model (its bytes): inputs `left` and
 /// `right`, `[1, 3, H, W]` RGB in `[0, 1]`, output `disparity` `[1, 1, H,
 /// W]` in pixels.
-pub fn onnx_model<B: Backbone + Clone>(network: &B, export: &Export) -> Result<Vec<u8>, ExportError> {
+pub fn onnx_model<B: Backbone + Clone>(
+    network: &B,
+    export: &Export,
+) -> Result<Vec<u8>, ExportError> {
     if !OPSETS.contains(&export.opset) {
         return Err(ExportError::Opset(export.opset));
     }

@@ -23,7 +23,13 @@ fn teddy(width: u32, height: u32) -> (image::RgbImage, image::RgbImage) {
 
 /// The largest and mean absolute difference between `kind`'s forward pass
 /// and its ONNX export through ONNX Runtime, on Teddy at `height` x `width`.
-fn difference(kind: BackboneKind, overrides: &[&str], height: usize, width: usize, opset: i64) -> (f32, f32) {
+fn difference(
+    kind: BackboneKind,
+    overrides: &[&str],
+    height: usize,
+    width: usize,
+    opset: i64,
+) -> (f32, f32) {
     let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
     let config = NetworkConfig::with_overrides(kind, &overrides).unwrap();
     let device = burn::tensor::Device::flex();
@@ -56,10 +62,17 @@ fn difference(kind: BackboneKind, overrides: &[&str], height: usize, width: usiz
         })
         .map(|(a, b)| (a - b).abs())
         .collect();
-    println!("{} of {} pixels compared", differences.len(), ours.as_raw().len());
+    println!(
+        "{} of {} pixels compared",
+        differences.len(),
+        ours.as_raw().len()
+    );
     let largest = differences.iter().copied().fold(0.0, f32::max);
     let mean = differences.iter().sum::<f32>() / differences.len() as f32;
-    println!("{kind:?} at {height}x{width}, opset {opset}: {} bytes, largest {largest:e}, mean {mean:e} px", bytes.len());
+    println!(
+        "{kind:?} at {height}x{width}, opset {opset}: {} bytes, largest {largest:e}, mean {mean:e} px",
+        bytes.len()
+    );
     (largest, mean)
 }
 
@@ -71,14 +84,21 @@ fn the_compact_network_agrees_through_onnx_runtime() {
 
 #[test]
 fn raft_stereo_agrees_through_onnx_runtime() {
-    let overrides = ["network.raft_stereo.hidden_dim=32", "network.raft_stereo.test_iters=3"];
+    let overrides = [
+        "network.raft_stereo.hidden_dim=32",
+        "network.raft_stereo.test_iters=3",
+    ];
     let (largest, mean) = difference(BackboneKind::RaftStereo, &overrides, 96, 128, 17);
     assert!(largest < 1e-2 && mean < 1e-3, "{largest} {mean}");
 }
 
 #[test]
 fn igev_stereo_agrees_through_onnx_runtime() {
-    let overrides = ["network.igev.hidden_dim=32", "network.igev.test_iters=3", "network.igev.max_disp=64"];
+    let overrides = [
+        "network.igev.hidden_dim=32",
+        "network.igev.test_iters=3",
+        "network.igev.max_disp=64",
+    ];
     let (largest, mean) = difference(BackboneKind::Igev, &overrides, 96, 128, 17);
     assert!(largest < 1e-2 && mean < 1e-3, "{largest} {mean}");
 }

@@ -17,7 +17,12 @@ fn histogram(kind: BackboneKind, overrides: &[&str], height: usize, width: usize
         let name = name.split('(').take(2).collect::<Vec<_>>().join("(");
         *counts.entry(name).or_insert(0) += 1;
     }
-    println!("{kind:?}: {} ops, {} values, {} params", captured.graph.graph.operations.len(), captured.graph.values.len(), captured.parameter_names.len());
+    println!(
+        "{kind:?}: {} ops, {} values, {} params",
+        captured.graph.graph.operations.len(),
+        captured.graph.values.len(),
+        captured.parameter_names.len()
+    );
     for (name, count) in counts {
         println!("  {count:5} {name}");
     }
@@ -26,6 +31,24 @@ fn histogram(kind: BackboneKind, overrides: &[&str], height: usize, width: usize
 #[test]
 fn print_histograms() {
     histogram(BackboneKind::Compact, &[], 64, 128);
-    histogram(BackboneKind::RaftStereo, &["network.raft_stereo.hidden_dim=32", "network.raft_stereo.train_iters=2", "network.raft_stereo.test_iters=2"], 64, 128);
-    histogram(BackboneKind::Igev, &["network.igev.hidden_dim=32", "network.igev.test_iters=2", "network.igev.max_disp=64"], 64, 128);
+    histogram(
+        BackboneKind::RaftStereo,
+        &[
+            "network.raft_stereo.hidden_dim=32",
+            "network.raft_stereo.train_iters=2",
+            "network.raft_stereo.test_iters=2",
+        ],
+        64,
+        128,
+    );
+    histogram(
+        BackboneKind::Igev,
+        &[
+            "network.igev.hidden_dim=32",
+            "network.igev.test_iters=2",
+            "network.igev.max_disp=64",
+        ],
+        64,
+        128,
+    );
 }
