@@ -3,8 +3,15 @@
 //! a protobuf, with the model card that runs it.
 
 pub mod capture;
+pub mod check;
 pub mod lower;
 pub mod model;
+pub mod pair;
 pub mod proto;
+pub mod report;
 
-pub use model::{Export, ExportError, onnx_model, stereo_card};
+pub use check::{Agreement, Tolerance};
+pub use model::{
+    CheckedExportError, Export, ExportError, Exported, export_checked, onnx_model, stereo_card,
+};
+pub use report::{Probe, Report};

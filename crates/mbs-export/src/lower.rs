@@ -56,16 +56,18 @@ pub fn lower(captured: &Captured, boundary: &Boundary, opset: i64) -> Result<Gra
 /// The graph under construction.
 struct Lowering<'a> {
     opset: i64,
+    output: String,
     values: &'a BTreeMap<TensorId, TensorData>,
     parameter_names: &'a HashMap<TensorId, String>,
     names: HashMap<TensorId, String>,
     nodes: Vec<NodeProto>,
     initializers: Vec<TensorProto>,
+    value_info: Vec<ValueInfoProto>,
     constants: usize,
 }
 
 impl<'a> Lowering<'a> {
-    fn new(captured: &'a Captured, boundary: &Boundary, _opset: i64) -> Result<Self> {
+    fn new(captured: &'a Captured, boundary: &Boundary, opset: i64) -> Result<Self> {
         let graph = &captured.graph.graph;
         let mut names = HashMap::new();
         for (id, name) in graph.inputs.iter().zip(boundary.inputs) {
@@ -75,12 +77,14 @@ impl<'a> Lowering<'a> {
             names.insert(*id, boundary.output.to_string());
         }
         Ok(Self {
-            opset: _opset,
+            opset,
+            output: boundary.output.to_string(),
             values: &captured.graph.values,
             parameter_names: &captured.parameter_names,
             names,
             nodes: Vec::new(),
             initializers: Vec::new(),
+            value_info: Vec::new(),
             constants: 0,
         })
     }
@@ -114,7 +118,7 @@ impl<'a> Lowering<'a> {
             initializer: self.initializers,
             input,
             output,
-            value_info: Vec::new(),
+            value_info: self.value_info,
         })
     }
 
@@ -135,6 +139,11 @@ impl<'a> Lowering<'a> {
         attribute: Vec<AttributeProto>,
     ) {
         let output = self.name(out);
+        if let (Ok(elem_type), false) = (onnx_type(out.dtype), output == self.output) {
+            let shape: Vec<usize> = out.shape.to_vec();
+            self.value_info
+                .push(ValueInfoProto::tensor(&output, elem_type, &shape));
+        }
         let name = format!("{op_type}_{}", self.nodes.len());
         self.nodes.push(NodeProto {
             input: inputs,

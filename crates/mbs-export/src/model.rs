@@ -1,8 +1,17 @@
 //! A network as an ONNX model file's bytes and the model card that runs it.
 
+use std::path::Path;
+
+use mbs_core::RgbImage;
+use mbs_infer::onnx::runtime::RuntimeOptions;
+use mbs_infer::onnx::stereo::OnnxStereo;
+use mbs_infer::onnx::{ModelCard, OnnxError};
 use mbs_nets::Backbone;
 use prost::Message;
 use serde_json::json;
+
+use crate::check::{Agreement, CheckError, Tolerance, compare};
+use crate::report::{Probe, Report, report};
 
 use crate::capture::{CaptureError, capture};
 use crate::lower::{Boundary, LowerError, OPSETS, lower};
@@ -98,5 +107,82 @@ pub fn stereo_card(name: &str, notes: &str, height: usize, width: usize) -> serd
         "std": [255.0, 255.0, 255.0],
         "size": { "mode": "fixed", "width": width, "height": height },
         "output": { "name": OUTPUT, "sign": 1 }
+    })
+}
+
+/// An export that passed its check, ready to write.
+pub struct Exported {
+    /// The ONNX model's bytes.
+    pub model: Vec<u8>,
+    /// Its model card.
+    pub card: serde_json::Value,
+    /// Its deployment report.
+    pub report: Report,
+}
+
+/// Why a checked export failed.
+#[derive(Debug, thiserror::Error)]
+pub enum CheckedExportError {
+    /// The export itself failed.
+    #[error(transparent)]
+    Export(#[from] ExportError),
+    /// ONNX Runtime refused the model or its card.
+    #[error("ONNX Runtime: {0}")]
+    Runtime(String),
+    /// The check could not run.
+    #[error(transparent)]
+    Check(#[from] CheckError),
+    /// The model disagrees with mbs beyond the tolerance.
+    #[error(
+        "the ONNX model disagrees with mbs's own forward pass on the check pair: largest \
+         {:.3e} px, mean {:.3e} px, over the tolerance of {:.1e} px largest and {:.1e} px mean",
+        .agreement.largest, .agreement.mean, .tolerance.largest, .tolerance.mean
+    )]
+    Disagrees {
+        /// What was measured.
+        agreement: Agreement,
+        /// What was allowed.
+        tolerance: Tolerance,
+    },
+    /// The report's probe failed.
+    #[error("the deployment report: {0}")]
+    Report(String),
+}
+
+/// Exports `network` as [`onnx_model`] and checks it before anything is
+/// written: the model, run through ONNX Runtime with its card exactly as
+/// `predict --model --card` runs it, must agree with mbs's own forward
+/// pass on `pair` (at the export's size) within `tolerance`; the report
+/// probes it on the same pair. `path` is where the model will be written
+/// (errors name it). `name` and `notes` go into the card; `probe` says
+/// how much of the model the report measures.
+pub fn export_checked<B: Backbone + Clone>(
+    network: &B,
+    export: &Export,
+    card: (&str, &str),
+    pair: (&RgbImage, &RgbImage),
+    path: &Path,
+    tolerance: &Tolerance,
+    (probe, options): (Probe, &RuntimeOptions),
+) -> Result<Exported, CheckedExportError> {
+    let model = onnx_model(network, export)?;
+    let card = stereo_card(card.0, card.1, export.height, export.width);
+    let runtime = |e: OnnxError| CheckedExportError::Runtime(e.to_string());
+    let parsed =
+        ModelCard::from_json(&path.display().to_string(), &card.to_string()).map_err(runtime)?;
+    let onnx = OnnxStereo::from_bytes(path, &model, parsed, options).map_err(runtime)?;
+    let agreement = compare(network, &onnx, pair.0, pair.1)?;
+    if !agreement.within(tolerance) {
+        return Err(CheckedExportError::Disagrees {
+            agreement,
+            tolerance: *tolerance,
+        });
+    }
+    let report = report(&model, path, pair, agreement, (probe, options))
+        .map_err(CheckedExportError::Report)?;
+    Ok(Exported {
+        model,
+        card,
+        report,
     })
 }

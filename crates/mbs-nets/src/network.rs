@@ -138,6 +138,33 @@ impl NetworkConfig {
         }
     }
 
+    /// The iterations an iterative network predicts with (`test_iters`);
+    /// `None` for the compact network, which has none.
+    pub fn test_iters(&self) -> Option<usize> {
+        match self.backbone {
+            BackboneKind::Compact => None,
+            BackboneKind::RaftStereo => Some(self.raft_stereo.test_iters),
+            BackboneKind::Igev => Some(self.igev.test_iters),
+        }
+    }
+
+    /// The configuration predicting with `iters` iterations; refused for
+    /// the compact network and for 0.
+    pub fn with_test_iters(mut self, iters: usize) -> Result<Self, NetError> {
+        let slot = match self.backbone {
+            BackboneKind::Compact => {
+                return Err(NetError::Config(
+                    "the compact network has no iterations to set".into(),
+                ));
+            }
+            BackboneKind::RaftStereo => &mut self.raft_stereo.test_iters,
+            BackboneKind::Igev => &mut self.igev.test_iters,
+        };
+        *slot = iters;
+        self.validate()?;
+        Ok(self)
+    }
+
     /// Builds the chosen network with fresh weights on `device`.
     pub fn init(&self, device: &Device) -> Result<StereoNetwork, NetError> {
         Ok(match self.backbone {

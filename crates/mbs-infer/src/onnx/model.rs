@@ -10,7 +10,7 @@ use ort::value::{Outlet, Tensor, TensorElementType};
 
 use super::card::{ElementType, Layout, ModelCard, SizePolicy, Task};
 use super::error::{OnnxError, Result};
-use super::runtime::{Device, RuntimeOptions, open_session};
+use super::runtime::{Device, RuntimeOptions, open_session, session_from_bytes};
 use super::tensor::Element;
 
 /// An ONNX model with its card.
@@ -32,9 +32,28 @@ impl Model {
         task: Task,
         options: &RuntimeOptions,
     ) -> Result<Model> {
+        Self::check_task(&card, task)?;
+        Self::checked(path, open_session(path, options)?, card)
+    }
+
+    /// The model `bytes`, to be kept in `path` (which errors name), checked
+    /// as [`Model::open`] checks a file.
+    pub fn from_bytes(
+        path: &Path,
+        bytes: &[u8],
+        card: ModelCard,
+        task: Task,
+        options: &RuntimeOptions,
+    ) -> Result<Model> {
+        Self::check_task(&card, task)?;
+        Self::checked(path, session_from_bytes(path, bytes, options)?, card)
+    }
+
+    /// Refuses a card for another task.
+    fn check_task(card: &ModelCard, task: Task) -> Result<()> {
         if card.task != task {
             return Err(OnnxError::Card {
-                card: card.name,
+                card: card.name.clone(),
                 message: format!(
                     "is a{} {} card; this needs a {} card",
                     if card.task == Task::Inpaint { "n" } else { "" },
@@ -43,7 +62,15 @@ impl Model {
                 ),
             });
         }
-        let (session, device) = open_session(path, options)?;
+        Ok(())
+    }
+
+    /// `session` checked against `card`.
+    fn checked(
+        path: &Path,
+        (session, device): (Session, Device),
+        card: ModelCard,
+    ) -> Result<Model> {
         let batch = check(&session, &card).map_err(|problem| OnnxError::CardMismatch {
             path: path.to_path_buf(),
             card: card.name.clone(),

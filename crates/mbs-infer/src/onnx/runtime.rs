@@ -180,7 +180,17 @@ fn same_file(a: &Path, b: &Path) -> bool {
 /// Opens `model` as a session on `options.device`, returning it with the
 /// device it actually runs on (the CPU after an allowed fallback).
 pub fn open_session(model: &Path, options: &RuntimeOptions) -> Result<(Session, Device)> {
-    let bytes = model_bytes(model)?;
+    session_from_bytes(model, &model_bytes(model)?, options)
+}
+
+/// Opens the model `bytes` as a session, as [`open_session`]; `model` is
+/// the file they are (or will be) kept in, which errors name and beside
+/// which external weights are looked for.
+pub fn session_from_bytes(
+    model: &Path,
+    bytes: &[u8],
+    options: &RuntimeOptions,
+) -> Result<(Session, Device)> {
     let env = environment(options.library.as_deref())?;
     let model_error = |message: String| OnnxError::Model {
         path: model.to_path_buf(),
@@ -217,7 +227,7 @@ pub fn open_session(model: &Path, options: &RuntimeOptions) -> Result<(Session, 
             .map_err(|e| model_error(e.to_string()))?;
     }
     let session = builder
-        .commit_from_memory(&bytes)
+        .commit_from_memory(bytes)
         .map_err(|e| model_error(e.to_string()))?;
     Ok((session, device))
 }

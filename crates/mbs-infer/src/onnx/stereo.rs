@@ -38,6 +38,21 @@ impl OnnxStereo {
         })
     }
 
+    /// The model `bytes`, to be kept in `path`, with a stereo `card`, as
+    /// [`OnnxStereo::open`].
+    pub fn from_bytes(
+        path: &Path,
+        bytes: &[u8],
+        card: ModelCard,
+        options: &RuntimeOptions,
+    ) -> Result<OnnxStereo> {
+        let name = format!("onnx:{}", card.name);
+        Ok(OnnxStereo {
+            model: Model::from_bytes(path, bytes, card, Task::Stereo, options)?,
+            name,
+        })
+    }
+
     /// The device the model runs on (the CPU after an allowed fallback).
     pub fn device(&self) -> Device {
         self.model.device()

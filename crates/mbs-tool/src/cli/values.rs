@@ -129,3 +129,16 @@ mod tests {
         }
     }
 }
+
+/// A `HEIGHTxWIDTH` size such as `256x512`.
+pub fn size(text: &str) -> Result<(usize, usize), String> {
+    let (h, w) = text
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("`{text}` is not HEIGHTxWIDTH, e.g. 256x512"))?;
+    let number = |s: &str| {
+        s.trim()
+            .parse::<usize>()
+            .map_err(|_| format!("`{text}` is not HEIGHTxWIDTH, e.g. 256x512"))
+    };
+    Ok((number(h)?, number(w)?))
+}

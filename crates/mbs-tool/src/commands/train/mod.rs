@@ -83,7 +83,7 @@ pub struct Args {
     #[arg(long)]
     pub batch_size: Option<usize>,
     /// Random crop HEIGHTxWIDTH (data.crop_height, data.crop_width).
-    #[arg(long, value_name = "HxW", value_parser = parse_crop)]
+    #[arg(long, value_name = "HxW", value_parser = crate::cli::values::size)]
     pub crop: Option<(usize, usize)>,
     /// Peak learning rate (trainer.lr.max_lr).
     #[arg(long)]
@@ -137,18 +137,6 @@ pub struct Args {
     /// Worker threads for the network (0 = one per core).
     #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
     pub jobs: usize,
-}
-
-fn parse_crop(text: &str) -> Result<(usize, usize), String> {
-    let (h, w) = text
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("`{text}` is not HEIGHTxWIDTH, e.g. 256x512"))?;
-    let number = |s: &str| {
-        s.trim()
-            .parse::<usize>()
-            .map_err(|_| format!("`{text}` is not HEIGHTxWIDTH, e.g. 256x512"))
-    };
-    Ok((number(h)?, number(w)?))
 }
 
 impl Args {
