@@ -95,25 +95,7 @@ pub fn report(
         .reduce(f32::max);
     let activations = match probe_what {
         Probe::Output => None,
-        Probe::Every => {
-            let every: Vec<String> = graph
-                .value_info
-                .iter()
-                .filter(|v| elem_type(v) == Some(FLOAT))
-                .map(|v| v.name.clone())
-                .collect();
-            let mut magnitudes = BTreeMap::new();
-            for chunk in every.chunks(PROBE_CHUNK) {
-                magnitudes.extend(probe(&model, path, pair, options, chunk)?);
-            }
-            let largest = magnitudes.values().copied().fold(0.0, f32::max);
-            let beyond = magnitudes
-                .iter()
-                .filter(|(_, v)| **v > F16_MAX)
-                .map(|(name, _)| name.clone())
-                .collect();
-            Some((largest, beyond))
-        }
+        Probe::Every => Some(activations_of(&model, &graph, path, pair, options)?),
     };
     Ok(Report {
         opset,
@@ -126,6 +108,43 @@ pub fn report(
         disparity_f16_step: (disparity, f16_step(disparity)),
         agreement,
     })
+}
+
+/// The largest magnitude of any float intermediate of `model` on `pair`
+/// and those beyond half precision's range, named with their operator,
+/// probed [`PROBE_CHUNK`] at a time.
+fn activations_of(
+    model: &ModelProto,
+    graph: &GraphProto,
+    path: &Path,
+    pair: (&RgbImage, &RgbImage),
+    options: &RuntimeOptions,
+) -> Result<(f32, Vec<String>), String> {
+    let every: Vec<String> = graph
+        .value_info
+        .iter()
+        .filter(|v| elem_type(v) == Some(FLOAT))
+        .map(|v| v.name.clone())
+        .collect();
+    let mut magnitudes = BTreeMap::new();
+    for chunk in every.chunks(PROBE_CHUNK) {
+        magnitudes.extend(probe(model, path, pair, options, chunk)?);
+    }
+    let largest = magnitudes.values().copied().fold(0.0, f32::max);
+    let producer: BTreeMap<&str, &str> = graph
+        .node
+        .iter()
+        .flat_map(|n| n.output.iter().map(|o| (o.as_str(), n.op_type.as_str())))
+        .collect();
+    let beyond = magnitudes
+        .iter()
+        .filter(|(_, v)| **v > F16_MAX)
+        .map(|(name, v)| {
+            let op = producer.get(name.as_str()).copied().unwrap_or("?");
+            format!("{name} ({op}, {v:.3e})")
+        })
+        .collect();
+    Ok((largest, beyond))
 }
 
 /// Whether every typed value has a shape of fixed, positive sides.
@@ -326,7 +345,7 @@ impl Report {
             let _ = writeln!(
                 text,
                 "- FP16: the correlation lookup reaches coordinate {coordinate:.1}, where half \
-                 precision's step is {step} (bilinear weights lose precision beyond 0.1)"
+                 precision resolves its fractional part, which sets the bilinear weights, to {step}"
             );
         }
         match &self.activations {

@@ -140,19 +140,14 @@ fn trained_networks_run_through_onnx_runtime_as_through_mbs() {
     }
 }
 
-#[test]
-fn bad_requests_are_refused_before_anything_is_written() {
-    let dir = tempfile::tempdir().unwrap();
-    let manifest = synth(&dir.path().join("data"));
-    let run_dir = trained(dir.path(), &manifest, "compact", &[]);
-    let run_s = run_dir.to_str().unwrap();
-    let out = dir.path().join("net.onnx");
-    let out_s = out.to_str().unwrap();
-    let left = dir.path().join("im2.png");
-    std::fs::copy(format!("{TEDDY}/im2.png"), &left).unwrap();
-    let left = left.to_str().unwrap().to_string();
-    let right = format!("{TEDDY}/im6.png");
-    let cases: [(Vec<&str>, &[&str]); 5] = [
+/// Refused `export` requests and words their errors must say.
+fn bad_cases<'a>(
+    run_s: &'a str,
+    out_s: &'a str,
+    left: &'a str,
+    right: &'a str,
+) -> Vec<(Vec<&'a str>, &'static [&'static str])> {
+    vec![
         (vec!["export", run_s, "--out", out_s], &["--size"]),
         (
             vec!["export", run_s, "--out", out_s, "--size", "8x5000"],
@@ -182,18 +177,33 @@ fn bad_requests_are_refused_before_anything_is_written() {
                 "export",
                 run_s,
                 "--out",
-                &left,
+                left,
                 "--format",
                 "onnx",
                 "--size",
                 "64x64",
                 "--check-pair",
-                &left,
-                &right,
+                left,
+                right,
             ],
             &["overwrite", "reads"],
         ),
-    ];
+    ]
+}
+
+#[test]
+fn bad_requests_are_refused_before_anything_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = synth(&dir.path().join("data"));
+    let run_dir = trained(dir.path(), &manifest, "compact", &[]);
+    let run_s = run_dir.to_str().unwrap();
+    let out = dir.path().join("net.onnx");
+    let out_s = out.to_str().unwrap();
+    let left = dir.path().join("im2.png");
+    std::fs::copy(format!("{TEDDY}/im2.png"), &left).unwrap();
+    let left = left.to_str().unwrap().to_string();
+    let right = format!("{TEDDY}/im6.png");
+    let cases = bad_cases(run_s, out_s, &left, &right);
     for (args, words) in cases {
         refused(&run(&args), words);
         assert!(

@@ -102,6 +102,19 @@ pub fn folder_name(text: &str) -> Result<String, String> {
         .map_err(|why| format!("{text:?} is not a folder name: it {why}"))
 }
 
+/// A `HEIGHTxWIDTH` size such as `256x512`.
+pub fn size(text: &str) -> Result<(usize, usize), String> {
+    let (h, w) = text
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("`{text}` is not HEIGHTxWIDTH, e.g. 256x512"))?;
+    let number = |s: &str| {
+        s.trim()
+            .parse::<usize>()
+            .map_err(|_| format!("`{text}` is not HEIGHTxWIDTH, e.g. 256x512"))
+    };
+    Ok((number(h)?, number(w)?))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -128,17 +141,4 @@ mod tests {
             assert!(folder_name(bad).is_err(), "{bad}");
         }
     }
-}
-
-/// A `HEIGHTxWIDTH` size such as `256x512`.
-pub fn size(text: &str) -> Result<(usize, usize), String> {
-    let (h, w) = text
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("`{text}` is not HEIGHTxWIDTH, e.g. 256x512"))?;
-    let number = |s: &str| {
-        s.trim()
-            .parse::<usize>()
-            .map_err(|_| format!("`{text}` is not HEIGHTxWIDTH, e.g. 256x512"))
-    };
-    Ok((number(h)?, number(w)?))
 }

@@ -194,7 +194,12 @@ fn onnx(args: &Args) -> anyhow::Result<()> {
         .report
         .markdown(&format!("{name}: deployment report"));
     write(&args.out, &exported, &report)?;
-    let a = &exported.report.agreement;
+    say_written(args, &exported.report.agreement, (&card_path, &report_path));
+    Ok(())
+}
+
+/// Tells how the export agreed and what it wrote.
+fn say_written(args: &Args, a: &mbs_export::Agreement, (card, report): (&Path, &Path)) {
     eprintln!(
         "export: agrees with mbs on the check pair: largest {:.2e} px, mean {:.2e} px ({} of {} pixels); \
          mbs {:.2} s, ONNX Runtime {:.2} s",
@@ -203,12 +208,11 @@ fn onnx(args: &Args) -> anyhow::Result<()> {
     eprintln!(
         "export: wrote {}, {} and {}\n  run it: mbs-tool predict --model {} --card {} ...",
         args.out.display(),
-        card_path.display(),
-        report_path.display(),
+        card.display(),
+        report.display(),
         args.out.display(),
-        card_path.display()
+        card.display()
     );
-    Ok(())
 }
 
 /// The run's network as safetensors.
@@ -300,8 +304,8 @@ pub fn check_pair(
     let (left, right, files) = match &args.check_pair {
         Some(paths) => {
             let read = |path: &PathBuf| -> anyhow::Result<mbs_core::RgbImage> {
-                Ok(mbs_core::formats::rgb::read_rgb(path)
-                    .with_context(|| format!("--check-pair {}", path.display()))?)
+                mbs_core::formats::rgb::read_rgb(path)
+                    .with_context(|| format!("--check-pair {}", path.display()))
             };
             (read(&paths[0])?, read(&paths[1])?, paths.clone())
         }
