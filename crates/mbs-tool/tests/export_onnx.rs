@@ -137,7 +137,66 @@ fn trained_networks_run_through_onnx_runtime_as_through_mbs() {
     ] {
         let run_dir = trained(dir.path(), &manifest, backbone, settings);
         exported_agrees(dir.path(), &run_dir, backbone);
+        if backbone != "compact" {
+            weights_export_agrees(dir.path(), &run_dir, backbone, settings);
+        }
     }
+}
+
+/// Official-key weights (the run's teacher as `export` writes it for the
+/// official code) exported with `--weights` and `--iters 2` agree with
+/// `predict --weights` at 2 iterations.
+fn weights_export_agrees(dir: &Path, run_dir: &Path, backbone: &str, settings: &[&str]) {
+    let weights = dir.join(format!("{backbone}.safetensors"));
+    let output = run(&[
+        "export",
+        run_dir.to_str().unwrap(),
+        "--out",
+        weights.to_str().unwrap(),
+    ]);
+    assert!(output.status.success(), "{}", text(&output));
+    let name = format!("{backbone}-weights");
+    let model = dir.join(format!("{name}.onnx"));
+    let weights_s = weights.to_str().unwrap();
+    let mut args = vec!["export", "--backbone", backbone, "--weights", weights_s];
+    args.extend([
+        "--out",
+        model.to_str().unwrap(),
+        "--size",
+        "375x450",
+        "--iters",
+        "2",
+    ]);
+    let output = run(&[args, set_args(settings)].concat());
+    assert!(output.status.success(), "{}", text(&output));
+    let card = dir.join(format!("{name}.card.json"));
+    let onnx = predict(
+        dir,
+        &format!("{name}-onnx"),
+        &[
+            "--model",
+            model.to_str().unwrap(),
+            "--card",
+            card.to_str().unwrap(),
+        ],
+    );
+    let iterations = format!("network.{}.test_iters=2", backbone.replace('-', "_"));
+    let mut source = vec!["--backbone", backbone, "--weights", weights_s];
+    source.extend(set_args(settings));
+    source.extend(["--set", &iterations]);
+    let ours = predict(dir, &format!("{name}-mbs"), &source);
+    let largest = ours
+        .iter()
+        .zip(&onnx)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f32::max);
+    println!("{name}: predict --model against --weights on Teddy: largest {largest:e} px");
+    assert!(largest <= 1e-2, "{name}: largest {largest}");
+}
+
+/// `--set S` for each setting.
+fn set_args<'a>(settings: &[&'a str]) -> Vec<&'a str> {
+    settings.iter().flat_map(|s| ["--set", *s]).collect()
 }
 
 /// Refused `export` requests and words their errors must say.
