@@ -504,28 +504,20 @@ impl<'a> Lowering<'a> {
                 let pads = [o.padding, o.padding].concat();
                 let attributes =
                     conv_attributes(&o.stride, &pads, &o.dilation, o.groups, &op.weight);
-                (
-                    "Conv",
-                    conv_inputs(&op.x, &op.weight, &op.bias),
-                    &op.out,
-                    attributes,
-                )
+                let inputs = conv_inputs(&op.x, &op.weight, &op.bias);
+                ("Conv", inputs, &op.out, attributes)
             }
             ModuleOperationIr::ConvTranspose2d(op) => {
                 let o = &op.options;
-                let pads = [o.padding, o.padding].concat();
-                let mut attributes =
-                    conv_attributes(&o.stride, &pads, &o.dilation, o.groups, &op.weight);
-                attributes.push(usize_list("output_padding", &o.padding_out));
+                let sides = [&o.stride[..], &o.padding, &o.padding_out, &o.dilation];
+                let attributes = transposed_attributes(sides, o.groups, &op.weight);
                 let inputs = conv_inputs(&op.x, &op.weight, &op.bias);
                 ("ConvTranspose", inputs, &op.out, attributes)
             }
             ModuleOperationIr::ConvTranspose3d(op) => {
                 let o = &op.options;
-                let pads = [o.padding, o.padding].concat();
-                let mut attributes =
-                    conv_attributes(&o.stride, &pads, &o.dilation, o.groups, &op.weight);
-                attributes.push(usize_list("output_padding", &o.padding_out));
+                let sides = [&o.stride[..], &o.padding, &o.padding_out, &o.dilation];
+                let attributes = transposed_attributes(sides, o.groups, &op.weight);
                 let inputs = conv_inputs(&op.x, &op.weight, &op.bias);
                 ("ConvTranspose", inputs, &op.out, attributes)
             }
@@ -579,6 +571,20 @@ fn conv_attributes(
         usize_list("dilations", dilations),
         AttributeProto::int("group", groups as i64),
     ]
+}
+
+/// A transposed convolution's attributes from its `[stride, padding,
+/// output padding, dilation]` per spatial axis.
+fn transposed_attributes(
+    sides: [&[usize]; 4],
+    groups: usize,
+    weight: &TensorIr,
+) -> Vec<AttributeProto> {
+    let [stride, padding, padding_out, dilation] = sides;
+    let pads = [padding, padding].concat();
+    let mut attributes = conv_attributes(stride, &pads, dilation, groups, weight);
+    attributes.push(usize_list("output_padding", padding_out));
+    attributes
 }
 
 /// An integer-list attribute from sizes.

@@ -66,6 +66,16 @@ fn predict(dir: &Path, name: &str, source: &[&str]) -> Vec<f32> {
     read_pfm_grey(&out.join("im2.pfm")).unwrap().into_raw()
 }
 
+/// `predict --model MODEL --card CARD` on Teddy, its disparity map.
+fn predict_model(dir: &Path, name: &str, model: &Path, card: &Path) -> Vec<f32> {
+    let (model, card) = (model.to_str().unwrap(), card.to_str().unwrap());
+    predict(
+        dir,
+        &format!("{name}-onnx"),
+        &["--model", model, "--card", card],
+    )
+}
+
 /// Exports `run` at Teddy's size and checks `predict --model --card`
 /// against `predict --checkpoint` on Teddy.
 fn exported_agrees(dir: &Path, run_dir: &Path, name: &str) {
@@ -88,16 +98,7 @@ fn exported_agrees(dir: &Path, run_dir: &Path, name: &str) {
     let report = std::fs::read_to_string(dir.join(format!("{name}.report.md"))).unwrap();
     assert!(report.contains("static shapes: yes"), "{report}");
     assert!(report.contains("GridSample: 0"), "{report}");
-    let onnx = predict(
-        dir,
-        &format!("{name}-onnx"),
-        &[
-            "--model",
-            model.to_str().unwrap(),
-            "--card",
-            card.to_str().unwrap(),
-        ],
-    );
+    let onnx = predict_model(dir, name, &model, &card);
     let ours = predict(
         dir,
         &format!("{name}-mbs"),
@@ -170,16 +171,7 @@ fn weights_export_agrees(dir: &Path, run_dir: &Path, backbone: &str, settings: &
     let output = run(&[args, set_args(settings)].concat());
     assert!(output.status.success(), "{}", text(&output));
     let card = dir.join(format!("{name}.card.json"));
-    let onnx = predict(
-        dir,
-        &format!("{name}-onnx"),
-        &[
-            "--model",
-            model.to_str().unwrap(),
-            "--card",
-            card.to_str().unwrap(),
-        ],
-    );
+    let onnx = predict_model(dir, &name, &model, &card);
     let iterations = format!("network.{}.test_iters=2", backbone.replace('-', "_"));
     let mut source = vec!["--backbone", backbone, "--weights", weights_s];
     source.extend(set_args(settings));
