@@ -262,7 +262,7 @@ fn safetensors_name(out: &Path) -> PathBuf {
 
 /// The network an ONNX export reads, with `iters` iterations when given,
 /// its description, and the files it was read from.
-pub fn network(args: &Args) -> anyhow::Result<(StereoNetwork, String, Vec<PathBuf>)> {
+fn network(args: &Args) -> anyhow::Result<(StereoNetwork, String, Vec<PathBuf>)> {
     let device = Device::flex();
     if let (Some(weights), Some(backbone)) = (&args.weights, args.backbone) {
         let mut config = NetworkConfig::with_overrides(backbone, &args.set)
@@ -296,7 +296,7 @@ pub fn network(args: &Args) -> anyhow::Result<(StereoNetwork, String, Vec<PathBu
 }
 
 /// The check pair, fitted to `height` x `width`, and the files read.
-pub fn check_pair(
+fn check_pair(
     args: &Args,
     height: usize,
     width: usize,
@@ -320,7 +320,7 @@ pub fn check_pair(
 
 /// Writes the export's three files (model last, so a model on disk always
 /// has its card and report beside it).
-pub fn write(out: &Path, exported: &mbs_export::Exported, report: &str) -> anyhow::Result<()> {
+fn write(out: &Path, exported: &mbs_export::Exported, report: &str) -> anyhow::Result<()> {
     let (card, report_path) = companions(out);
     let card_text = serde_json::to_string_pretty(&exported.card)? + "\n";
     write_bytes_atomic(&card, card_text.as_bytes()).with_context(|| card.display().to_string())?;
@@ -332,7 +332,7 @@ pub fn write(out: &Path, exported: &mbs_export::Exported, report: &str) -> anyho
 
 /// The card and report files beside the model `out` (`NAME.card.json`,
 /// `NAME.report.md`).
-pub fn companions(out: &Path) -> (PathBuf, PathBuf) {
+fn companions(out: &Path) -> (PathBuf, PathBuf) {
     (
         out.with_extension("card.json"),
         out.with_extension("report.md"),
