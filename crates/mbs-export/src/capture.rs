@@ -44,27 +44,46 @@ pub fn capture<B: Backbone + Clone>(
         let image =
             || Tensor::<4>::zeros([1, 3, height, width], &Device::flex()).to_device(&device);
         let (left, right) = (image(), image());
-        let ids = (id(&left, "left"), id(&right, "right"));
+        let inputs = [id(&left, "left"), id(&right, "right")];
         let disparity = network.disparity(left, right);
-        let result = match (ids, id(&disparity, "the disparity"), names.error) {
-            ((Ok(left), Ok(right)), Ok(out), None) => {
-                Ok((vec![left, right], vec![out], names.names))
-            }
-            ((Err(e), _), _, _) | ((_, Err(e)), _, _) | (_, Err(e), _) | (_, _, Some(e)) => Err(e),
-        };
+        let result = boundary(inputs, id(&disparity, "the disparity"), names);
         let (inputs, outputs) = match &result {
-            Ok((inputs, outputs, _)) => (inputs.clone(), outputs.clone()),
+            Ok(found) => (found.inputs.clone(), found.outputs.clone()),
             Err(_) => (Vec::new(), Vec::new()),
         };
         outcome = Some(result);
         scope.complete(inputs, outputs)
     });
-    let (_, _, parameter_names) =
-        outcome.ok_or_else(|| CaptureError::Capture("the scope did not run".into()))??;
+    let found = outcome.ok_or_else(|| CaptureError::Capture("the scope did not run".into()))??;
     let graph = graph.map_err(|e| CaptureError::Capture(e.to_string()))?;
     Ok(Captured {
         graph,
-        parameter_names,
+        parameter_names: found.parameter_names,
+    })
+}
+
+/// What a capture scope found: the graph's runtime inputs and outputs and
+/// each parameter's module path.
+struct Found {
+    inputs: Vec<TensorId>,
+    outputs: Vec<TensorId>,
+    parameter_names: HashMap<TensorId, String>,
+}
+
+/// The graph's boundary, or the first tensor that is not on the capture
+/// device.
+fn boundary(
+    inputs: [Result<TensorId, CaptureError>; 2],
+    output: Result<TensorId, CaptureError>,
+    names: ParameterNames,
+) -> Result<Found, CaptureError> {
+    if let Some(error) = names.error {
+        return Err(error);
+    }
+    Ok(Found {
+        inputs: inputs.into_iter().collect::<Result<_, _>>()?,
+        outputs: vec![output?],
+        parameter_names: names.names,
     })
 }
 

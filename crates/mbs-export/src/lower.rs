@@ -32,6 +32,9 @@ pub enum LowerError {
     /// A value the capture should hold is missing.
     #[error("the capture holds no value for tensor {0}")]
     MissingValue(u64),
+    /// A captured value could not be read as its type.
+    #[error("the captured value of tensor {0} cannot be read: {1}")]
+    Value(u64, String),
 }
 
 type Result<T> = std::result::Result<T, LowerError>;
@@ -46,11 +49,11 @@ pub struct Boundary<'a> {
 
 /// Writes `captured` as an ONNX graph for operator set `opset`.
 pub fn lower(captured: &Captured, boundary: &Boundary, opset: i64) -> Result<GraphProto> {
-    let mut graph = Lowering::new(captured, boundary, opset)?;
+    let mut graph = Lowering::new(captured, boundary, opset);
     for operation in &captured.graph.graph.operations {
         graph.operation(operation)?;
     }
-    graph.finish(captured, boundary)
+    Ok(graph.finish(captured, boundary))
 }
 
 /// The graph under construction.
@@ -67,7 +70,7 @@ struct Lowering<'a> {
 }
 
 impl<'a> Lowering<'a> {
-    fn new(captured: &'a Captured, boundary: &Boundary, opset: i64) -> Result<Self> {
+    fn new(captured: &'a Captured, boundary: &Boundary, opset: i64) -> Self {
         let graph = &captured.graph.graph;
         let mut names = HashMap::new();
         for (id, name) in graph.inputs.iter().zip(boundary.inputs) {
@@ -76,7 +79,7 @@ impl<'a> Lowering<'a> {
         if let Some(id) = graph.outputs.first() {
             names.insert(*id, boundary.output.to_string());
         }
-        Ok(Self {
+        Self {
             opset,
             output: boundary.output.to_string(),
             values: &captured.graph.values,
@@ -86,11 +89,11 @@ impl<'a> Lowering<'a> {
             initializers: Vec::new(),
             value_info: Vec::new(),
             constants: 0,
-        })
+        }
     }
 
     /// The graph with its inputs and output typed.
-    fn finish(self, captured: &Captured, boundary: &Boundary) -> Result<GraphProto> {
+    fn finish(self, captured: &Captured, boundary: &Boundary) -> GraphProto {
         let graph = &captured.graph.graph;
         let shape_of = |id: &TensorId| -> Vec<usize> {
             graph
@@ -112,14 +115,14 @@ impl<'a> Lowering<'a> {
             .iter()
             .map(|id| ValueInfoProto::tensor(boundary.output, FLOAT, &shape_of(id)))
             .collect();
-        Ok(GraphProto {
+        GraphProto {
             node: self.nodes,
             name: "mbs".into(),
             initializer: self.initializers,
             input,
             output,
             value_info: self.value_info,
-        })
+        }
     }
 
     /// The name of `tensor`'s value.
@@ -166,17 +169,23 @@ impl<'a> Lowering<'a> {
         self.node(op_type, inputs, out, attribute);
     }
 
+    /// An initializer `name` of `data_type` and `dims` from little-endian
+    /// bytes.
+    fn initializer(&mut self, name: &str, data_type: i32, dims: &[i64], raw_data: Vec<u8>) {
+        self.initializers.push(TensorProto {
+            dims: dims.to_vec(),
+            data_type,
+            name: name.to_string(),
+            raw_data,
+        });
+    }
+
     /// A constant initializer of `data_type` and `dims` from little-endian
     /// bytes; returns its name.
     fn constant(&mut self, data_type: i32, dims: &[i64], raw_data: Vec<u8>) -> String {
         self.constants += 1;
         let name = format!("c{}", self.constants);
-        self.initializers.push(TensorProto {
-            dims: dims.to_vec(),
-            data_type,
-            name: name.clone(),
-            raw_data,
-        });
+        self.initializer(&name, data_type, dims, raw_data);
         name
     }
 
@@ -240,14 +249,9 @@ impl<'a> Lowering<'a> {
             Some(path) => path.clone(),
             None => format!("value{}", out.id.value()),
         };
-        let dims: Vec<i64> = out.shape.iter().map(|&side| side as i64).collect();
-        let (data_type, raw_data) = tensor_bytes(data)?;
-        self.initializers.push(TensorProto {
-            dims,
-            data_type,
-            name: name.clone(),
-            raw_data,
-        });
+        let (data_type, raw_data) =
+            tensor_bytes(data).map_err(|e| LowerError::Value(out.id.value(), e))?;
+        self.initializer(&name, data_type, &dims(out), raw_data);
         self.names.insert(out.id, name);
         Ok(())
     }
@@ -284,17 +288,14 @@ impl<'a> Lowering<'a> {
             }
             BaseOperationIr::Cast(op) => self.cast(&op.input, &op.out)?,
             BaseOperationIr::Zeros(op) => {
-                let (data_type, _) = (onnx_type(op.out.dtype)?, ());
-                let size: usize = op.out.shape.iter().product();
-                let width = if data_type == BOOL {
-                    1
-                } else if data_type == INT64 {
-                    8
-                } else {
-                    4
+                let data_type = onnx_type(op.out.dtype)?;
+                let width = match data_type {
+                    BOOL => 1,
+                    INT64 => 8,
+                    _ => 4,
                 };
-                let dims: Vec<i64> = op.out.shape.iter().map(|&d| d as i64).collect();
-                let name = self.constant(data_type, &dims, vec![0; size * width]);
+                let bytes = vec![0; op.out.shape.iter().product::<usize>() * width];
+                let name = self.constant(data_type, &dims(&op.out), bytes);
                 self.names.insert(op.out.id, name);
             }
             other => return Err(LowerError::Unsupported(short_name(other))),
@@ -304,9 +305,8 @@ impl<'a> Lowering<'a> {
 
     /// `Reshape` or `Expand` of `input` to `out`'s fixed shape.
     fn reshape_like(&mut self, op_type: &str, input: &TensorIr, out: &TensorIr) {
-        let dims: Vec<i64> = out.shape.iter().map(|&d| d as i64).collect();
         let input = self.name(input);
-        let shape = self.ints(&dims);
+        let shape = self.ints(&dims(out));
         self.node(op_type, vec![input, shape], out, Vec::new());
     }
 
@@ -411,21 +411,16 @@ impl<'a> Lowering<'a> {
         let pads: Vec<i64> = begins.chain(ends).collect();
         let input = self.name(&op.input);
         let pads = self.ints(&pads);
-        match &op.mode {
-            PadModeIr::Constant(value) => {
-                let value = self.scalar(value, &op.input)?;
-                let mode = AttributeProto::string("mode", "constant");
-                self.node("Pad", vec![input, pads, value], &op.out, vec![mode]);
-            }
-            PadModeIr::Edge => {
-                let mode = AttributeProto::string("mode", "edge");
-                self.node("Pad", vec![input, pads], &op.out, vec![mode]);
-            }
-            PadModeIr::Reflect => {
-                let mode = AttributeProto::string("mode", "reflect");
-                self.node("Pad", vec![input, pads], &op.out, vec![mode]);
-            }
-        }
+        let (mode, inputs) = match &op.mode {
+            PadModeIr::Constant(value) => (
+                "constant",
+                vec![input, pads, self.scalar(value, &op.input)?],
+            ),
+            PadModeIr::Edge => ("edge", vec![input, pads]),
+            PadModeIr::Reflect => ("reflect", vec![input, pads]),
+        };
+        let mode = AttributeProto::string("mode", mode);
+        self.node("Pad", inputs, &op.out, vec![mode]);
         Ok(())
     }
 
@@ -587,6 +582,11 @@ fn transposed_attributes(
     attributes
 }
 
+/// `tensor`'s shape as ONNX dimensions.
+fn dims(tensor: &TensorIr) -> Vec<i64> {
+    tensor.shape.iter().map(|&side| side as i64).collect()
+}
+
 /// An integer-list attribute from sizes.
 fn usize_list(name: &str, values: &[usize]) -> AttributeProto {
     let values: Vec<i64> = values.iter().map(|&v| v as i64).collect();
@@ -629,28 +629,28 @@ fn onnx_type(dtype: DType) -> Result<i32> {
 }
 
 /// `data` as an ONNX element type and little-endian bytes (integers as
-/// int64).
-fn tensor_bytes(data: &TensorData) -> Result<(i32, Vec<u8>)> {
-    match onnx_type(data.dtype())? {
-        FLOAT => {
-            let values = data
-                .clone()
-                .convert::<f32>()
-                .try_to_vec::<f32>()
-                .unwrap_or_default();
-            Ok((FLOAT, values.iter().flat_map(|v| v.to_le_bytes()).collect()))
-        }
-        INT64 => {
-            let values = data
-                .clone()
-                .convert::<i64>()
-                .try_to_vec::<i64>()
-                .unwrap_or_default();
-            Ok((INT64, values.iter().flat_map(|v| v.to_le_bytes()).collect()))
-        }
-        _ => {
-            let values = data.clone().try_to_vec::<bool>().unwrap_or_default();
-            Ok((BOOL, values.iter().map(|&v| u8::from(v)).collect()))
-        }
-    }
+/// int64); an error names a value that cannot be read as its type.
+fn tensor_bytes(data: &TensorData) -> std::result::Result<(i32, Vec<u8>), String> {
+    let data_type = onnx_type(data.dtype()).map_err(|e| e.to_string())?;
+    let bytes = match data_type {
+        FLOAT => le_bytes(
+            data.clone().convert::<f32>().try_to_vec::<f32>(),
+            f32::to_le_bytes,
+        ),
+        INT64 => le_bytes(
+            data.clone().convert::<i64>().try_to_vec::<i64>(),
+            i64::to_le_bytes,
+        ),
+        _ => le_bytes(data.clone().try_to_vec::<bool>(), |v| [u8::from(v)]),
+    };
+    Ok((data_type, bytes?))
+}
+
+/// The little-endian bytes of `values`.
+fn le_bytes<T: Copy, const N: usize, E: std::fmt::Debug>(
+    values: std::result::Result<Vec<T>, E>,
+    to_bytes: fn(T) -> [u8; N],
+) -> std::result::Result<Vec<u8>, String> {
+    let values = values.map_err(|e| format!("{e:?}"))?;
+    Ok(values.into_iter().flat_map(to_bytes).collect())
 }

@@ -3,12 +3,12 @@
 use std::path::Path;
 
 use mbs_core::RgbImage;
+use mbs_infer::onnx::ModelCard;
+use mbs_infer::onnx::card::{ColorOrder, ElementType, Layout, OutputSpec, SizePolicy, Task};
 use mbs_infer::onnx::runtime::RuntimeOptions;
 use mbs_infer::onnx::stereo::OnnxStereo;
-use mbs_infer::onnx::{ModelCard, OnnxError};
 use mbs_nets::Backbone;
 use prost::Message;
-use serde_json::json;
 
 use crate::check::{Agreement, CheckError, Tolerance, compare};
 use crate::report::{Probe, Report, report};
@@ -58,6 +58,14 @@ pub fn onnx_model<B: Backbone + Clone>(
     network: &B,
     export: &Export,
 ) -> Result<Vec<u8>, ExportError> {
+    Ok(model_proto(network, export)?.encode_to_vec())
+}
+
+/// The model of [`onnx_model`], before it is encoded.
+fn model_proto<B: Backbone + Clone>(
+    network: &B,
+    export: &Export,
+) -> Result<ModelProto, ExportError> {
     if !OPSETS.contains(&export.opset) {
         return Err(ExportError::Opset(export.opset));
     }
@@ -87,27 +95,37 @@ pub fn onnx_model<B: Backbone + Clone>(
         }],
         metadata_props,
     };
-    Ok(model.encode_to_vec())
+    Ok(model)
 }
 
-/// The model card (JSON) that runs an exported model of `height` x
-/// `width`: 8-bit RGB divided by 255, as mbs's own networks read images,
-/// and the disparity as it comes out.
-pub fn stereo_card(name: &str, notes: &str, height: usize, width: usize) -> serde_json::Value {
-    json!({
-        "name": name,
-        "task": "stereo",
-        "notes": notes,
-        "inputs": { "left": INPUTS[0], "right": INPUTS[1] },
-        "layout": "NCHW",
-        "color_order": "RGB",
-        "dtype": "float32",
-        "scale": 1.0,
-        "mean": [0.0, 0.0, 0.0],
-        "std": [255.0, 255.0, 255.0],
-        "size": { "mode": "fixed", "width": width, "height": height },
-        "output": { "name": OUTPUT, "sign": 1 }
-    })
+/// The model card that runs an exported model of `height` x `width`:
+/// 8-bit RGB divided by 255, as mbs's own networks read images, and the
+/// disparity as it comes out.
+pub fn stereo_card(name: &str, notes: &str, height: usize, width: usize) -> ModelCard {
+    let inputs = INPUTS.map(|role| (role.to_string(), role.to_string()));
+    ModelCard {
+        name: name.to_string(),
+        task: Task::Stereo,
+        notes: notes.to_string(),
+        inputs: inputs.into_iter().collect(),
+        layout: Layout::Nchw,
+        color_order: ColorOrder::Rgb,
+        dtype: ElementType::Float32,
+        scale: 1.0,
+        mean: [0.0; 3],
+        std: [255.0; 3],
+        size: SizePolicy::Fixed {
+            width: width as u32,
+            height: height as u32,
+        },
+        output: OutputSpec {
+            name: OUTPUT.to_string(),
+            sign: 1.0,
+            scale: 1.0,
+            channel: 0,
+        },
+        mask: None,
+    }
 }
 
 /// An export that passed its check, ready to write.
@@ -115,7 +133,7 @@ pub struct Exported {
     /// The ONNX model's bytes.
     pub model: Vec<u8>,
     /// Its model card.
-    pub card: serde_json::Value,
+    pub card: ModelCard,
     /// Its deployment report.
     pub report: Report,
 }
@@ -165,12 +183,11 @@ pub fn export_checked<B: Backbone + Clone>(
     tolerance: &Tolerance,
     (probe, options): (Probe, &RuntimeOptions),
 ) -> Result<Exported, CheckedExportError> {
-    let model = onnx_model(network, export)?;
+    let proto = model_proto(network, export)?;
+    let model = proto.encode_to_vec();
     let card = stereo_card(card.0, card.1, export.height, export.width);
-    let runtime = |e: OnnxError| CheckedExportError::Runtime(e.to_string());
-    let parsed =
-        ModelCard::from_json(&path.display().to_string(), &card.to_string()).map_err(runtime)?;
-    let onnx = OnnxStereo::from_bytes(path, &model, parsed, options).map_err(runtime)?;
+    let onnx = OnnxStereo::from_bytes(path, &model, card.clone(), options)
+        .map_err(|e| CheckedExportError::Runtime(e.to_string()))?;
     let agreement = compare(network, &onnx, pair.0, pair.1)?;
     if !agreement.within(tolerance) {
         return Err(CheckedExportError::Disagrees {
@@ -178,7 +195,7 @@ pub fn export_checked<B: Backbone + Clone>(
             tolerance: *tolerance,
         });
     }
-    let report = report(&model, path, pair, agreement, (probe, options))
+    let report = report(&proto, path, pair, agreement, (probe, options))
         .map_err(CheckedExportError::Report)?;
     Ok(Exported {
         model,

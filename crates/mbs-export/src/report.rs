@@ -62,22 +62,22 @@ pub enum Probe {
 /// Values probed per run with [`Probe::Every`].
 pub const PROBE_CHUNK: usize = 64;
 
-/// Reads `model` (its bytes) and probes it on the pair.
+/// Reads `model` and probes it on the pair.
 pub fn report(
-    model: &[u8],
+    model: &ModelProto,
     path: &Path,
     pair: (&RgbImage, &RgbImage),
     agreement: Agreement,
     (probe_what, options): (Probe, &RuntimeOptions),
 ) -> Result<Report, String> {
-    let model = ModelProto::decode(model).map_err(|e| e.to_string())?;
-    let graph = model.graph.clone().unwrap_or_default();
+    let no_graph = GraphProto::default();
+    let graph = model.graph.as_ref().unwrap_or(&no_graph);
     let opset = model.opset_import.first().map_or(0, |o| o.version);
     let mut operators = BTreeMap::new();
     for node in &graph.node {
         *operators.entry(node.op_type.clone()).or_insert(0) += 1;
     }
-    let static_shapes = all_static(&graph) && !operators.contains_key("Shape");
+    let static_shapes = all_static(graph) && !operators.contains_key("Shape");
     let lookups: Vec<String> = graph
         .node
         .iter()
@@ -86,7 +86,7 @@ pub fn report(
         .collect();
     let output = crate::model::OUTPUT.to_string();
     let first: Vec<String> = lookups.iter().cloned().chain([output.clone()]).collect();
-    let measured = probe(&model, path, pair, options, &first)?;
+    let measured = probe(model, path, pair, options, &first)?;
     let disparity = measured.get(&output).copied().unwrap_or(0.0);
     let lookup = lookups
         .iter()
@@ -95,12 +95,12 @@ pub fn report(
         .reduce(f32::max);
     let activations = match probe_what {
         Probe::Output => None,
-        Probe::Every => Some(activations_of(&model, &graph, path, pair, options)?),
+        Probe::Every => Some(activations_of(model, graph, path, pair, options)?),
     };
     Ok(Report {
         opset,
         nodes: graph.node.len(),
-        tensorrt: tensorrt_notes(&operators, &graph),
+        tensorrt: tensorrt_notes(&operators, graph),
         operators,
         static_shapes,
         activations,

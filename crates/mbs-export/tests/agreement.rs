@@ -44,8 +44,9 @@ fn difference(
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("net.onnx");
     std::fs::write(&path, &bytes).unwrap();
-    let card = mbs_export::stereo_card("test", "", height, width).to_string();
-    let card = ModelCard::from_json("test", &card).unwrap();
+    // The card as `export` writes it, read back and checked as `--card` reads it.
+    let card = mbs_export::stereo_card("test", "", height, width);
+    let card = ModelCard::from_json("test", &serde_json::to_string(&card).unwrap()).unwrap();
     let onnx = OnnxStereo::open(&path, card, &RuntimeOptions::default()).unwrap();
     let (left, right) = teddy(width as u32, height as u32);
     let ours = predict_image(&network, &left, &right, Side::Right, &device).unwrap();
