@@ -263,6 +263,16 @@ fn bad_requests_are_refused_before_anything_is_written() {
         );
     }
     assert!(!dir.path().join("im2.card.json").exists());
+    // A card of the user's under the name beside --out, with no model there.
+    let card = dir.path().join("net.card.json");
+    std::fs::write(&card, "{\"name\": \"mine\"}").unwrap();
+    let output = run(&["export", run_s, "--out", out_s, "--size", "64x64"]);
+    refused(&output, &["net.card.json", "would be replaced"]);
+    assert_eq!(
+        std::fs::read_to_string(&card).unwrap(),
+        "{\"name\": \"mine\"}"
+    );
+    assert!(!out.exists());
     let teddy = std::fs::read(format!("{TEDDY}/im2.png")).unwrap();
     assert_eq!(
         std::fs::read(&left).unwrap(),

@@ -142,22 +142,10 @@ fn onnx(args: &Args) -> anyhow::Result<()> {
     pair::check_size(height, width)
         .map_err(anyhow::Error::msg)
         .context("--size")?;
-    let (card_path, report_path) = companions(&args.out);
     let (network, what, mut read) = network(args)?;
     let (left, right, pair_files) = check_pair(args, height, width)?;
     read.extend(pair_files);
-    let mut inputs = InputFiles::new();
-    inputs.extend(read);
-    for (output, name) in [
-        (&args.out, "--out"),
-        (&card_path, "the card"),
-        (&report_path, "the report"),
-    ] {
-        refuse_special_target(output).with_context(|| name.to_string())?;
-        inputs
-            .refuse(output)
-            .with_context(|| format!("{name} would overwrite a file the export reads"))?;
-    }
+    check_outputs(&args.out, read)?;
     let metadata = [("source".to_string(), what.clone())];
     let export = Export {
         height,
@@ -194,12 +182,13 @@ fn onnx(args: &Args) -> anyhow::Result<()> {
         .report
         .markdown(&format!("{name}: deployment report"));
     write(&args.out, &exported, &report)?;
-    say_written(args, &exported.report.agreement, (&card_path, &report_path));
+    say_written(args, &exported.report.agreement);
     Ok(())
 }
 
 /// Tells how the export agreed and what it wrote.
-fn say_written(args: &Args, a: &mbs_export::Agreement, (card, report): (&Path, &Path)) {
+fn say_written(args: &Args, a: &mbs_export::Agreement) {
+    let (card, report) = companions(&args.out);
     eprintln!(
         "export: agrees with mbs on the check pair: largest {:.2e} px, mean {:.2e} px ({} of {} pixels); \
          mbs {:.2} s, ONNX Runtime {:.2} s",
@@ -228,12 +217,7 @@ fn safetensors(args: &Args) -> anyhow::Result<()> {
     inputs
         .refuse(&out)
         .context("--out would overwrite the checkpoint it exports")?;
-    let device = Device::flex();
-    let (which, net) = if args.student {
-        ("student", checkpoint.student(&device)?)
-    } else {
-        ("teacher", checkpoint.teacher(&device)?)
-    };
+    let (which, net) = trained_network(&checkpoint, args.student)?;
     net.export(&out)?;
     let backbone = checkpoint.network.backbone;
     eprintln!(
@@ -260,17 +244,29 @@ fn safetensors_name(out: &Path) -> PathBuf {
     named
 }
 
+/// The teacher of `checkpoint` (with `student`, the student) on the CPU,
+/// and which of the two it is.
+fn trained_network(
+    checkpoint: &TrainedNetworks,
+    student: bool,
+) -> anyhow::Result<(&'static str, StereoNetwork)> {
+    let device = Device::flex();
+    Ok(match student {
+        true => ("student", checkpoint.student(&device)?),
+        false => ("teacher", checkpoint.teacher(&device)?),
+    })
+}
+
 /// The network an ONNX export reads, with `iters` iterations when given,
 /// its description, and the files it was read from.
 fn network(args: &Args) -> anyhow::Result<(StereoNetwork, String, Vec<PathBuf>)> {
-    let device = Device::flex();
     if let (Some(weights), Some(backbone)) = (&args.weights, args.backbone) {
         let mut config = NetworkConfig::with_overrides(backbone, &args.set)
             .context("the network settings (--set)")?;
         if let Some(iters) = args.iters {
             config = config.with_test_iters(iters).context("--iters")?;
         }
-        let net = config.init(&device)?.with_weights(weights)?;
+        let net = config.init(&Device::flex())?.with_weights(weights)?;
         let what = format!("{backbone} with {}", weights.display());
         return Ok((net, what, vec![weights.clone()]));
     }
@@ -282,10 +278,7 @@ fn network(args: &Args) -> anyhow::Result<(StereoNetwork, String, Vec<PathBuf>)>
             .with_test_iters(iters)
             .context("--iters")?;
     }
-    let (which, net) = match args.student {
-        true => ("student", checkpoint.student(&device)?),
-        false => ("teacher", checkpoint.teacher(&device)?),
-    };
+    let (which, net) = trained_network(&checkpoint, args.student)?;
     let what = format!(
         "the {which} of {} ({}, step {})",
         checkpoint.dir.display(),
@@ -327,6 +320,42 @@ fn write(out: &Path, exported: &mbs_export::Exported, report: &str) -> anyhow::R
     write_bytes_atomic(&report_path, report.as_bytes())
         .with_context(|| report_path.display().to_string())?;
     write_bytes_atomic(out, &exported.model).with_context(|| out.display().to_string())?;
+    Ok(())
+}
+
+/// Refuses an output (the model `out`, its card or its report) that is a
+/// file the export reads or a special file, and a card or report that no
+/// earlier export to `out` wrote.
+fn check_outputs(out: &Path, read: Vec<PathBuf>) -> anyhow::Result<()> {
+    let (card, report) = companions(out);
+    let mut inputs = InputFiles::new();
+    inputs.extend(read);
+    for (output, name) in [(out, "--out"), (&card, "the card"), (&report, "the report")] {
+        refuse_special_target(output).with_context(|| name.to_string())?;
+        inputs
+            .refuse(output)
+            .with_context(|| format!("{name} would overwrite a file the export reads"))?;
+    }
+    refuse_foreign_companions(out, [&card, &report])
+}
+
+/// Refuses a card or report under the names beside `out` when there is no
+/// model at `out`: such a file is not from an earlier export to that name
+/// (which writes all three), and the export would replace it unasked.
+fn refuse_foreign_companions(out: &Path, companions: [&Path; 2]) -> anyhow::Result<()> {
+    if out.symlink_metadata().is_ok() {
+        return Ok(());
+    }
+    for path in companions {
+        if path.symlink_metadata().is_ok() {
+            anyhow::bail!(
+                "{}: exists but {} does not, so it is not from an earlier export to that name \
+                 and would be replaced; move it away or choose another --out",
+                path.display(),
+                out.display()
+            );
+        }
+    }
     Ok(())
 }
 
