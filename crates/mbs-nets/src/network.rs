@@ -138,16 +138,6 @@ impl NetworkConfig {
         }
     }
 
-    /// The iterations an iterative network predicts with (`test_iters`);
-    /// `None` for the compact network, which has none.
-    pub fn test_iters(&self) -> Option<usize> {
-        match self.backbone {
-            BackboneKind::Compact => None,
-            BackboneKind::RaftStereo => Some(self.raft_stereo.test_iters),
-            BackboneKind::Igev => Some(self.igev.test_iters),
-        }
-    }
-
     /// The configuration predicting with `iters` iterations; refused for
     /// the compact network and for 0.
     pub fn with_test_iters(mut self, iters: usize) -> Result<Self, NetError> {
