@@ -27,17 +27,12 @@ impl CorrelationPyramid {
             / (channels as f64).sqrt();
         let mut row = volume.reshape([batch * height * width, right_width]);
         let mut pyramid = Vec::with_capacity(levels);
-        for _ in 0..levels {
-            let [rows, columns] = row.dims();
-            let pooled = row
-                .clone()
-                .narrow(1, 0, columns / 2 * 2)
-                .reshape([rows, columns / 2, 2])
-                .mean_dim(2)
-                .reshape([rows, columns / 2]);
+        for _ in 1..levels {
+            let pooled = halve_columns(row.clone());
             pyramid.push(row);
             row = pooled;
         }
+        pyramid.push(row);
         CorrelationPyramid {
             levels: pyramid,
             radius,
@@ -98,4 +93,20 @@ pub(crate) fn sample_linear(rows: &Tensor<2>, positions: Tensor<2>) -> Tensor<2>
     };
     let right = left.clone() + 1.0;
     tap(left) * (weight.clone().neg() + 1.0) + tap(right) * weight
+}
+
+/// Averages each pair of neighbouring columns of `row` `[R, C]` (the
+/// official 1x2 average pooling, an odd last column dropped). A row of
+/// one column is kept as it is: the official pooling refuses it (its
+/// output would be empty), which happens only for images at most 32
+/// pixels wide at 1/8 resolution.
+fn halve_columns(row: Tensor<2>) -> Tensor<2> {
+    let [rows, columns] = row.dims();
+    if columns < 2 {
+        return row;
+    }
+    row.narrow(1, 0, columns / 2 * 2)
+        .reshape([rows, columns / 2, 2])
+        .mean_dim(2)
+        .reshape([rows, columns / 2])
 }

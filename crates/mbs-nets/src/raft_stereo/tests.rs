@@ -186,3 +186,25 @@ fn odd_sizes_are_padded_and_cropped_back() {
     assert_eq!(disparity.dims(), [1, 1, 43, 75]);
     assert!(values(disparity).iter().all(|d| d.is_finite()));
 }
+
+#[test]
+fn narrow_images_at_one_eighth_keep_every_correlation_level() {
+    use burn::tensor::{Distribution, Tensor};
+    let device = Device::flex();
+    let net = RaftStereoConfig::new()
+        .with_hidden_dim(16)
+        .with_gru_levels(2)
+        .with_n_downsample(3)
+        .with_test_iters(1)
+        .init(&device)
+        .expect("valid");
+    // 96 columns are 12 at 1/8: levels of 12, 6, 3 and 1 columns (the
+    // pooling after the last level used to panic); 32 columns are 4: the
+    // last level would have none.
+    for [height, width] in [[48, 96], [32, 32]] {
+        let image = || Tensor::<4>::random([1, 3, height, width], Distribution::Default, &device);
+        let disparity = net.disparity(image(), image());
+        assert_eq!(disparity.dims(), [1, 1, height, width]);
+        assert!(values(disparity).iter().all(|d| d.is_finite()));
+    }
+}
