@@ -14,7 +14,6 @@ use ort::value::Tensor;
 use prost::Message;
 
 use crate::check::Agreement;
-use crate::model::INPUTS;
 use crate::proto::{AttributeProto, FLOAT, GraphProto, ModelProto, NodeProto, ValueInfoProto};
 
 /// Half precision's largest finite value.
@@ -84,7 +83,12 @@ pub fn report(
         .filter(|n| n.op_type == "Floor")
         .flat_map(|n| n.input.clone())
         .collect();
-    let output = crate::model::OUTPUT.to_string();
+    // The graph's one output, the disparity.
+    let output = graph
+        .output
+        .first()
+        .map(|o| o.name.clone())
+        .unwrap_or_default();
     let first: Vec<String> = lookups.iter().cloned().chain([output.clone()]).collect();
     let measured = probe(model, path, pair, options, &first)?;
     let disparity = measured.get(&output).copied().unwrap_or(0.0);
@@ -256,9 +260,15 @@ fn probe(
         }
     }
     graph.node = nodes;
+    // The graph's two inputs, the left and right views in that order.
+    let [Some(left_input), Some(right_input)] =
+        [0, 1].map(|i| graph.input.get(i).map(|input| input.name.clone()))
+    else {
+        return Err("the model does not have two inputs".into());
+    };
     let (mut session, _) =
         session_from_bytes(path, &model.encode_to_vec(), options).map_err(|e| e.to_string())?;
-    let inputs = [(INPUTS[0], left), (INPUTS[1], right)]
+    let inputs = [(left_input, left), (right_input, right)]
         .into_iter()
         .map(|(name, image)| {
             let (width, height) = image.dimensions();

@@ -3,7 +3,9 @@
 #![allow(clippy::unwrap_used)]
 
 use std::path::Path;
+use std::sync::{Mutex, PoisonError};
 
+use burn::module::Module;
 use mbs_core::Side;
 use mbs_infer::StereoMatcher;
 use mbs_infer::onnx::ModelCard;
@@ -11,6 +13,13 @@ use mbs_infer::onnx::runtime::RuntimeOptions;
 use mbs_infer::onnx::stereo::OnnxStereo;
 use mbs_nets::inference::predict_image;
 use mbs_nets::network::{BackboneKind, NetworkConfig};
+
+/// burn's CPU random generator is one per process: each test seeds it and
+/// draws its network under this lock, so that its weights do not depend on
+/// the other tests running beside it. Unseeded, a random network sometimes
+/// predicts only negative disparities, which `predict --model` marks
+/// invalid, and the test had nothing to compare.
+static WEIGHT_DRAWING: Mutex<()> = Mutex::new(());
 
 fn teddy(width: u32, height: u32) -> (image::RgbImage, image::RgbImage) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata/middlebury-teddy");
@@ -33,7 +42,16 @@ fn difference(
     let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
     let config = NetworkConfig::with_overrides(kind, &overrides).unwrap();
     let device = burn::tensor::Device::flex();
-    let network = config.init(&device).unwrap();
+    let drawing = WEIGHT_DRAWING
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner);
+    device.seed(7);
+    let fresh = config.init(&device).unwrap();
+    // burn draws a parameter when it is first used: moving the network
+    // while a clone shares its parameters draws them all here, under the lock.
+    let network = fresh.clone().to_device(&device);
+    drop(fresh);
+    drop(drawing);
     let export = mbs_export::Export {
         height,
         width,

@@ -48,3 +48,8 @@ pub use error::TrainError;
 pub use losses::{LossConfig, LossInputs, LossOutput, S3Loss};
 pub use mbs_batch::sampling;
 pub use step::{S3Trainer, StepReport, TrainerConfig};
+
+/// burn's CPU random generator is one per process: seeding it and drawing
+/// a run's fresh weights under this lock keeps a seed's network the same
+/// when several runs open at once in one process (as tests do).
+pub(crate) static WEIGHT_DRAWING: std::sync::Mutex<()> = std::sync::Mutex::new(());

@@ -26,7 +26,7 @@ use crate::checkpoint::Checkpoint;
 use crate::config::RunConfig;
 use crate::distributed::{Collective, agree, all_succeeded};
 use crate::error::TrainError;
-use crate::run::{Beginning, Start, Strategy, TrainingRun, open, place};
+use crate::run::{Start, Strategy, TrainingRun, open, place};
 use mbs_nets::StereoNetwork;
 
 pub use ranks::{ReportedByRankZero, Stopped, settle};
@@ -46,6 +46,17 @@ pub struct Launch<'a> {
     pub processes: Option<Rc<dyn Collective>>,
     /// Where the first weights come from.
     pub beginning: Beginning<'a>,
+}
+
+/// Where a run's first weights come from.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Beginning<'a> {
+    /// Weights a new run starts from (another run, a checkpoint, an
+    /// official file), instead of fresh ones.
+    pub init: Option<&'a Path>,
+    /// Start again from fresh (or `init`'s) weights, discarding the run's
+    /// checkpoints.
+    pub restart: bool,
 }
 
 /// A launched run.
@@ -80,6 +91,35 @@ impl From<LaunchError> for TrainError {
             LaunchError::Usage(message) => TrainError::Config(message),
             LaunchError::Run(e) => e,
         }
+    }
+}
+
+impl TrainingRun {
+    /// Opens the run in `out` on the training data of `manifest`, on the
+    /// CPU, in this process alone (see [`Launch`] for the devices, the
+    /// processes and the first weights): resumes from the newest
+    /// checkpoint there, or starts fresh. Resuming with a configuration
+    /// that changes what is computed is refused. This is the quiet entry
+    /// of the library and the tests: like [`Launch::open`] it removes the
+    /// temporary files a killed earlier run left in `out`, but it neither
+    /// reports how many nor returns the launcher's warnings (the memory a
+    /// step needs); a front end that shows them uses [`Launch`].
+    pub fn open(
+        manifest: &Path,
+        out: &Path,
+        config: RunConfig,
+    ) -> Result<(Self, Start), TrainError> {
+        let devices = "cpu".parse()?;
+        let launch = Launch {
+            manifest,
+            out,
+            config,
+            devices: &devices,
+            processes: None,
+            beginning: Beginning::default(),
+        };
+        let launched = launch.open()?;
+        Ok((launched.run, launched.start))
     }
 }
 

@@ -18,8 +18,8 @@
 //! uninterrupted run (see [`crate::data::step_rng`]).
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
-use std::sync::{Arc, Mutex};
 
 use burn::tensor::Device;
 use mbs_core::{FloatImage, RgbImage};
@@ -30,7 +30,6 @@ use crate::data::StepBatch;
 use crate::data::validation::{ValidationMetrics, ValidationPair};
 use crate::data::{TrainingSamples, ValidationSet};
 use crate::error::TrainError;
-use crate::launch::Launch;
 use crate::step::{S3Trainer, StepReport};
 use mbs_nets::StereoNetwork;
 use mbs_nets::checkpoint::TrainedNetworks;
@@ -50,11 +49,6 @@ pub use placement::{Devices, Ranks, Strategy, place};
 use report::RunReport;
 pub use report::{LOSS_PLOT, TENSORBOARD_DIR, VAL_PLOT, VISUALS_DIR};
 pub use resume::computing_differences;
-
-/// burn's CPU random generator is one per process: seeding it and drawing
-/// a run's fresh weights under this lock keeps a seed's network the same
-/// when several runs open at once in one process (as tests do).
-pub(crate) static WEIGHT_DRAWING: Mutex<()> = Mutex::new(());
 
 /// File of the run's configuration.
 pub const CONFIG_FILE: &str = "config.json";
@@ -161,45 +155,7 @@ pub struct TrainingRun {
     _folder: Option<mbs_core::out_dir::OutDir>,
 }
 
-/// Where a run's first weights come from.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Beginning<'a> {
-    /// Weights a new run starts from (another run, a checkpoint, an
-    /// official file), instead of fresh ones.
-    pub init: Option<&'a Path>,
-    /// Start again from fresh (or `init`'s) weights, discarding the run's
-    /// checkpoints.
-    pub restart: bool,
-}
-
 impl TrainingRun {
-    /// Opens the run in `out` on the training data of `manifest`, on the
-    /// CPU, in this process alone (see [`Launch`] for the devices, the
-    /// processes and the first weights): resumes from the newest
-    /// checkpoint there, or starts fresh. Resuming with a configuration
-    /// that changes what is computed is refused. This is the quiet entry
-    /// of the library and the tests: like [`Launch::open`] it removes the
-    /// temporary files a killed earlier run left in `out`, but it neither
-    /// reports how many nor returns the launcher's warnings (the memory a
-    /// step needs); a front end that shows them uses [`Launch`].
-    pub fn open(
-        manifest: &Path,
-        out: &Path,
-        config: RunConfig,
-    ) -> Result<(Self, Start), TrainError> {
-        let devices = "cpu".parse()?;
-        let launch = Launch {
-            manifest,
-            out,
-            config,
-            devices: &devices,
-            processes: None,
-            beginning: Beginning::default(),
-        };
-        let launched = launch.open()?;
-        Ok((launched.run, launched.start))
-    }
-
     /// The run the launcher opened: in `out`, with `config`, on `data`
     /// (the training samples and the validation pairs), with `trainer`'s
     /// weights, trained as `strategy` places it.

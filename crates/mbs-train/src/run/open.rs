@@ -13,8 +13,9 @@ use super::logs::truncate_log;
 use super::resume::check_resumable;
 use super::{
     CONFIG_FILE, LOSS_PLOT, Start, TENSORBOARD_DIR, TRAIN_LOG, VAL_LOG, VAL_PLOT, VISUALS_DIR,
-    WEIGHT_DRAWING, initial_weights,
+    initial_weights,
 };
+use crate::WEIGHT_DRAWING;
 use crate::checkpoint::Checkpoint;
 use crate::config::RunConfig;
 use crate::data::{TrainingSamples, ValidationSet};

@@ -597,7 +597,7 @@ struct MixedPrecisionSetup {
 impl MixedPrecisionSetup {
     fn new() -> Self {
         let train_device = Device::flex().autodiff();
-        let _drawing = crate::run::WEIGHT_DRAWING
+        let _drawing = crate::WEIGHT_DRAWING
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner);
         train_device.seed(17);

@@ -16,9 +16,9 @@ use mbs_nets::device::DeviceList;
 use mbs_train::RunConfig;
 use mbs_train::checkpoint::Checkpoint;
 use mbs_train::distributed::Collective;
-use mbs_train::launch::{Launch, Launched, ReportedByRankZero, Stopped, settle};
+use mbs_train::launch::{Beginning, Launch, Launched, ReportedByRankZero, Stopped, settle};
 use mbs_train::precision::Precision;
-use mbs_train::run::{Beginning, End, Quiet, Start, TrainingRun, computing_differences};
+use mbs_train::run::{End, Quiet, Start, TrainingRun, computing_differences};
 
 use report::Report;
 
