@@ -30,7 +30,7 @@ mod common;
 #[test]
 fn small_raft_stereo_learns_where_the_papers_loss_collapses() {
     let dir = tempfile::tempdir().unwrap();
-    let manifest = common::synthesise_like_the_cli(&dir.path().join("data"));
+    let manifest = common::synthesise_like_the_cli(&dir.path().join("data"), 13);
     let steps = 120;
     let config = RunConfig::layered(None, &small_raft_stereo(steps)).unwrap();
     let out = dir.path().join("run");

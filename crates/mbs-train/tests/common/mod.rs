@@ -28,10 +28,10 @@ pub fn synthesise(root: &Path, frames: usize, width: u32, height: u32) -> PathBu
     )
 }
 
-/// The set `mbs-tool synth --out DIR --seed 13 --frames 6 --towns
+/// The set `mbs-tool synth --out DIR --seed SEED --frames 6 --towns
 /// Town01,Town10 --weathers ClearNoon --width 192 --height 96 --focal 96
 /// --no-checksums` writes (Town10 held out); returns the manifest's path.
-pub fn synthesise_like_the_cli(root: &Path) -> PathBuf {
+pub fn synthesise_like_the_cli(root: &Path, seed: u64) -> PathBuf {
     let rig = Rig::centred(5, 0.5, 96.0, 192, 96);
     write(
         root,
@@ -40,7 +40,7 @@ pub fn synthesise_like_the_cli(root: &Path) -> PathBuf {
             towns: vec!["Town01".into(), "Town10".into()],
             weathers: vec![Weather::ClearNoon],
             frames: 6,
-            seed: 13,
+            seed,
             test_towns: vec!["Town10".into()],
             scene: SceneConfig::centred_on(&rig),
             supersample: 2,
