@@ -20,6 +20,7 @@ pub mod lock;
 pub mod metrics;
 pub mod out_dir;
 pub mod regular;
+pub mod shard;
 
 pub use error::{FormatError, Result};
 pub use geometry::{Rig, Side};

@@ -1,6 +1,8 @@
-//! `--shard K/N`: split a batch between the N jobs of a cluster job array;
-//! job K (0-based) takes items K, K+N, K+2N… of the sorted item list.
-//! `--shard auto` reads K and N from the launcher (see [`Shard::from_launcher`]).
+//! One of the N shards of a batch (`--shard K/N`: job K, 0-based, of a
+//! cluster job array takes items K, K+N, K+2N… of the sorted item list;
+//! `--shard auto` reads K and N from the launcher, [`Shard::from_launcher`]),
+//! and the rank and size of a process a launcher (`mpirun`, `srun`)
+//! started ([`Shard::of_launch`]), which a training run joins on.
 
 use std::str::FromStr;
 

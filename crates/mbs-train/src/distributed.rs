@@ -248,7 +248,7 @@ impl ModuleVisitor for Collect<'_> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use std::sync::{Arc, Barrier, Mutex};
 
@@ -258,13 +258,13 @@ mod tests {
 
     /// Processes simulated by threads that meet at a barrier: the
     /// [`Collective`] contract without an MPI installation.
-    struct Threads {
+    pub(crate) struct Threads {
         rank: usize,
         shared: Arc<(Barrier, Mutex<Vec<Vec<u8>>>)>,
     }
 
     impl Threads {
-        fn group(size: usize) -> Vec<Threads> {
+        pub(crate) fn group(size: usize) -> Vec<Threads> {
             let shared = Arc::new((Barrier::new(size), Mutex::new(vec![Vec::new(); size])));
             (0..size)
                 .map(|rank| Threads {

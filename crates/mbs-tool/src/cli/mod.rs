@@ -1,4 +1,4 @@
-//! Pieces shared by the subcommands: sharding, parallel batches with a
+//! Pieces shared by the subcommands: parallel batches with a
 //! progress bar and a summary, thread-pool setup, ONNX Runtime flags, the
 //! pairs, the images eval and benchmark score, and the disparity source.
 
@@ -10,7 +10,6 @@ pub mod processes;
 pub mod report_error;
 pub mod rig;
 pub mod scoring;
-pub mod shard;
 pub mod source;
 
 use std::path::{Path, PathBuf};
@@ -53,7 +52,7 @@ pub fn exit_status(error: &anyhow::Error) -> u8 {
 /// and the temporary files killed runs left are removed.
 pub fn take_out(
     dir: &Path,
-    shard: Option<shard::Shard>,
+    shard: Option<mbs_core::shard::Shard>,
     command: &str,
     inputs: &InputFiles,
     outputs: &[PathBuf],

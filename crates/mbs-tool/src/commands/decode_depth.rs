@@ -15,7 +15,7 @@ use mbs_dataset::pairs::manifest_files;
 
 use crate::cli::batch::{self, Outcome};
 use crate::cli::pairs::parse_pair;
-use crate::cli::shard::Shard;
+use mbs_core::shard::Shard;
 
 /// Arguments of `decode-depth`.
 #[derive(Parser)]

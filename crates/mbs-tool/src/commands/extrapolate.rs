@@ -19,8 +19,8 @@ use mbs_infer::onnx::{ModelCard, OnnxInpainter};
 use mbs_warp::Dilation;
 
 use crate::cli::batch::{self, Outcome};
-use crate::cli::shard::Shard;
 use crate::cli::source::{StereoSource, StereoSourceArgs};
+use mbs_core::shard::Shard;
 
 /// The manifest of the four-view samples, in the output folder.
 const MANIFEST_FILE: &str = "manifest.json";

@@ -15,8 +15,8 @@ use mbs_viz::colormap::{colorize_disparity, disparity_scale};
 
 use crate::cli::batch::{self, Outcome};
 use crate::cli::pairs::PairArgs;
-use crate::cli::shard::Shard;
 use crate::cli::source::{PairMatcher, StereoSourceArgs};
+use mbs_core::shard::Shard;
 
 /// Arguments of `predict`.
 #[derive(Parser)]

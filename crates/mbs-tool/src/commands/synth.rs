@@ -10,7 +10,7 @@ use mbs_synth::dataset::DatasetSpec;
 use mbs_synth::{SceneConfig, Weather};
 
 use crate::cli::batch::{self, Outcome};
-use crate::cli::shard::Shard;
+use mbs_core::shard::Shard;
 
 /// Arguments of `synth`.
 #[derive(Parser)]

@@ -11,10 +11,13 @@
 //! file, which the run takes first and writes its name in.
 
 mod devices;
+mod processes;
 mod ranks;
+mod stop;
 
 use std::path::Path;
 use std::rc::Rc;
+use std::sync::atomic::AtomicBool;
 
 use mbs_core::inputs::InputFiles;
 use mbs_core::out_dir::OutDir;
@@ -24,12 +27,15 @@ use thiserror::Error;
 
 use crate::checkpoint::Checkpoint;
 use crate::config::RunConfig;
+use crate::data::validation::ValidationMetrics;
 use crate::distributed::{Collective, agree, all_succeeded};
 use crate::error::TrainError;
-use crate::run::{Start, Strategy, TrainingRun, open, place};
+use crate::run::{End, Observer, Quiet, Start, Strategy, TrainingRun, open, place};
 use mbs_nets::StereoNetwork;
 
+pub use processes::{MpiJoin, join};
 pub use ranks::{ReportedByRankZero, Stopped, settle};
+pub use stop::stop_requests;
 
 /// What a run is launched from.
 pub struct Launch<'a> {
@@ -78,6 +84,46 @@ pub enum LaunchError {
     /// no device): a usage error.
     #[error("{0}")]
     Usage(String),
+    /// The launcher's variables give no rank of their launch.
+    #[error("{0}")]
+    Launcher(String),
+    /// The launcher started several processes, and the front end cannot
+    /// join them into an MPI job: each would train alone into the same
+    /// folder.
+    #[error(
+        "the launcher started {launched} processes, but this program cannot join an MPI job, \
+         so each would train alone into the same folder: run one process"
+    )]
+    NoMpi {
+        /// The processes the launcher's variables announce.
+        launched: usize,
+    },
+    /// MPI was initialised before the run joined it.
+    #[error("MPI was already initialised in this process")]
+    MpiInitialised,
+    /// The MPI job is not the launch the variables announce.
+    #[error(
+        "the launcher's variables ({variables}) say {launched} processes, but MPI gives this \
+         process a job of {size}: start the processes with mpirun or srun (with MPI support), \
+         or unset those variables to run one process"
+    )]
+    JobSize {
+        /// The processes the launcher's variables announce.
+        launched: usize,
+        /// The processes of the MPI job.
+        size: usize,
+        /// The launcher's variables that are set, `NAME=VALUE` joined by commas.
+        variables: String,
+    },
+    /// A stop request's handler could not be installed.
+    #[error("cannot install the {signal} handler")]
+    Handler {
+        /// The request (`Ctrl-C`, `SIGUSR1`).
+        signal: &'static str,
+        /// Why.
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
     /// Anything else.
     #[error(transparent)]
     Run(#[from] TrainError),
@@ -85,12 +131,75 @@ pub enum LaunchError {
 
 impl From<LaunchError> for TrainError {
     /// A usage error becomes a configuration error, for the callers that
-    /// have no usage errors of their own (the library, the tests).
+    /// have no usage errors of their own (the library, the tests); the
+    /// launch's own errors become distributed ones.
     fn from(error: LaunchError) -> Self {
         match error {
             LaunchError::Usage(message) => TrainError::Config(message),
             LaunchError::Run(e) => e,
+            other => TrainError::Distributed(other.to_string()),
         }
+    }
+}
+
+/// How [`Launched::train`] ended.
+#[derive(Debug)]
+pub enum Ended {
+    /// The run's checkpoints already held every step: nothing was trained.
+    Complete {
+        /// Steps its newest checkpoint holds.
+        steps: usize,
+        /// Steps of the whole run.
+        total: usize,
+    },
+    /// Every step was taken.
+    Finished {
+        /// The last validation, if the data has ground truth.
+        metrics: Option<Box<ValidationMetrics>>,
+    },
+    /// Stopped on request with a checkpoint.
+    Stopped {
+        /// Steps taken.
+        steps: usize,
+        /// Steps of the whole run.
+        total: usize,
+    },
+}
+
+impl Launched {
+    /// Whether this process writes the run's folder and reports (rank 0 of
+    /// several, or the process alone).
+    pub fn is_writer(&self) -> bool {
+        self.run.is_writer()
+    }
+
+    /// Whether the run's checkpoints already hold every step.
+    pub fn is_complete(&self) -> bool {
+        matches!(self.start, Start::Resumed(steps) if steps >= self.run.config().steps())
+    }
+
+    /// Trains the run to its end, or until `stop` is set (see
+    /// [`stop_requests`]); a complete run trains nothing. The writer
+    /// reports to `observer`, the other ranks train quietly.
+    pub fn train(
+        mut self,
+        observer: &mut dyn Observer,
+        stop: &AtomicBool,
+    ) -> Result<Ended, TrainError> {
+        let total = self.run.config().steps();
+        if let Start::Resumed(steps) = self.start
+            && steps >= total
+        {
+            return Ok(Ended::Complete { steps, total });
+        }
+        let end = match self.run.is_writer() {
+            true => self.run.run(observer, stop)?,
+            false => self.run.run(&mut Quiet, stop)?,
+        };
+        Ok(match end {
+            End::Finished { metrics } => Ended::Finished { metrics },
+            End::Stopped(steps) => Ended::Stopped { steps, total },
+        })
     }
 }
 

@@ -6,8 +6,6 @@ mod report;
 
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::{Context, bail};
 use clap::Parser;
@@ -16,9 +14,11 @@ use mbs_nets::device::DeviceList;
 use mbs_train::RunConfig;
 use mbs_train::checkpoint::Checkpoint;
 use mbs_train::distributed::Collective;
-use mbs_train::launch::{Beginning, Launch, Launched, ReportedByRankZero, Stopped, settle};
+use mbs_train::launch::{
+    Beginning, Ended, Launch, ReportedByRankZero, Stopped, settle, stop_requests,
+};
 use mbs_train::precision::Precision;
-use mbs_train::run::{End, Quiet, Start, TrainingRun, computing_differences};
+use mbs_train::run::{Quiet, Start, TrainingRun, computing_differences};
 
 use report::Report;
 
@@ -236,7 +236,7 @@ fn train(
     processes: Option<Rc<dyn Collective>>,
 ) -> anyhow::Result<()> {
     let spread = processes.as_ref().map(|p| p.size());
-    let launch = Launch {
+    let launched = Launch {
         manifest,
         out,
         config,
@@ -246,83 +246,53 @@ fn train(
             init: args.init.as_deref(),
             restart: args.restart,
         },
-    };
-    let (mut training, start) = launch_run(launch)?;
-    let writer = training.is_writer();
-    let total = training.config().steps();
-    if let Start::Resumed(steps) = start
-        && steps >= total
-    {
-        if writer {
-            eprintln!(
-                "train: {} is complete ({steps} of {total} steps); --restart to train again",
-                out.display()
-            );
-        }
-        return Ok(());
     }
-    if writer {
-        announce(args, &training, start, out, spread);
-    }
-    let stop = stop_requests()?;
-    if !writer {
-        return match training.run(&mut Quiet, &stop)? {
-            End::Stopped(_) => Err(ReportedByRankZero.into()),
-            End::Finished { .. } => Ok(()),
-        };
-    }
-    let mut report = Report::new(out, training.config(), training.steps_taken())?;
-    let end = training.run(&mut report, &stop)?;
-    report.finish()?;
-    match end {
-        End::Stopped(steps) => Err(Stopped { steps, total }.into()),
-        End::Finished { metrics } => {
-            report.summary(metrics.as_deref());
-            Ok(())
-        }
-    }
-}
-
-/// Opens the run `launch` describes and prints what the launcher found
-/// (warnings, the temporary files of a killed run it removed).
-fn launch_run(launch: Launch<'_>) -> anyhow::Result<(TrainingRun, Start)> {
-    let out = launch.out;
-    let Launched {
-        run,
-        start,
-        warnings,
-        removed_partials,
-    } = launch.open()?;
-    for warning in warnings {
+    .open()?;
+    for warning in &launched.warnings {
         eprintln!("warning: {warning}");
     }
-    if removed_partials > 0 {
+    if launched.removed_partials > 0 {
         eprintln!(
-            "removed {removed_partials} temporary file(s) left in {} by a killed run",
+            "removed {} temporary file(s) left in {} by a killed run",
+            launched.removed_partials,
             out.display()
         );
     }
-    Ok((run, start))
-}
-
-/// The flag that Ctrl-C, SIGTERM and SIGUSR1 set to stop the run with a
-/// checkpoint; a second Ctrl-C while it is written gives up at once.
-fn stop_requests() -> anyhow::Result<Arc<AtomicBool>> {
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = Arc::clone(&stop);
-    ctrlc::set_handler(move || {
-        if flag.swap(true, Ordering::Relaxed) {
-            std::process::exit(130);
+    let writer = launched.is_writer();
+    if writer && !launched.is_complete() {
+        announce(args, &launched.run, launched.start, out, spread);
+    }
+    let stop = stop_requests()?;
+    let mut report = match writer && !launched.is_complete() {
+        true => Some(Report::new(
+            out,
+            launched.run.config(),
+            launched.run.steps_taken(),
+        )?),
+        false => None,
+    };
+    let end = match report.as_mut() {
+        Some(report) => launched.train(report, &stop)?,
+        None => launched.train(&mut Quiet, &stop)?,
+    };
+    if let Some(report) = report.as_mut() {
+        report.finish()?;
+    }
+    match end {
+        Ended::Complete { steps, total } if writer => eprintln!(
+            "train: {} is complete ({steps} of {total} steps); --restart to train again",
+            out.display()
+        ),
+        Ended::Complete { .. } => {}
+        Ended::Stopped { steps, total } if writer => return Err(Stopped { steps, total }.into()),
+        Ended::Stopped { .. } => return Err(ReportedByRankZero.into()),
+        Ended::Finished { metrics } => {
+            if let Some(report) = report {
+                report.summary(metrics.as_deref());
+            }
         }
-    })
-    .context("cannot install the Ctrl-C handler")?;
-    // SIGUSR1 stops the same way. mpirun forwards it to every rank at once,
-    // where its Ctrl-C reaches them as SIGTERM only after
-    // `odls_base_sigkill_timeout` seconds, with SIGKILL as long after.
-    #[cfg(unix)]
-    signal_hook::flag::register(signal_hook::consts::SIGUSR1, Arc::clone(&stop))
-        .context("cannot install the SIGUSR1 handler")?;
-    Ok(stop)
+    }
+    Ok(())
 }
 
 /// Says what the run does: where it starts, on how many processes, and
