@@ -227,6 +227,29 @@ fn dims<const D: usize>(shape: &[usize]) -> [usize; D] {
     out
 }
 
+/// The number of gradient values `grads` holds for `module`'s float
+/// parameters (those with a gradient), counted from their shapes without
+/// reading them: the length of their [`FlatGradients`].
+pub fn gradient_length<M: Module>(module: &M, grads: &GradientsParams) -> usize {
+    let mut count = Count { grads, length: 0 };
+    module.visit(&mut count);
+    count.length
+}
+
+/// Counts the gradient values of the parameters it visits.
+struct Count<'a> {
+    grads: &'a GradientsParams,
+    length: usize,
+}
+
+impl ModuleVisitor for Count<'_> {
+    fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+        if let Some(grad) = self.grads.get::<D>(param.id) {
+            self.length += grad.dims().iter().product::<usize>();
+        }
+    }
+}
+
 /// Flattens the gradients of the parameters it visits.
 struct Collect<'a> {
     grads: &'a GradientsParams,

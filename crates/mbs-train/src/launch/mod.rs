@@ -31,6 +31,7 @@ use crate::data::validation::ValidationMetrics;
 use crate::distributed::{Collective, agree, all_succeeded};
 use crate::error::TrainError;
 use crate::run::{End, Observer, Quiet, Start, Strategy, TrainingRun, open, place};
+use crate::step::GradientReduction;
 use mbs_nets::StereoNetwork;
 
 pub use processes::{MpiJoin, join};
@@ -52,6 +53,10 @@ pub struct Launch<'a> {
     pub processes: Option<Rc<dyn Collective>>,
     /// Where the first weights come from.
     pub beginning: Beginning<'a>,
+    /// How the processes sum their gradients (`None`: through one host
+    /// buffer, [`crate::step::HostAllReduce`]); a reduction written
+    /// elsewhere (a device-side collective) must sum over `processes`.
+    pub reduction: Option<Rc<dyn GradientReduction<StereoNetwork>>>,
 }
 
 /// Where a run's first weights come from.
@@ -226,6 +231,7 @@ impl TrainingRun {
             devices: &devices,
             processes: None,
             beginning: Beginning::default(),
+            reduction: None,
         };
         let launched = launch.open()?;
         Ok((launched.run, launched.start))
@@ -243,11 +249,16 @@ impl Launch<'_> {
         let processes = self.processes.as_deref();
         let (names, devices) = devices::open(self.devices, processes)?;
         let labelled = names.iter().map(ToString::to_string).zip(devices).collect();
-        let strategy: Box<dyn Strategy<StereoNetwork>> =
-            place(&self.config, labelled, self.processes.clone()).map_err(|e| match e {
-                TrainError::Config(message) => LaunchError::Usage(message),
-                other => other.into(),
-            })?;
+        let strategy: Box<dyn Strategy<StereoNetwork>> = place(
+            &self.config,
+            labelled,
+            self.processes.clone(),
+            self.reduction.clone(),
+        )
+        .map_err(|e| match e {
+            TrainError::Config(message) => LaunchError::Usage(message),
+            other => other.into(),
+        })?;
         let hold = open::hold_folder(self.out, strategy.writes());
         let hold = match processes {
             Some(processes) => all_succeeded(processes, hold)?,

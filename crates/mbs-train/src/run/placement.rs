@@ -19,7 +19,7 @@ use crate::data::StepBatch;
 use crate::distributed::{Collective, check_same_weights};
 use crate::error::TrainError;
 use crate::precision::check_support;
-use crate::step::{HostAllReduce, S3Trainer, Sharing, StepReport};
+use crate::step::{GradientReduction, HostAllReduce, S3Trainer, Sharing, StepReport};
 use mbs_nets::Backbone;
 
 /// How a run trains on its placement; see the module's documentation.
@@ -36,6 +36,15 @@ pub trait Strategy<B: Backbone> {
     /// Checks that every process holds the same `networks` after `steps`
     /// steps (nothing to check in a process of its own).
     fn check_same_weights(&self, networks: [&B; 2], steps: usize) -> Result<(), TrainError>;
+    /// Where this process's batches are built from the loaded images: on
+    /// its one device, or on the host when several share them (the
+    /// shares then go to their devices from there, not through the first).
+    fn batch_device(&self) -> Device {
+        match self.devices() {
+            [one] => one.clone(),
+            _ => Device::flex(),
+        }
+    }
     /// One optimisation step of `trainer` on this process's items of a
     /// batch of `batch_size`.
     fn step(
@@ -82,30 +91,54 @@ impl<B: Backbone> Strategy<B> for Devices {
 
 /// One rank of an MPI job on one device or several: it loads its share of
 /// every batch (split again over its devices), the ranks sum their
-/// gradients through one host buffer ([`HostAllReduce`]) and vote on
-/// stopping, and rank 0 alone writes.
-pub struct Ranks {
+/// gradients through their reduction ([`HostAllReduce`] unless the run is
+/// given another, [`Ranks::new`]) and vote on stopping, and rank 0 alone
+/// writes.
+pub struct Ranks<B: Backbone> {
     devices: Vec<Device>,
-    processes: Rc<dyn Collective>,
-    reduction: HostAllReduce,
+    reduction: Rc<dyn GradientReduction<B>>,
 }
 
-impl<B: Backbone> Strategy<B> for Ranks {
+impl<B: Backbone> Ranks<B> {
+    /// The rank of this process on `devices` whose gradients `reduction`
+    /// sums over its processes (those of the run). A reduction over no
+    /// processes is refused.
+    pub fn new(
+        devices: Vec<Device>,
+        reduction: Rc<dyn GradientReduction<B>>,
+    ) -> Result<Self, TrainError> {
+        if reduction.processes().is_none() {
+            return Err(TrainError::Config(
+                "the gradient reduction of a run over processes sums over none".into(),
+            ));
+        }
+        Ok(Self { devices, reduction })
+    }
+
+    /// The processes of the run (those the reduction sums over).
+    fn processes(&self) -> &dyn Collective {
+        self.reduction
+            .processes()
+            .expect("a reduction over processes, checked in Ranks::new")
+    }
+}
+
+impl<B: Backbone> Strategy<B> for Ranks<B> {
     fn devices(&self) -> &[Device] {
         &self.devices
     }
     fn items_loaded(&self, batch_size: usize) -> Range<usize> {
-        share(batch_size, self.processes.size(), self.processes.rank())
+        share(batch_size, self.processes().size(), self.processes().rank())
     }
     fn writes(&self) -> bool {
-        self.processes.rank() == 0
+        self.processes().rank() == 0
     }
     fn stop_voted(&self, asked: bool) -> bool {
-        let votes = self.processes.gather(&[u8::from(asked)]);
+        let votes = self.processes().gather(&[u8::from(asked)]);
         votes.iter().any(|vote| vote[0] == 1)
     }
     fn check_same_weights(&self, networks: [&B; 2], steps: usize) -> Result<(), TrainError> {
-        check_same_weights(self.processes.as_ref(), &networks, steps)
+        check_same_weights(self.processes(), &networks, steps)
     }
     fn step(
         &self,
@@ -116,7 +149,7 @@ impl<B: Backbone> Strategy<B> for Ranks {
         let sharing = Sharing {
             devices: &self.devices,
             items: batch_size,
-            reduction: &self.reduction,
+            reduction: self.reduction.as_ref(),
         };
         trainer.step_shared(batch, &sharing)
     }
@@ -126,11 +159,13 @@ impl<B: Backbone> Strategy<B> for Ranks {
 /// errors give it) and `processes` (`None`: this one alone), once they
 /// can run it: at least one device, no more sharers than batch items (each
 /// device of each process needs one), and the run's precision on every
-/// device.
-pub fn place<B: Backbone>(
+/// device. The processes sum their gradients through `reduction` when
+/// given (it must sum over `processes`), else through [`HostAllReduce`].
+pub fn place<B: Backbone + 'static>(
     config: &RunConfig,
     devices: Vec<(String, Device)>,
     processes: Option<Rc<dyn Collective>>,
+    reduction: Option<Rc<dyn GradientReduction<B>>>,
 ) -> Result<Box<dyn Strategy<B>>, TrainError> {
     if devices.is_empty() {
         return Err(TrainError::Config("no device to train on".into()));
@@ -152,12 +187,25 @@ pub fn place<B: Backbone>(
     let named = devices.iter().map(|(name, device)| (name.clone(), device));
     check_support(config.trainer.precision, named)?;
     let devices: Vec<Device> = devices.into_iter().map(|(_, device)| device).collect();
-    Ok(match processes {
-        Some(processes) => Box::new(Ranks {
-            devices,
-            reduction: HostAllReduce::new(Rc::clone(&processes)),
-            processes,
-        }),
-        None => Box::new(Devices { devices }),
-    })
+    let Some(processes) = processes else {
+        if reduction.is_some() {
+            return Err(TrainError::Config(
+                "a gradient reduction is given for a run of one process".into(),
+            ));
+        }
+        return Ok(Box::new(Devices { devices }));
+    };
+    let reduction = reduction.unwrap_or_else(|| Rc::new(HostAllReduce::new(Rc::clone(&processes))));
+    let sums_over = reduction.processes().map(|p| (p.rank(), p.size()));
+    if sums_over != Some((processes.rank(), processes.size())) {
+        return Err(TrainError::Config(format!(
+            "the gradient reduction sums over {} but the run is rank {} of {} processes",
+            sums_over.map_or("no processes".into(), |(rank, size)| format!(
+                "rank {rank} of {size} processes"
+            )),
+            processes.rank(),
+            processes.size()
+        )));
+    }
+    Ok(Box::new(Ranks::new(devices, reduction)?))
 }

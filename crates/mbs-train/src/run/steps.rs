@@ -10,7 +10,6 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use burn::tensor::Device;
 use mbs_batch::HostBatch;
 
 use super::logs::{Interval, open_log, write_line};
@@ -135,13 +134,9 @@ impl TrainingRun {
     }
 
     /// One step on `batch` (this process's items) as the run's strategy
-    /// takes it. With several devices the shares go to them from the
-    /// host, not through the first device.
+    /// takes it, built where the strategy says.
     fn step_on(&mut self, batch: HostBatch) -> Result<StepReport, TrainError> {
-        let home = match self.strategy.devices() {
-            [one] => one.clone(),
-            _ => Device::flex(),
-        };
+        let home = self.strategy.batch_device();
         let batch = StepBatch::from_host(batch, &home, &self.config.augment, self.config.seed);
         let batch_size = self.config.data.batch_size;
         self.strategy.step(&mut self.trainer, batch, batch_size)

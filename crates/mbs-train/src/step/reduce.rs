@@ -4,14 +4,18 @@
 //! with. Two today: [`InProcessSum`] (this process's devices, summed on
 //! the first) and [`HostAllReduce`] (that sum, then summed over the ranks
 //! of an MPI job through one host buffer). A device-side collective
-//! (NCCL, burn's collective) would be one more implementation.
+//! (NCCL, burn's collective) is one more implementation, written anywhere:
+//! its local sum stays on the device ([`LocalGradients::on_device`] counts
+//! its length for the processes' check), and a run takes it through
+//! [`crate::launch::Launch::reduction`].
 
 use std::rc::Rc;
 
+use burn::module::Module;
 use burn::optim::{GradientsAccumulator, GradientsParams};
 use burn::tensor::Device;
 
-use crate::distributed::{Collective, FlatGradients};
+use crate::distributed::{Collective, FlatGradients, gradient_length};
 use crate::error::TrainError;
 use mbs_nets::Backbone;
 
@@ -53,29 +57,40 @@ pub trait GradientReduction<B: Backbone> {
     ) -> Result<GradientsParams, TrainError>;
 }
 
-/// One process's sum of its shares' gradients.
+/// One process's sum of its shares' gradients, with the number of values
+/// the processes are about to sum (every process must have as many).
 pub enum LocalGradients {
-    /// On the student's device: the sum of a process that trains alone.
-    OnDevice(GradientsParams),
+    /// On the student's device: the sum of a process that trains alone,
+    /// or one that a device-side collective sums over the processes.
+    OnDevice {
+        /// The gradients.
+        grads: GradientsParams,
+        /// The number of values they hold ([`gradient_length`]).
+        length: usize,
+    },
     /// Read back into one host buffer, ready for the processes' sum.
     OnHost(FlatGradients),
 }
 
 impl LocalGradients {
-    /// The number of gradient values the processes are about to sum
-    /// (`None` on the device, where no process sums them further): every
-    /// process must have as many.
-    pub fn length(&self) -> Option<usize> {
+    /// `grads` of `student`'s parameters, on their device.
+    pub fn on_device<M: Module>(student: &M, grads: GradientsParams) -> Self {
+        let length = gradient_length(student, &grads);
+        Self::OnDevice { grads, length }
+    }
+
+    /// The number of gradient values the processes are about to sum.
+    pub fn length(&self) -> usize {
         match self {
-            Self::OnDevice(_) => None,
-            Self::OnHost(flat) => Some(flat.values.len()),
+            Self::OnDevice { length, .. } => *length,
+            Self::OnHost(flat) => flat.values.len(),
         }
     }
 
     /// The gradients as they are, on the device.
-    fn into_device(self) -> GradientsParams {
+    pub fn into_device(self) -> GradientsParams {
         match self {
-            Self::OnDevice(grads) => grads,
+            Self::OnDevice { grads, .. } => grads,
             Self::OnHost(flat) => flat.into_grads(),
         }
     }
@@ -98,13 +113,13 @@ impl<B: Backbone> GradientReduction<B> for InProcessSum {
         home: &Device,
     ) -> Result<LocalGradients, TrainError> {
         if shares.len() == 1 {
-            return Ok(LocalGradients::OnDevice(shares.remove(0).grads));
+            return Ok(LocalGradients::on_device(student, shares.remove(0).grads));
         }
         let mut sum = GradientsAccumulator::<B>::new();
         for share in shares {
             sum.accumulate(student, share.grads.to_device(home, &share.replica));
         }
-        Ok(LocalGradients::OnDevice(sum.grads()))
+        Ok(LocalGradients::on_device(student, sum.grads()))
     }
 
     fn sum_over_processes(
@@ -157,7 +172,7 @@ impl<B: Backbone> GradientReduction<B> for HostAllReduce {
         // over on the device is read back first, so that it is still summed.
         let mut flat = match local {
             LocalGradients::OnHost(flat) => flat,
-            LocalGradients::OnDevice(grads) => FlatGradients::gather(student, &grads)?,
+            LocalGradients::OnDevice { grads, .. } => FlatGradients::gather(student, &grads)?,
         };
         flat.sum_over(self.processes.as_ref());
         Ok(flat.into_grads())

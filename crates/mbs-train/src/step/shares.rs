@@ -100,18 +100,11 @@ impl<B: Backbone> S3Trainer<B> {
         // Flattening may fail (reading back from the device): it comes
         // before the gather, so that no rank waits in it for one that failed.
         let local = reduction.local_sum(&self.student, gradients, &sharing.devices[0])?;
-        let values = match (reduction.processes(), local.length()) {
+        let values = match reduction.processes() {
             // A process of its own: its shares' values weighted by their
             // share of the step's items (a lone share's weight is 1).
-            (None, _) => LossValues::weighted_sum(&values),
-            (Some(processes), Some(length)) => exchange_values(&values, length, processes)?,
-            (Some(_), None) => {
-                return Err(TrainError::Distributed(
-                    "the gradient reduction kept the gradients on the device, where the \
-                     processes cannot check that they sum as many"
-                        .into(),
-                ));
-            }
+            None => LossValues::weighted_sum(&values),
+            Some(processes) => exchange_values(&values, local.length(), processes)?,
         };
         let grads = reduction.sum_over_processes(&self.student, local)?;
         self.apply(grads, values)

@@ -246,6 +246,7 @@ fn train(
             init: args.init.as_deref(),
             restart: args.restart,
         },
+        reduction: None,
     }
     .open()?;
     for warning in &launched.warnings {
