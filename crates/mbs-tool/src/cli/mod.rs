@@ -3,6 +3,7 @@
 //! pairs, the images eval and benchmark score, and the disparity source.
 
 pub mod batch;
+pub mod flags;
 pub mod folders;
 pub mod onnx;
 pub mod pairs;

@@ -15,7 +15,6 @@ use mbs_dataset::pairs::manifest_files;
 
 use crate::cli::batch::{self, Outcome};
 use crate::cli::pairs::parse_pair;
-use mbs_core::shard::Shard;
 
 /// Arguments of `decode-depth`.
 #[derive(Parser)]
@@ -63,18 +62,14 @@ pub struct Args {
     /// Number of cameras for folder input (MBS20K: 5).
     #[arg(long, default_value_t = 5, value_parser = crate::cli::values::views)]
     pub views: usize,
-    /// Process only shard K of N (0-based), for cluster job arrays.
-    /// `auto` reads K and N from a SLURM array, `srun` or `mpirun`.
-    #[arg(long, value_name = "K/N|auto")]
-    pub shard: Option<Shard>,
-    /// Worker threads (0 = one per core).
-    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
-    pub jobs: usize,
+    /// Sharding and worker threads.
+    #[command(flatten)]
+    pub batch: crate::cli::flags::Batch,
 }
 
 /// Runs `decode-depth`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    crate::cli::set_threads(args.jobs)?;
+    args.batch.threads.start()?;
     let mut inputs = InputFiles::new();
     let (jobs, rig, camera, manifest_max) = input_images(&args, &mut inputs)?;
     let max_depth_m = args
@@ -96,7 +91,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         depth_format: args.depth_format,
         disparity_format: args.disparity_format,
     };
-    let jobs = match args.shard {
+    let jobs = match args.batch.shard {
         Some(shard) => shard.select(jobs),
         None => jobs,
     };
@@ -107,7 +102,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (None, true) => args.input.clone(),
         (None, false) => mbs_dataset::manifest::folder(&args.input),
     };
-    let _out = crate::cli::take_out(&root, args.shard, "decode-depth", &inputs, &outputs)?;
+    let _out = crate::cli::take_out(&root, args.batch.shard, "decode-depth", &inputs, &outputs)?;
     let summary = batch::run(
         &jobs,
         "images",

@@ -20,7 +20,6 @@ use mbs_warp::Dilation;
 
 use crate::cli::batch::{self, Outcome};
 use crate::cli::source::{StereoSource, StereoSourceArgs};
-use mbs_core::shard::Shard;
 
 /// The manifest of the four-view samples, in the output folder.
 const MANIFEST_FILE: &str = "manifest.json";
@@ -119,13 +118,9 @@ pub struct Args {
     /// Baseline between the two input cameras in metres, recorded in the manifest (KITTI: 0.54).
     #[arg(long, default_value_t = 0.54, value_parser = crate::cli::values::positive, allow_negative_numbers = true)]
     pub baseline: f64,
-    /// Process only shard K of N (0-based); run once more without it to write the manifest.
-    /// `auto` reads K and N from a SLURM array, `srun` or `mpirun`.
-    #[arg(long, value_name = "K/N|auto")]
-    pub shard: Option<Shard>,
-    /// Worker threads (0 = one per core).
-    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
-    pub jobs: usize,
+    /// Sharding and worker threads.
+    #[command(flatten)]
+    pub batch: crate::cli::flags::Batch,
 }
 
 /// Mask dilations (see `mbs_warp::Dilation`).
@@ -167,7 +162,7 @@ fn parse_inpaint(s: &str) -> Result<InpaintKind, String> {
 
 /// Runs `extrapolate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    crate::cli::set_threads(args.jobs)?;
+    args.batch.threads.start()?;
     let (frames, out) = match &args.kitti {
         Some(root) => kitti_job(&args, root)?,
         None => single_pair_job(&args)?,
@@ -176,12 +171,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // source leaves no output folder behind.
     let extrapolator = Extrapolator::new(dilation(&args), inpainter(&args)?);
     let source = disparity_source(&args)?;
-    let selected: Vec<&Frame> = match args.shard {
+    let selected: Vec<&Frame> = match args.batch.shard {
         Some(shard) => shard.select(frames.iter().collect()),
         None => frames.iter().collect(),
     };
     let (inputs, outputs) = files(&args, &frames, &selected, &out);
-    let _out = crate::cli::take_out(&out, args.shard, "extrapolate", &inputs, &outputs)?;
+    let _out = crate::cli::take_out(&out, args.batch.shard, "extrapolate", &inputs, &outputs)?;
     let summary = batch::run(
         &selected,
         "frames",
@@ -195,7 +190,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
     );
     let result = summary.finish("extrapolate", "frames");
-    if args.shard.is_none() {
+    if args.batch.shard.is_none() {
         write_manifest(&args, &frames, &out)?;
     }
     result
@@ -217,7 +212,7 @@ fn files(
         .flat_map(|frame| frame.written(args.preview))
         .map(Path::to_path_buf)
         .collect();
-    if args.shard.is_none() {
+    if args.batch.shard.is_none() {
         outputs.push(out.join(MANIFEST_FILE));
     }
     (inputs, outputs)

@@ -16,7 +16,6 @@ use mbs_viz::colormap::{colorize_disparity, disparity_scale};
 use crate::cli::batch::{self, Outcome};
 use crate::cli::pairs::PairArgs;
 use crate::cli::source::{PairMatcher, StereoSourceArgs};
-use mbs_core::shard::Shard;
 
 /// Arguments of `predict`.
 #[derive(Parser)]
@@ -58,22 +57,17 @@ pub struct Args {
     /// Where the disparities come from.
     #[command(flatten)]
     pub source: StereoSourceArgs,
-    /// Recompute outputs that mbs wrote earlier (a file it did not write
-    /// is refused, with or without this flag).
-    #[arg(long)]
-    pub overwrite: bool,
-    /// Process only shard K of N (0-based), for cluster job arrays.
-    /// `auto` reads K and N from a SLURM array, `srun` or `mpirun`.
-    #[arg(long, value_name = "K/N|auto")]
-    pub shard: Option<Shard>,
-    /// Worker threads (0 = one per core).
-    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
-    pub jobs: usize,
+    /// Whether earlier outputs are recomputed.
+    #[command(flatten)]
+    pub overwrite: crate::cli::flags::Overwrite,
+    /// Sharding and worker threads.
+    #[command(flatten)]
+    pub batch: crate::cli::flags::Batch,
 }
 
 /// Runs `predict`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    crate::cli::set_threads(args.jobs)?;
+    args.batch.threads.start()?;
     let Some(source) = args.pairs.source()? else {
         bail!(
             "nothing to match: give --left and --right, a benchmark folder (--kitti, \
@@ -83,14 +77,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let pairs = source.pairs()?;
     let mut inputs = source.input_files(&pairs)?;
     args.source.add_files_to(&mut inputs);
-    let pairs = match args.shard {
+    let pairs = match args.batch.shard {
         Some(shard) => shard.select(pairs),
         None => pairs,
     };
     let outputs = every_output(&args, &pairs)?;
     args.source.refuse_unused_device()?;
     let matcher = args.source.matcher(SgmConfig::default())?;
-    let _out = crate::cli::take_out(&args.out, args.shard, "predict", &inputs, &outputs)?;
+    let _out = crate::cli::take_out(&args.out, args.batch.shard, "predict", &inputs, &outputs)?;
     let summary = batch::run(
         &pairs,
         "pairs",
@@ -135,7 +129,7 @@ fn every_output(args: &Args, pairs: &[StereoPair]) -> anyhow::Result<Vec<PathBuf
 
 fn predict_one(args: &Args, matcher: &PairMatcher, pair: &StereoPair) -> anyhow::Result<Outcome> {
     let (out, color) = outputs(args, pair)?;
-    if !args.overwrite && out.exists() && (!args.color || color.exists()) {
+    if !args.overwrite.overwrite && out.exists() && (!args.color || color.exists()) {
         return Ok(Outcome::Skipped);
     }
     let reference = rgb::read_rgb(&pair.reference)?;

@@ -58,10 +58,9 @@ pub struct Args {
     /// Output folder.
     #[arg(long)]
     pub out: PathBuf,
-    /// Recompute pairs whose files mbs wrote earlier (a file it did not
-    /// write is refused, with or without this flag).
-    #[arg(long)]
-    pub overwrite: bool,
+    /// Whether earlier outputs are recomputed.
+    #[command(flatten)]
+    pub overwrite: crate::cli::flags::Overwrite,
 }
 
 /// Runs `submit`.
@@ -135,7 +134,7 @@ fn submit_one(
     pair: &StereoPair,
 ) -> anyhow::Result<(Outcome, Option<f64>)> {
     let out: &Path = &args.out;
-    if !args.overwrite && layout.is_written(out, &pair.id) {
+    if !args.overwrite.overwrite && layout.is_written(out, &pair.id) {
         return Ok((Outcome::Skipped, None));
     }
     let reference = rgb::read_rgb(&pair.reference)?;

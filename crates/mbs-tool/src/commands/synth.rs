@@ -10,7 +10,6 @@ use mbs_synth::dataset::DatasetSpec;
 use mbs_synth::{SceneConfig, Weather};
 
 use crate::cli::batch::{self, Outcome};
-use mbs_core::shard::Shard;
 
 /// Arguments of `synth`.
 #[derive(Parser)]
@@ -61,18 +60,14 @@ pub struct Args {
     /// Do not record SHA-256 checksums in the manifest.
     #[arg(long)]
     pub no_checksums: bool,
-    /// Render only shard K of N (0-based); run once more without it to write the manifest.
-    /// `auto` reads K and N from a SLURM array, `srun` or `mpirun`.
-    #[arg(long, value_name = "K/N|auto")]
-    pub shard: Option<Shard>,
-    /// Worker threads (0 = one per core).
-    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
-    pub jobs: usize,
+    /// Sharding and worker threads.
+    #[command(flatten)]
+    pub batch: crate::cli::flags::Batch,
 }
 
 /// Runs `synth`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    crate::cli::set_threads(args.jobs)?;
+    args.batch.threads.start()?;
     let rig = args.rig.rig();
     let spec = DatasetSpec {
         rig,
@@ -87,7 +82,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         checksums: !args.no_checksums,
     };
     let frames = spec.frames();
-    let frames = match args.shard {
+    let frames = match args.batch.shard {
         Some(shard) => shard.select(frames),
         None => frames,
     };
@@ -96,11 +91,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .iter()
         .flat_map(|f| spec.frame_outputs(&args.out, f))
         .collect();
-    if args.shard.is_none() {
+    if args.batch.shard.is_none() {
         outputs.push(manifest_path.clone());
     }
     let inputs = InputFiles::new();
-    let _out = crate::cli::take_out(&args.out, args.shard, "synth", &inputs, &outputs)?;
+    let _out = crate::cli::take_out(&args.out, args.batch.shard, "synth", &inputs, &outputs)?;
     let summary = batch::run(
         &frames,
         "scenes",
@@ -114,7 +109,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
     );
     summary.finish("synth", "scenes")?;
-    if args.shard.is_none() {
+    if args.batch.shard.is_none() {
         spec.manifest(&args.out)?.save(&manifest_path)?;
         eprintln!(
             "synth: {} samples ({} scenes x {} weathers) -> {}",

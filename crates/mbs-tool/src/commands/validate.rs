@@ -29,9 +29,9 @@ pub struct Args {
     /// Print a machine-readable JSON report on stdout instead of lines.
     #[arg(long)]
     pub json: bool,
-    /// Worker threads (0 = one per core).
-    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
-    pub jobs: usize,
+    /// Worker threads.
+    #[command(flatten)]
+    pub threads: crate::cli::flags::Jobs,
 }
 
 /// A progress bar sized once the manifest is read.
@@ -49,7 +49,7 @@ impl Progress for BarProgress {
 
 /// Runs `validate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    crate::cli::set_threads(args.jobs)?;
+    args.threads.start()?;
     let bar = BarProgress(progress_bar(0, "samples"));
     let start = std::time::Instant::now();
     let report = validate_manifest(&args.manifest, ValidateOptions { deep: args.deep }, &bar);

@@ -134,9 +134,9 @@ pub struct Args {
     /// Print the effective settings as JSON and exit.
     #[arg(long)]
     pub print_config: bool,
-    /// Worker threads for the network (0 = one per core).
-    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
-    pub jobs: usize,
+    /// Worker threads for the network.
+    #[command(flatten)]
+    pub threads: crate::cli::flags::Jobs,
 }
 
 impl Args {
@@ -212,7 +212,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (Some(manifest), Some(out)) = (&args.manifest, &args.out) else {
         bail!("give a MANIFEST and --out DIR");
     };
-    crate::cli::set_threads(args.jobs)?;
+    args.threads.start()?;
     let processes = crate::cli::processes::join()?;
     match (
         train(&args, config, manifest, out, processes.clone()),
