@@ -1,7 +1,6 @@
 //! Rig geometry, image / disparity / depth types, file formats with atomic
-//! and confined writing, disparity metrics and their reports, and settings
-//! in layers, shared by every mbs crate (operations on images are
-//! `mbs-image`'s).
+//! and confined writing, and settings in layers, shared by every mbs crate
+//! (operations on images are `mbs-image`'s, scoring is `mbs-eval`'s).
 //!
 //! Conventions (see `docs/conventions.md` §2): cameras sit on one horizontal line, camera
 //! `k` at `x = k * B`; disparity is a non-negative magnitude on the reference
@@ -17,7 +16,6 @@ pub mod inputs;
 pub mod layered;
 pub mod limits;
 pub mod lock;
-pub mod metrics;
 pub mod out_dir;
 pub mod regular;
 pub mod shard;

@@ -1,14 +1,14 @@
 //! The public stereo benchmarks whose folders mbs reads as their downloads
 //! unpack, and the one table ([`Benchmark::layout`]) that says how: the
 //! flag that names a folder, what the folder holds, how its pairs are
-//! listed and which rules' data it is. A new layout is its module, its
-//! test and one row here. How each is scored (its threshold, the paper's
-//! Table 4's included) is `mbs_core::metrics::Protocol`'s business.
+//! listed and which rules' data it is ([`Dataset`]: what a scoring
+//! protocol is applied to). A new layout is its module, its test and one
+//! row here. How each is scored (its threshold, the paper's Table 4's
+//! included) is `mbs_eval::Protocol`'s business.
 
 use std::fmt;
 use std::path::Path;
-
-use mbs_core::metrics::Dataset;
+use std::str::FromStr;
 
 use crate::DatasetError;
 use crate::kitti::{self, KittiVersion};
@@ -49,6 +49,112 @@ impl Benchmark {
             Benchmark::DrivingStereo => "DrivingStereo",
             Benchmark::SceneFlow => "SceneFlow",
         }
+    }
+}
+
+/// What a protocol is applied to: its rules depend on the benchmark.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Dataset {
+    /// KITTI 2015 (`disp_occ_0`, `disp_noc_0`).
+    Kitti2015,
+    /// KITTI 2012 (`disp_occ`, `disp_noc`).
+    Kitti2012,
+    /// Middlebury 2014 / MiddEval3.
+    Middlebury,
+    /// ETH3D two-view.
+    Eth3d,
+    /// DrivingStereo.
+    DrivingStereo,
+    /// SceneFlow (FlyingThings3D, Driving, Monkaa).
+    SceneFlow,
+    /// Anything else: a manifest, a single ground-truth file.
+    Other,
+}
+
+impl Dataset {
+    /// Every dataset, in table order.
+    pub const EVERY: [Dataset; 7] = [
+        Dataset::Kitti2015,
+        Dataset::Kitti2012,
+        Dataset::Middlebury,
+        Dataset::Eth3d,
+        Dataset::DrivingStereo,
+        Dataset::SceneFlow,
+        Dataset::Other,
+    ];
+
+    /// The name tables and messages use.
+    pub fn name(self) -> &'static str {
+        match self {
+            Dataset::Kitti2015 => "KITTI 2015",
+            Dataset::Kitti2012 => "KITTI 2012",
+            Dataset::Middlebury => "Middlebury",
+            Dataset::Eth3d => "ETH3D",
+            Dataset::DrivingStereo => "DrivingStereo",
+            Dataset::SceneFlow => "SceneFlow",
+            Dataset::Other => "other data",
+        }
+    }
+
+    /// The dataset's key, as settings and bindings name it (`kitti2015`,
+    /// `kitti2012`, `middlebury`, `eth3d`, `drivingstereo`, `sceneflow`,
+    /// `other`); [`Dataset::from_str`] reads it back.
+    pub fn key(self) -> &'static str {
+        match self {
+            Dataset::Kitti2015 => "kitti2015",
+            Dataset::Kitti2012 => "kitti2012",
+            Dataset::Middlebury => "middlebury",
+            Dataset::Eth3d => "eth3d",
+            Dataset::DrivingStereo => "drivingstereo",
+            Dataset::SceneFlow => "sceneflow",
+            Dataset::Other => "other",
+        }
+    }
+}
+
+impl FromStr for Dataset {
+    type Err = UnknownName;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        Dataset::EVERY
+            .into_iter()
+            .find(|d| d.key() == text)
+            .ok_or_else(|| UnknownName::new(text, "dataset", Dataset::EVERY.map(Dataset::key)))
+    }
+}
+
+/// A name that is not one of its kind's ([`Dataset::from_str`],
+/// [`Benchmark::from_str`]), with the names there are.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("`{name}` is not a {kind}: {choices}")]
+pub struct UnknownName {
+    /// The name given.
+    pub name: String,
+    /// What it should have named (`dataset`, `benchmark`).
+    pub kind: &'static str,
+    /// The names there are, in words (`a, b or c`).
+    pub choices: String,
+}
+
+impl UnknownName {
+    /// `name`, which is none of `names` of `kind`.
+    fn new<const N: usize>(name: &str, kind: &'static str, names: [&str; N]) -> UnknownName {
+        let choices = match names.split_last() {
+            Some((last, [])) => last.to_string(),
+            Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
+            None => String::new(),
+        };
+        UnknownName {
+            name: name.to_string(),
+            kind,
+            choices,
+        }
+    }
+}
+
+impl fmt::Display for Dataset {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
     }
 }
 
@@ -125,6 +231,12 @@ impl Benchmark {
         }
     }
 
+    /// Whose scoring rules the pairs of the folder `dir` follow (KITTI:
+    /// the year its ground-truth folders name).
+    pub fn dataset(self, dir: &Path) -> Dataset {
+        (self.layout().dataset)(dir)
+    }
+
     /// The name of the folder `dir` of this benchmark in tables: the
     /// benchmark (KITTI with its year) and the folder's name, e.g.
     /// `KITTI 2015 training` or `DrivingStereo rainy`.
@@ -133,7 +245,7 @@ impl Benchmark {
             || dir.display().to_string(),
             |n| n.to_string_lossy().into_owned(),
         );
-        match (self.layout().dataset)(dir) {
+        match self.dataset(dir) {
             Dataset::Other => format!("{self} {name}"),
             dataset => format!("{} {name}", dataset.name()),
         }
@@ -153,6 +265,21 @@ fn kitti_dataset(dir: &Path) -> Dataset {
 impl fmt::Display for Benchmark {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
+    }
+}
+
+impl FromStr for Benchmark {
+    type Err = UnknownName;
+
+    /// A benchmark by its flag's name (`kitti`, `middlebury`, `eth3d`,
+    /// `drivingstereo`, `sceneflow`).
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        Benchmark::ALL
+            .into_iter()
+            .find(|b| b.layout().flag == text)
+            .ok_or_else(|| {
+                UnknownName::new(text, "benchmark", Benchmark::ALL.map(|b| b.layout().flag))
+            })
     }
 }
 
@@ -187,6 +314,39 @@ mod tests {
         assert_eq!(
             names,
             ["KITTI", "Middlebury", "ETH3D", "DrivingStereo", "SceneFlow"]
+        );
+    }
+
+    #[test]
+    fn benchmarks_and_datasets_parse_back_from_their_names() {
+        for benchmark in Benchmark::ALL {
+            assert_eq!(benchmark.layout().flag.parse(), Ok(benchmark));
+        }
+        for dataset in Dataset::EVERY {
+            assert_eq!(dataset.key().parse(), Ok(dataset));
+        }
+        let err = "KITTI".parse::<Benchmark>().unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "`KITTI` is not a benchmark: kitti, middlebury, eth3d, drivingstereo or sceneflow"
+        );
+        let err = "kitti".parse::<Dataset>().unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "`kitti` is not a dataset: kitti2015, kitti2012, middlebury, eth3d, drivingstereo, \
+             sceneflow or other"
+        );
+    }
+
+    #[test]
+    fn a_folder_follows_its_benchmarks_rules() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir_all(dir.path().join("disp_occ_0")).unwrap();
+        assert_eq!(Benchmark::Kitti.dataset(dir.path()), Dataset::Kitti2015);
+        assert_eq!(Benchmark::Kitti.dataset(Path::new("/none")), Dataset::Other);
+        assert_eq!(
+            Benchmark::Middlebury.dataset(Path::new("/none")),
+            Dataset::Middlebury
         );
     }
 }

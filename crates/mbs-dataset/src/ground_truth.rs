@@ -7,7 +7,6 @@ use std::path::{Path, PathBuf};
 
 use mbs_core::FormatError;
 use mbs_core::formats::{read_disparity, rgb::read_mask};
-use mbs_core::metrics::valid_mask;
 use mbs_core::{FloatImage, MaskImage};
 
 use crate::DatasetError;
@@ -125,6 +124,18 @@ impl NocSource {
     }
 }
 
+/// The non-occluded mask implied by a non-occluded GT map (KITTI
+/// `disp_noc`): set where the map is finite.
+fn valid_mask(map: &FloatImage) -> MaskImage {
+    let data = map
+        .as_raw()
+        .iter()
+        .map(|v| if v.is_finite() { 255 } else { 0 })
+        .collect();
+    // One sample per pixel in both images, so the length matches.
+    MaskImage::from_raw(map.width(), map.height(), data).expect("same size as the map")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -168,5 +179,11 @@ mod tests {
         assert_eq!(loaded.noc.unwrap().as_raw(), &vec![0, 255]);
         let mask = file(1.0, NocSource::Mask(occ)).load(None).unwrap();
         assert_eq!(mask.noc.unwrap().as_raw(), &vec![255, 0]);
+    }
+
+    #[test]
+    fn valid_mask_marks_finite_pixels() {
+        let map = FloatImage::from_raw(3, 1, vec![1.0, f32::INFINITY, f32::NAN]).unwrap();
+        assert_eq!(valid_mask(&map).as_raw(), &vec![255, 0, 0]);
     }
 }

@@ -10,7 +10,7 @@ use mbs_core::Side;
 use mbs_core::inputs::InputFiles;
 
 use crate::DatasetError;
-use crate::benchmark::Benchmark;
+use crate::benchmark::{Benchmark, Dataset};
 use crate::ground_truth::{GroundTruthFile, NocSource};
 use crate::kitti::{self, KittiFolder, KittiFrames};
 use crate::manifest::{Manifest, Sample, Split, resolve};
@@ -84,6 +84,27 @@ impl PairSource {
                 let manifest = Manifest::load(path)?;
                 manifest_pairs(path, &manifest, &[*cameras], *split)
             }
+        }
+    }
+
+    /// The dataset whose scoring rules the source's pairs follow: the
+    /// benchmark (KITTI with its year), or other data for manifests and
+    /// single pairs.
+    pub fn dataset(&self) -> Dataset {
+        match self {
+            PairSource::Kitti { dir, .. } => Benchmark::Kitti.dataset(dir),
+            PairSource::Benchmark { benchmark, dir } => benchmark.dataset(dir),
+            PairSource::Single { .. } | PairSource::Manifest { .. } => Dataset::Other,
+        }
+    }
+
+    /// Where the source's frames are, for messages: its folder, its
+    /// manifest or its left view.
+    pub fn place(&self) -> &Path {
+        match self {
+            PairSource::Single { left, .. } => left,
+            PairSource::Kitti { dir, .. } | PairSource::Benchmark { dir, .. } => dir,
+            PairSource::Manifest { path, .. } => path,
         }
     }
 
@@ -311,5 +332,33 @@ mod tests {
         assert_eq!(pairs[0].side, Side::Right);
         let err = source.scored_pairs().unwrap_err().to_string();
         assert_eq!(err, "a/im2.png: no ground truth");
+    }
+
+    #[test]
+    fn each_source_names_its_rules_data_and_its_place() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir_all(dir.path().join("disp_occ")).unwrap();
+        assert_eq!(kitti(dir.path()).dataset(), Dataset::Kitti2012);
+        assert_eq!(kitti(dir.path()).place(), dir.path());
+        let eth3d = PairSource::Benchmark {
+            benchmark: Benchmark::Eth3d,
+            dir: dir.path().join("two_view_training"),
+        };
+        assert_eq!(eth3d.dataset(), Dataset::Eth3d);
+        let manifest = PairSource::Manifest {
+            path: PathBuf::from("m/manifest.json"),
+            cameras: (0, 1),
+            split: None,
+        };
+        assert_eq!(manifest.dataset(), Dataset::Other);
+        assert_eq!(manifest.place(), Path::new("m/manifest.json"));
+        let single = PairSource::Single {
+            left: PathBuf::from("l.png"),
+            right: PathBuf::from("r.png"),
+        };
+        assert_eq!(
+            (single.dataset(), single.place()),
+            (Dataset::Other, Path::new("l.png"))
+        );
     }
 }

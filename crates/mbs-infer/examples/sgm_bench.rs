@@ -15,7 +15,7 @@ use std::time::Instant;
 
 use mbs_core::FloatImage;
 use mbs_core::formats::rgb::read_rgb;
-use mbs_core::metrics::evaluate;
+use mbs_eval::evaluate;
 use mbs_infer::{Sgm, SgmConfig, SgmPaths, StereoMatcher};
 
 type BoxError = Box<dyn std::error::Error>;

@@ -3,8 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
-use mbs_core::metrics::{Metrics, evaluate};
 use mbs_core::{FloatImage, RgbImage};
+use mbs_eval::{Metrics, evaluate};
 use mbs_infer::{BlockMatcher, Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max_disparity};
 
 fn data(rel: &str) -> PathBuf {

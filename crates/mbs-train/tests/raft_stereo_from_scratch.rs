@@ -21,7 +21,7 @@
 
 use std::sync::atomic::AtomicBool;
 
-use mbs_core::metrics::Region;
+use mbs_eval::Region;
 use mbs_train::RunConfig;
 use mbs_train::run::{End, Quiet, TrainingRun, read_log};
 

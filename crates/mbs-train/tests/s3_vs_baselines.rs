@@ -7,7 +7,7 @@
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
-use mbs_core::metrics::Region;
+use mbs_eval::Region;
 use mbs_train::RunConfig;
 use mbs_train::data::validation::ValidationMetrics;
 use mbs_train::run::{End, Quiet, TrainingRun};

@@ -1,12 +1,9 @@
 //! Which stereo pairs a command works on: one pair of files, a benchmark's
 //! folder (KITTI, Middlebury, ETH3D, DrivingStereo, SceneFlow) or one
 //! camera pair of a manifest (`REFERENCE:TARGET`, e.g. `0:4`), as flags
-//! shared by `predict` and `eval` and turned into a [`PairSource`]; and
-//! the lists of frames `eval` and `benchmark` score ([`FrameList`]).
+//! shared by `predict` and `eval` and turned into a [`PairSource`].
 
-use std::path::{Path, PathBuf};
-
-use anyhow::{Context, bail};
+use std::path::PathBuf;
 
 use mbs_dataset::Split;
 use mbs_dataset::pairs::PairSource;
@@ -64,49 +61,6 @@ impl PairArgs {
     }
 }
 
-/// The frames a `--frames` file lists, by name (pair ids: KITTI
-/// `000000_10`, a Middlebury or ETH3D scene folder, a DrivingStereo frame
-/// stem, a SceneFlow `TEST/A/0000/0006`, a manifest sample id).
-#[derive(Debug, Clone, PartialEq)]
-pub struct FrameList {
-    /// The file the names come from.
-    pub path: PathBuf,
-    /// The names, in file order.
-    pub names: Vec<String>,
-}
-
-impl FrameList {
-    /// Reads a list: one name a line, surrounding blanks trimmed, blank
-    /// lines and `#` comments (to the end of the line) ignored. A list
-    /// without a name is an error naming the file.
-    pub fn read(path: &Path) -> anyhow::Result<FrameList> {
-        let text = mbs_core::regular::read_text(path)
-            .with_context(|| format!("reading the frame list {}", path.display()))?;
-        let names = parse_frame_names(&text);
-        if names.is_empty() {
-            bail!("{}: the frame list names no frame", path.display());
-        }
-        Ok(FrameList {
-            path: path.to_path_buf(),
-            names,
-        })
-    }
-
-    /// Whether `name` is listed.
-    pub fn contains(&self, name: &str) -> bool {
-        self.names.iter().any(|n| n == name)
-    }
-}
-
-/// The names of a frame list's text (see [`FrameList::read`]).
-fn parse_frame_names(text: &str) -> Vec<String> {
-    text.lines()
-        .map(|line| line.split('#').next().unwrap_or_default().trim())
-        .filter(|name| !name.is_empty())
-        .map(str::to_string)
-        .collect()
-}
-
 /// A split by its manifest name (the names `Split` is serialised with).
 pub fn parse_split(text: &str) -> Result<Split, String> {
     serde_json::from_value(Value::from(text))
@@ -144,24 +98,6 @@ mod tests {
                 .contains("expected REFERENCE:TARGET")
         );
         assert!(parse_pair("a:1").is_err());
-    }
-
-    #[test]
-    fn frame_lists_skip_blanks_and_comments() {
-        let text = "# KITTI 2012 train_all\n000000_10\n\n  000001_10  # second\r\n#000002_10\n";
-        assert_eq!(parse_frame_names(text), ["000000_10", "000001_10"]);
-        let dir = tempfile::tempdir().unwrap();
-        let empty = dir.path().join("empty.txt");
-        std::fs::write(&empty, "# nothing\n\n").unwrap();
-        let err = FrameList::read(&empty).unwrap_err().to_string();
-        assert!(
-            err.contains("empty.txt: the frame list names no frame"),
-            "{err}"
-        );
-        let list = dir.path().join("list.txt");
-        std::fs::write(&list, "a\nb\n").unwrap();
-        let list = FrameList::read(&list).unwrap();
-        assert!(list.contains("b") && !list.contains("c"));
     }
 
     #[test]

@@ -1,11 +1,19 @@
 //! How errors are printed: the message and its causes, each once.
 
+use std::error::Error;
+
 /// The error and its causes joined by `: `, like anyhow's `{:#}`, but a
 /// cause whose text the message before it already ends with is left out
 /// (readers put their cause in their own message: `a.png: No such file`).
 pub fn describe(error: &anyhow::Error) -> String {
+    describe_error(error.as_ref())
+}
+
+/// [`describe`] of any error: it and its causes (`source()`, one after
+/// the other, as anyhow's chain walks them).
+pub fn describe_error(error: &(dyn Error + 'static)) -> String {
     let mut out = String::new();
-    for cause in error.chain() {
+    for cause in std::iter::successors(Some(error), |&e| e.source()) {
         let text = cause.to_string();
         if out.ends_with(&text) {
             continue;
@@ -21,7 +29,12 @@ pub fn describe(error: &anyhow::Error) -> String {
 /// `describe(error)`, prefixed with `name: ` unless the message already
 /// starts with it (most messages name their file first).
 pub fn describe_item(name: &str, error: &anyhow::Error) -> String {
-    let text = describe(error);
+    describe_item_error(name, error.as_ref())
+}
+
+/// [`describe_item`] of any error.
+pub fn describe_item_error(name: &str, error: &(dyn Error + 'static)) -> String {
+    let text = describe_error(error);
     if text.starts_with(name) {
         text
     } else {

@@ -6,13 +6,16 @@
 //! exported network (`--backbone`, `--weights`); networks and ONNX models
 //! run on `--device`.
 
+use std::error::Error;
 use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::ValueEnum;
-use mbs_core::RgbImage;
+use mbs_core::formats::rgb::read_rgb;
 use mbs_core::inputs::InputFiles;
+use mbs_core::{FloatImage, RgbImage};
 use mbs_dataset::StereoPair;
+use mbs_eval::Predictor;
 use mbs_infer::onnx::{ModelCard, OnnxStereo};
 use mbs_infer::{Disparity, InferError, Sgm, SgmConfig, SgmPaths, StereoMatcher};
 use mbs_nets::checkpoint::TrainedNetworks;
@@ -217,5 +220,15 @@ impl PairMatcher {
                 .predict_toward_within(reference, target, pair.side, bound),
             None => self.matcher.predict_toward(reference, target, pair.side),
         }
+    }
+}
+
+/// `eval` and `benchmark` score the pairs the source predicts from their
+/// views.
+impl Predictor for PairMatcher {
+    fn predict(&self, pair: &StereoPair) -> Result<FloatImage, Box<dyn Error + Send + Sync>> {
+        let reference = read_rgb(&pair.reference)?;
+        let target = read_rgb(&pair.target)?;
+        Ok(PairMatcher::predict(self, pair, &reference, &target)?.disparity)
     }
 }

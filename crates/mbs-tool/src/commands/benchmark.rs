@@ -10,16 +10,15 @@ use anyhow::{Context, bail};
 use clap::Parser;
 use mbs_core::atomic::{refuse_special_target, write_bytes_atomic};
 use mbs_core::inputs::InputFiles;
-use mbs_core::metrics::{Protocol, ProtocolReport, Region, Rules};
 use mbs_dataset::StereoPair;
 use mbs_dataset::benchmark::Benchmark;
 use mbs_dataset::pairs::PairSource;
+use mbs_eval::{FrameList, Listing, Protocol, ProtocolReport, Region, Rules, check_listed, items};
 use mbs_infer::SgmConfig;
 use serde_json::{Value, json};
 
 use crate::cli::folders::{BenchmarkFolders, Every};
-use crate::cli::pairs::FrameList;
-use crate::cli::scoring::{Listing, check_listed, dataset_of, items, score_all};
+use crate::cli::scoring::{score_with_bar, warn_unscored};
 use crate::cli::source::StereoSourceArgs;
 
 /// Arguments of `benchmark`.
@@ -113,7 +112,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         } = folder;
         eprintln!("{label}: {} images", listing.pairs.len());
         let items = items(listing.pairs, None);
-        let (scored, summary) = score_all(&items, Some(&matcher), None, &rules);
+        let (scored, summary) = score_with_bar(&items, Some(&matcher), None, &rules);
+        let scored = scored.images;
         columns.push(Column {
             report: (!scored.is_empty()).then(|| ProtocolReport::new(rules.clone(), scored)),
             label,
@@ -152,11 +152,7 @@ fn print_columns(args: &Args, source: &str, columns: &[Column]) {
 /// Names the frames left unscored, then fails when an image failed.
 fn finish(columns: &[Column]) -> anyhow::Result<()> {
     for c in columns {
-        let listing = Listing {
-            unscored: c.unscored.clone(),
-            ..Listing::default()
-        };
-        listing.warn_unscored(&c.label);
+        warn_unscored(&c.label, &c.unscored);
     }
     let failed: usize = columns.iter().map(|c| c.failed).sum();
     if failed > 0 {
@@ -189,7 +185,7 @@ fn list_folders(args: &Args) -> anyhow::Result<(Vec<Folder>, InputFiles)> {
             benchmark,
             dir: dir.clone(),
         };
-        let mut rules = args.protocol.rules(dataset_of(&source))?;
+        let mut rules = args.protocol.rules(source.dataset())?;
         if let Some(x) = args.threshold {
             rules = rules.with_thresholds(&[x]);
         }

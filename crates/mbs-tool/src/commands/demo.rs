@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::Parser;
 use mbs_core::formats::{DisparityFormat, pfm, png16, rgb};
-use mbs_core::metrics::{MetricsReport, evaluate};
 use mbs_dataset::Manifest;
 use mbs_dataset::mbs20k::{Counts, decoded_disparity_file};
+use mbs_eval::{MetricsReport, evaluate};
 use mbs_image::quality::psnr;
 
 use super::{decode_depth, eval, extrapolate, synth, train, validate};

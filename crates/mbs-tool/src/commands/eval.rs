@@ -7,14 +7,17 @@ use std::path::{Path, PathBuf};
 
 use anyhow::bail;
 use clap::Parser;
-use mbs_core::metrics::{DEFAULT_OUT_THRESHOLDS, Dataset, Protocol, ProtocolReport, Rules};
 use mbs_dataset::ground_truth::{GroundTruthFile, NocSource};
 use mbs_dataset::pairs::PairSource;
+use mbs_eval::{
+    Dataset, FrameList, Item, Listing, Prediction, Predictor, Protocol, ProtocolReport,
+    check_listed, items, rules_for,
+};
 use mbs_infer::SgmConfig;
 use serde_json::json;
 
-use crate::cli::pairs::{FrameList, PairArgs};
-use crate::cli::scoring::{Item, Listing, Prediction, check_listed, dataset_of, items, score_all};
+use crate::cli::pairs::PairArgs;
+use crate::cli::scoring::{score_with_bar, warn_unscored};
 use crate::cli::source::StereoSourceArgs;
 
 /// Arguments of `eval`.
@@ -99,9 +102,11 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::cli::set_threads(args.jobs)?;
     let source = args.pairs.source()?;
-    let dataset = source.as_ref().map_or(Dataset::Other, dataset_of);
-    let place = source.as_ref().map_or_else(String::new, source_name);
-    let rules = rules(&args, dataset)?;
+    let dataset = source.as_ref().map_or(Dataset::Other, PairSource::dataset);
+    let place = source
+        .as_ref()
+        .map_or_else(String::new, |s| s.place().display().to_string());
+    let rules = rules_for(args.protocol, dataset, &args.thresholds)?;
     let (items, unscored) = list_items(&args, source)?;
     let matcher = match items
         .iter()
@@ -113,11 +118,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         false => None,
     };
-    let (scored, summary) = score_all(&items, matcher.as_ref(), args.gt_scale, &rules);
-    if scored.is_empty() {
+    let predictor = matcher.as_ref().map(|m| m as &dyn Predictor);
+    let (scored, summary) = score_with_bar(&items, predictor, args.gt_scale, &rules);
+    if scored.images.is_empty() {
         bail!("no image could be scored (see above)");
     }
-    let report = ProtocolReport::new(rules, scored);
+    let report = ProtocolReport::new(rules, scored.images);
     if args.json {
         let mut json = report.json();
         json["unscored"] = json!(unscored.unscored);
@@ -125,19 +131,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         print!("{}", report.table());
     }
-    unscored.warn_unscored(&place);
+    warn_unscored(&place, &unscored.unscored);
     summary.finish("eval", "images")
-}
-
-/// The protocol's rules for `dataset` at the `--thresholds` given, else
-/// Out-1, 2, 3 under `pixels` and the protocol's own otherwise.
-fn rules(args: &Args, dataset: Dataset) -> anyhow::Result<Rules> {
-    let rules = args.protocol.rules(dataset)?;
-    Ok(match (args.thresholds.is_empty(), args.protocol) {
-        (false, _) => rules.with_thresholds(&args.thresholds),
-        (true, Protocol::Pixels) => rules.with_thresholds(&DEFAULT_OUT_THRESHOLDS),
-        (true, _) => rules,
-    })
 }
 
 /// The items to score (only the `--frames` listed), and the source's
@@ -158,7 +153,7 @@ fn list_items(args: &Args, source: Option<PairSource>) -> anyhow::Result<(Vec<It
             let mut listing = Listing::of(&source)?;
             if let Some(path) = &args.frames {
                 let list = FrameList::read(path)?;
-                check_listed(&list, &[&listing], &source_name(&source))?;
+                check_listed(&list, &[&listing], &source.place().display().to_string())?;
                 listing = listing.keep(&list);
             }
             let pairs = std::mem::take(&mut listing.pairs);
@@ -170,17 +165,6 @@ fn list_items(args: &Args, source: Option<PairSource>) -> anyhow::Result<(Vec<It
                  --drivingstereo, --sceneflow DIR), --manifest FILE or --gt FILE"
             )
         }
-    }
-}
-
-/// Where a source's frames are, for messages: its folder or manifest.
-fn source_name(source: &PairSource) -> String {
-    match source {
-        PairSource::Single { left, .. } => left.display().to_string(),
-        PairSource::Kitti { dir, .. } | PairSource::Benchmark { dir, .. } => {
-            dir.display().to_string()
-        }
-        PairSource::Manifest { path, .. } => path.display().to_string(),
     }
 }
 

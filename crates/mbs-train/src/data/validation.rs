@@ -5,13 +5,13 @@ use std::path::{Path, PathBuf};
 
 use burn::tensor::Device;
 use mbs_core::formats::rgb::read_rgb;
-use mbs_core::metrics::{ErrorSums, Metrics, Region, RegionSums, evaluate};
 use mbs_core::{FloatImage, MaskImage, RgbImage, Side};
 use mbs_dataset::Manifest;
 use mbs_dataset::StereoPair;
 use mbs_dataset::ground_truth::GroundTruthFile;
 use mbs_dataset::manifest::Split;
 use mbs_dataset::pairs::{check_cameras, sample_pair, sample_view};
+use mbs_eval::{ErrorSums, Metrics, Region, RegionSums, evaluate};
 
 use crate::error::TrainError;
 use mbs_nets::Backbone;

@@ -8,7 +8,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use mbs_core::atomic::write_bytes_atomic;
-use mbs_core::metrics::{Metrics, Region};
+use mbs_eval::{Metrics, Region};
 use serde_json::{Value, json};
 
 use crate::data::validation::ValidationMetrics;

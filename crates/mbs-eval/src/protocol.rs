@@ -8,7 +8,9 @@
 use std::fmt;
 use std::str::FromStr;
 
-use super::{DEFAULT_OUT_THRESHOLDS, Metrics, MetricsError};
+use mbs_dataset::benchmark::Dataset;
+
+use crate::sums::{DEFAULT_OUT_THRESHOLDS, Metrics, MetricsError};
 
 /// A named set of scoring rules.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -127,68 +129,6 @@ impl FromStr for Protocol {
             .into_iter()
             .find(|p| p.name() == text)
             .ok_or_else(|| ProtocolError::Unknown(text.to_string()))
-    }
-}
-
-/// What a protocol is applied to: its rules depend on the benchmark.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Dataset {
-    /// KITTI 2015 (`disp_occ_0`, `disp_noc_0`).
-    Kitti2015,
-    /// KITTI 2012 (`disp_occ`, `disp_noc`).
-    Kitti2012,
-    /// Middlebury 2014 / MiddEval3.
-    Middlebury,
-    /// ETH3D two-view.
-    Eth3d,
-    /// DrivingStereo.
-    DrivingStereo,
-    /// SceneFlow (FlyingThings3D, Driving, Monkaa).
-    SceneFlow,
-    /// Anything else: a manifest, a single ground-truth file.
-    Other,
-}
-
-impl Dataset {
-    /// Every dataset, in table order.
-    pub const EVERY: [Dataset; 7] = [
-        Dataset::Kitti2015,
-        Dataset::Kitti2012,
-        Dataset::Middlebury,
-        Dataset::Eth3d,
-        Dataset::DrivingStereo,
-        Dataset::SceneFlow,
-        Dataset::Other,
-    ];
-
-    /// The name tables and messages use.
-    pub fn name(self) -> &'static str {
-        match self {
-            Dataset::Kitti2015 => "KITTI 2015",
-            Dataset::Kitti2012 => "KITTI 2012",
-            Dataset::Middlebury => "Middlebury",
-            Dataset::Eth3d => "ETH3D",
-            Dataset::DrivingStereo => "DrivingStereo",
-            Dataset::SceneFlow => "SceneFlow",
-            Dataset::Other => "other data",
-        }
-    }
-
-    /// The Out-x threshold (pixels) the benchmark is customarily reported
-    /// with (the S3 paper's Table 4); `None` for other data.
-    pub fn customary_threshold(self) -> Option<f32> {
-        match self {
-            Dataset::Kitti2015 | Dataset::Kitti2012 | Dataset::DrivingStereo => Some(3.0),
-            Dataset::Middlebury => Some(2.0),
-            Dataset::Eth3d | Dataset::SceneFlow => Some(1.0),
-            Dataset::Other => None,
-        }
-    }
-}
-
-impl fmt::Display for Dataset {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
     }
 }
 
@@ -315,7 +255,7 @@ pub enum PredictionRule {
     /// is a missing prediction: an outlier, left out of EPE.
     AsIs,
     /// The KITTI devkits: a value that is not finite or below 0 is a hole,
-    /// filled by [`super::interpolate_background`] before the comparison;
+    /// filled by [`crate::interpolate_background`] before the comparison;
     /// the density counts the values that were there.
     KittiBackground,
     /// ETH3D: a value that is not finite or beyond ± the image width is
@@ -471,11 +411,36 @@ impl Rules {
     }
 }
 
+/// `protocol`'s rules for `dataset` at `thresholds` (the headline Out-x
+/// of the first), or when none is given at Out-1, 2, 3 under `pixels` and
+/// the protocol's own otherwise: `eval`'s `--protocol` and `--thresholds`.
+pub fn rules_for(
+    protocol: Protocol,
+    dataset: Dataset,
+    thresholds: &[f32],
+) -> Result<Rules, ProtocolError> {
+    let rules = protocol.rules(dataset)?;
+    Ok(match (thresholds.is_empty(), protocol) {
+        (false, _) => rules.with_thresholds(thresholds),
+        (true, Protocol::Pixels) => rules.with_thresholds(&DEFAULT_OUT_THRESHOLDS),
+        (true, _) => rules,
+    })
+}
+
+/// The Out-x threshold (pixels) `dataset` is customarily reported with
+/// (the S3 paper's Table 4); `None` for other data.
+fn customary_threshold(dataset: Dataset) -> Option<f32> {
+    match dataset {
+        Dataset::Kitti2015 | Dataset::Kitti2012 | Dataset::DrivingStereo => Some(3.0),
+        Dataset::Middlebury => Some(2.0),
+        Dataset::Eth3d | Dataset::SceneFlow => Some(1.0),
+        Dataset::Other => None,
+    }
+}
+
 /// The threshold of `dataset`, or Out-1, 2, 3 for other data.
 fn customary(dataset: Dataset) -> Vec<f32> {
-    dataset
-        .customary_threshold()
-        .map_or(DEFAULT_OUT_THRESHOLDS.to_vec(), |x| vec![x])
+    customary_threshold(dataset).map_or(DEFAULT_OUT_THRESHOLDS.to_vec(), |x| vec![x])
 }
 
 /// mbs's own: finite ground truth, as is, pooled over pixels.
@@ -688,5 +653,19 @@ mod tests {
             (Figure::Out(2.5), vec![2.5])
         );
         assert_eq!(Figure::Out(0.5).key(), "out0.5");
+    }
+
+    #[test]
+    fn rules_for_takes_the_thresholds_given_else_eval_s_defaults() {
+        let pixels = rules_for(Protocol::Pixels, Dataset::Kitti2015, &[]).unwrap();
+        assert_eq!(pixels.thresholds, DEFAULT_OUT_THRESHOLDS);
+        let s3 = rules_for(Protocol::S3, Dataset::Kitti2015, &[]).unwrap();
+        assert_eq!(s3, Protocol::S3.rules(Dataset::Kitti2015).unwrap());
+        let given = rules_for(Protocol::S3, Dataset::Eth3d, &[0.5, 2.0]).unwrap();
+        assert_eq!(
+            (given.headline, given.thresholds),
+            (Figure::Out(0.5), vec![0.5, 2.0])
+        );
+        assert!(rules_for(Protocol::Kitti, Dataset::Other, &[]).is_err());
     }
 }

@@ -4,7 +4,7 @@
 
 use serde_json::{Value, json};
 
-use super::{MeanMetrics, Metrics, Region, RegionSums};
+use crate::sums::{MeanMetrics, Metrics, Region, RegionSums};
 
 /// Per-image sums with their per-image means and pixel-pooled totals.
 pub struct MetricsReport {
@@ -138,9 +138,10 @@ pub fn metrics_json(m: &Metrics) -> Value {
 
 #[cfg(test)]
 mod tests {
+    use mbs_core::FloatImage;
+
     use super::*;
-    use crate::FloatImage;
-    use crate::metrics::evaluate;
+    use crate::sums::evaluate;
 
     #[test]
     fn mean_weighs_images_and_pooled_weighs_pixels() {

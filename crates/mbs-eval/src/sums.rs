@@ -19,26 +19,12 @@
 //!   evaluation (the built-in SGM does, from the background side).
 //! - An empty set of pixels gives `None`, never `NaN`.
 //!
-//! Those are the `pixels` protocol's rules; [`Protocol`] names the other
-//! projects' rules (stereo_toolbox, RAFT-Stereo, IGEV-Stereo, the KITTI,
-//! ETH3D and Middlebury evaluators), scored through [`Rules::score`] and
-//! combined by [`ProtocolReport`].
+//! Those are the `pixels` protocol's rules; [`crate::Protocol`] names the
+//! other projects' rules (stereo_toolbox, RAFT-Stereo, IGEV-Stereo, the
+//! KITTI, ETH3D and Middlebury evaluators), scored through
+//! [`crate::Rules::score`] and combined by [`crate::ProtocolReport`].
 
-mod prediction;
-mod protocol;
-mod protocol_report;
-mod report;
-mod score;
-
-pub use prediction::interpolate_background;
-pub use protocol::{
-    Aggregation, Dataset, Figure, GtRange, PredictionRule, Protocol, ProtocolError, Regions, Rules,
-};
-pub use protocol_report::ProtocolReport;
-pub use report::{MetricsReport, metrics_json};
-pub use score::{Frame, ImageScore, Summary, Tally};
-
-use crate::{FloatImage, MaskImage};
+use mbs_core::{FloatImage, MaskImage};
 
 /// The Out-x thresholds tracked by [`ErrorSums::new`] (pixels).
 pub const DEFAULT_OUT_THRESHOLDS: [f32; 3] = [1.0, 2.0, 3.0];
@@ -307,18 +293,6 @@ pub fn evaluate(
     Ok(sums)
 }
 
-/// The non-occluded mask implied by a non-occluded GT map (KITTI
-/// `disp_noc`): set where the map is finite.
-pub fn valid_mask(map: &FloatImage) -> MaskImage {
-    let data = map
-        .as_raw()
-        .iter()
-        .map(|v| if v.is_finite() { 255 } else { 0 })
-        .collect();
-    // One sample per pixel in both images, so the length matches.
-    MaskImage::from_raw(map.width(), map.height(), data).expect("same size as the map")
-}
-
 /// Per-image averages of [`Metrics`] over a set: each value is the mean of
 /// the images where it is defined, so an image with an empty region does not
 /// pull the mean towards zero.
@@ -535,11 +509,5 @@ mod tests {
                 ..
             })
         ));
-    }
-
-    #[test]
-    fn valid_mask_marks_finite_pixels() {
-        let m = valid_mask(&map(3, 1, vec![1.0, f32::INFINITY, f32::NAN]));
-        assert_eq!(m.as_raw(), &vec![255, 0, 0]);
     }
 }

@@ -2,12 +2,11 @@
 //! counts of each region, and a set of images combined as the protocol
 //! combines them ([`Rules::summarise`]).
 
-use super::prediction::prepare;
-use super::protocol::{Aggregation, PredictionRule, ProtocolError, Regions, Rules};
-use super::{
-    D1_ABS_PX, ErrorSums, FloatImage, MaskImage, MeanMetrics, Metrics, MetricsError, Region,
-    RegionSums,
-};
+use mbs_core::{FloatImage, MaskImage};
+
+use crate::prediction::prepare;
+use crate::protocol::{Aggregation, PredictionRule, ProtocolError, Regions, Rules};
+use crate::sums::{D1_ABS_PX, ErrorSums, MeanMetrics, Metrics, MetricsError, Region, RegionSums};
 
 /// The KITTI devkits' relative D1 bound, compared in double precision as
 /// `#define REL_THRESH 0.05` is.
@@ -91,7 +90,7 @@ impl ImageScore {
             .map(|(_, t)| t)
     }
 
-    /// The error sums per region, as [`super::evaluate`] gives them (the
+    /// The error sums per region, as [`crate::evaluate`] gives them (the
     /// `pixels` protocol's report).
     pub fn region_sums(&self) -> RegionSums {
         let sums = |region| self.get(region).map(|t| t.sums.clone());
@@ -232,8 +231,10 @@ impl Rules {
 
 #[cfg(test)]
 mod tests {
-    use super::super::protocol::{Dataset, Protocol};
+    use mbs_dataset::benchmark::Dataset;
+
     use super::*;
+    use crate::protocol::Protocol;
 
     fn map(values: &[f32]) -> FloatImage {
         FloatImage::from_raw(values.len() as u32, 1, values.to_vec()).unwrap()

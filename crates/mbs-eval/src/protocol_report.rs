@@ -5,9 +5,10 @@
 
 use serde_json::{Value, json};
 
-use super::protocol::{Protocol, Rules};
-use super::score::{ImageScore, Summary};
-use super::{Metrics, MetricsReport, Region, metrics_json};
+use crate::protocol::{Protocol, Rules};
+use crate::report::{MetricsReport, metrics_json};
+use crate::score::{ImageScore, Summary};
+use crate::sums::{Metrics, Region};
 
 /// Images scored under one protocol's rules.
 pub struct ProtocolReport {
@@ -171,10 +172,11 @@ impl ProtocolReport {
 
 #[cfg(test)]
 mod tests {
-    use super::super::protocol::Dataset;
-    use super::super::score::Frame;
+    use mbs_core::FloatImage;
+    use mbs_dataset::benchmark::Dataset;
+
     use super::*;
-    use crate::FloatImage;
+    use crate::score::Frame;
 
     fn report(protocol: Protocol) -> ProtocolReport {
         let rules = protocol.rules(Dataset::DrivingStereo).unwrap();

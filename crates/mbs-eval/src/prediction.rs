@@ -3,8 +3,10 @@
 //! filling, ETH3D's not-estimated pixels, and MiddEval3 evaldisp's
 //! upsampling and clipping.
 
-use super::protocol::{PredictionRule, ProtocolError};
-use super::{FloatImage, MetricsError};
+use mbs_core::FloatImage;
+
+use crate::protocol::{PredictionRule, ProtocolError};
+use crate::sums::MetricsError;
 
 /// evaldisp's `maxdisp` when none is given (evaldisp.cpp `main`).
 const EVALDISP_DEFAULT_MAXDISP: f32 = 99999.0;
@@ -12,7 +14,7 @@ const EVALDISP_DEFAULT_MAXDISP: f32 = 99999.0;
 /// A prediction on the ground truth's grid, with which of its pixels count
 /// as estimated.
 #[derive(Debug)]
-pub(super) struct Prepared {
+pub(crate) struct Prepared {
     /// The values compared, row-major at the ground truth's size.
     pub values: Vec<f32>,
     /// Whether the prediction had a value there (the density's count).
@@ -21,7 +23,7 @@ pub(super) struct Prepared {
 
 /// `prediction` as `rule` compares it with a ground truth of `size`;
 /// `bound` is the scene's `ndisp` at the ground truth's resolution.
-pub(super) fn prepare(
+pub(crate) fn prepare(
     rule: PredictionRule,
     prediction: &FloatImage,
     size: (u32, u32),
