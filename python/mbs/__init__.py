@@ -23,6 +23,7 @@ Example::
     predicted = mbs.match_stereo(left, right, max_disparity=128)
     views = mbs.extrapolate(left, right)                  # image_1, image_4, masks, disparities
     scene = mbs.synth_scene(seed=3, views=5)              # views, depth, disparity per camera
+    report = mbs.score(predicted, gt)                     # the S3 paper's protocol, as eval
 """
 
 import json as _json
@@ -100,6 +101,87 @@ def validate(path: _Union[str, _PathLike[str]], deep: bool = False) -> dict[str,
     return report
 
 
+def score(
+    prediction: _Any,
+    gt: _Any,
+    *,
+    noc: _Any = None,
+    protocol: str = "s3",
+    dataset: str = "other",
+    disparity_bound: _Union[int, None] = None,
+    thresholds: _Union[list[float], None] = None,
+    name: str = "image",
+) -> dict[str, _Any]:
+    """Score a predicted disparity against its ground truth under a protocol.
+
+    As ``mbs-tool eval PRED --gt GT [--noc MASK] --protocol P --json``, with
+    the same figures to the last digit: the scoring is ``mbs-eval``'s, as
+    ``eval``, ``benchmark`` and the trainer's validation use it. The default
+    protocol is the S3 paper's (``s3``: per image, ground truth in
+    ``(0, 191)``), the figures a paper compares with; ``eval``'s own default
+    is ``pixels`` (every valid pixel, pooled).
+
+    Parameters
+    ----------
+    prediction : numpy.ndarray
+        The predicted disparity (``float32``, ``(H, W)``, ``inf`` where the
+        network gave none).
+    gt : numpy.ndarray
+        The ground truth (``float32``, ``(H, W)``, ``inf`` where unknown).
+    noc : numpy.ndarray, optional
+        The non-occluded mask (``uint8``, ``(H, W)``, non-zero where the
+        pixel is visible in the other view); NOC and OCC need it.
+    protocol : str, default "s3"
+        ``pixels``, ``s3``, ``raft-stereo``, ``igev-stereo``, ``kitti``,
+        ``eth3d`` or ``middlebury`` (docs/evaluation.md).
+    dataset : str, default "other"
+        Whose rules the protocol applies: ``kitti2015``, ``kitti2012``,
+        ``middlebury``, ``eth3d``, ``drivingstereo``, ``sceneflow`` or
+        ``other``.
+    disparity_bound : int, optional
+        The scene's disparity bound (Middlebury's ``ndisp``).
+    thresholds : list of float, optional
+        Out-x thresholds in pixels (default: 1, 2, 3 under ``pixels``, the
+        protocol's own otherwise).
+    name : str, default "image"
+        The image's name in the report.
+
+    Returns
+    -------
+    dict
+        The command's JSON report: ``protocol``, ``dataset``, ``rules``,
+        ``headline``, ``images`` (the image's figures by region) and
+        ``score`` (``ALL``, and ``NOC``/``OCC`` with a mask: ``epe``,
+        ``out1``... as the rules name them, ``density``, ``images``);
+        under ``pixels``, ``eval``'s pooled report.
+
+    Raises
+    ------
+    ValueError
+        An unknown protocol or dataset, a protocol with no rules for the
+        dataset, a wrong array, a ground truth with no valid pixel, or a
+        prediction the rules cannot score (the message names the argument).
+
+    Example::
+
+        report = mbs.score(predicted, gt, noc=mask)      # the S3 paper's protocol
+        print(report["score"]["ALL"]["epe"], report["score"]["NOC"]["out3"])
+    """
+    report: dict[str, _Any] = _json.loads(
+        _native.score_json(
+            prediction,
+            gt,
+            noc=noc,
+            protocol=protocol,  # type: ignore[arg-type]
+            dataset=dataset,  # type: ignore[arg-type]
+            disparity_bound=disparity_bound,
+            thresholds=thresholds,
+            name=name,
+        )
+    )
+    return report
+
+
 __all__ = [
     "decode_carla_depth",
     "depth_to_disparity",
@@ -110,6 +192,7 @@ __all__ = [
     "read_kitti_disparity",
     "read_pfm",
     "read_rgb",
+    "score",
     "synth_scene",
     "validate",
     "write_exr",

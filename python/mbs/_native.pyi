@@ -30,6 +30,7 @@ __all__ = [
     "validate_json",
     "HostBatches",
     "synth_scene",
+    "score_json",
 ]
 
 # A file's path: pyo3 takes `str` and `os.PathLike` (`os.fspath` gives `str`).
@@ -563,4 +564,61 @@ def synth_scene(
     TypeError
         An integer argument is not an integer (a float, a bool, a string; the
         message begins with its name).
+    """
+
+_Protocol: TypeAlias = Literal["pixels", "s3", "raft-stereo", "igev-stereo", "kitti", "eth3d", "middlebury"]
+_Dataset: TypeAlias = Literal["kitti2015", "kitti2012", "middlebury", "eth3d", "drivingstereo", "sceneflow", "other"]
+
+def score_json(
+    prediction: _Map,
+    gt: _Map,
+    *,
+    noc: _Bytes | None = None,
+    protocol: _Protocol = "s3",
+    dataset: _Dataset = "other",
+    disparity_bound: SupportsIndex | None = None,
+    thresholds: list[float] | None = None,
+    name: str = "image",
+) -> str:
+    """Scores a predicted disparity against its ground truth under a protocol.
+
+    As ``mbs-tool eval PRED --gt GT [--noc MASK] --protocol P --json``;
+    ``mbs.score`` parses what it returns.
+
+    Parameters
+    ----------
+    prediction : numpy.ndarray
+        The predicted disparity (``float32``, ``(H, W)``, ``inf`` where the
+        network gave none).
+    gt : numpy.ndarray
+        The ground truth (``float32``, ``(H, W)``, ``inf`` where unknown).
+    noc : numpy.ndarray, optional
+        The non-occluded mask (``uint8``, ``(H, W)``, non-zero where the
+        pixel is visible in the other view); NOC and OCC need it.
+    protocol : str, default "s3"
+        ``pixels``, ``s3``, ``raft-stereo``, ``igev-stereo``, ``kitti``,
+        ``eth3d`` or ``middlebury`` (docs/evaluation.md).
+    dataset : str, default "other"
+        Whose rules the protocol applies: ``kitti2015``, ``kitti2012``,
+        ``middlebury``, ``eth3d``, ``drivingstereo``, ``sceneflow`` or
+        ``other``.
+    disparity_bound : int, optional
+        The scene's disparity bound (Middlebury's ``ndisp``).
+    thresholds : list of float, optional
+        Out-x thresholds in pixels (default: 1, 2, 3 under ``pixels``,
+        the protocol's own otherwise).
+    name : str, default "image"
+        The image's name in the report.
+
+    Returns
+    -------
+    str
+        The command's report as JSON text.
+
+    Raises
+    ------
+    ValueError
+        An unknown protocol or dataset, a protocol with no rules for the
+        dataset, a wrong array, a ground truth with no valid pixel, or a
+        prediction the rules cannot score (the message names the argument).
     """

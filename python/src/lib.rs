@@ -8,6 +8,7 @@
 
 mod batches;
 mod integer;
+mod scoring;
 mod synth;
 
 use std::path::{Path, PathBuf};
@@ -728,5 +729,6 @@ fn _native(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(validate_json, module)?)?;
     module.add_class::<batches::HostBatches>()?;
     module.add_function(wrap_pyfunction!(synth::synth_scene, module)?)?;
+    module.add_function(wrap_pyfunction!(scoring::score_json, module)?)?;
     Ok(())
 }
