@@ -69,7 +69,7 @@ fn trains_logs_draws_checkpoints_and_serves_the_teacher() {
     the_best_teacher_is_kept_and_served(&trained, &val);
     a_finished_run_is_not_trained_again(&args, &trained.out);
     let validated_epe = val[2]["ALL"]["epe"].as_f64().unwrap();
-    eval_scores_the_teacher_as_validated(&trained, validated_epe);
+    eval_scores_the_teacher_as_validated(&trained, &val[2]);
     let map = predict_writes_a_disparity_per_sample(&trained);
     let exported = export_writes_the_teacher(&trained);
     export_never_writes_over_the_checkpoint(&trained);
@@ -225,9 +225,12 @@ fn a_finished_run_is_not_trained_again(args: &[&str], out: &Path) {
     assert_eq!(event_files_after, 1);
 }
 
-/// `eval --checkpoint` scores the teacher on the held-out split, and gives
-/// the same EPE as the last validation of pair 0:1, `validated_epe`.
-fn eval_scores_the_teacher_as_validated(trained: &Trained, validated_epe: f64) {
+/// `eval --checkpoint` scores the teacher on the held-out split under the
+/// protocol validation used (`s3` by default, named in `val.jsonl`), and
+/// gives every figure of the last validation of pair 0:1, `validated`, in
+/// every region, within 1e-6.
+fn eval_scores_the_teacher_as_validated(trained: &Trained, validated: &Value) {
+    assert_eq!(validated["protocol"], "s3", "{validated}");
     let eval = run(&[
         "eval",
         "--checkpoint",
@@ -238,15 +241,23 @@ fn eval_scores_the_teacher_as_validated(trained: &Trained, validated_epe: f64) {
         "0:1",
         "--split",
         "test",
+        "--protocol",
+        "s3",
         "--json",
     ]);
     assert!(eval.status.success(), "{}", text(&eval));
     let report: Value = serde_json::from_slice(&eval.stdout).unwrap();
-    let pooled_epe = report["pooled"]["ALL"]["epe"].as_f64().unwrap();
-    assert!(
-        (pooled_epe - validated_epe).abs() < 1e-3,
-        "eval {pooled_epe} vs validation {validated_epe}"
-    );
+    assert_eq!(report["protocol"], "s3");
+    for region in ["ALL", "NOC", "OCC"] {
+        for figure in ["pixels", "epe", "out1", "out2", "out3"] {
+            let ours = validated[region][figure].as_f64();
+            let theirs = report["score"][region][figure].as_f64();
+            assert!(
+                matches!((ours, theirs), (Some(a), Some(b)) if (a - b).abs() < 1e-6),
+                "{region} {figure}: validation {ours:?} vs eval {theirs:?}"
+            );
+        }
+    }
 }
 
 /// `predict --checkpoint` writes a finite disparity in range per sample;

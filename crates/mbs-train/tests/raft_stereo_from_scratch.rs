@@ -53,8 +53,8 @@ fn small_raft_stereo_learns_where_the_papers_loss_collapses() {
         start.elapsed().as_secs_f64(),
         out3(&before),
         out3(&after),
-        before.all().epe.unwrap(),
-        after.all().epe.unwrap()
+        before.all().unwrap().epe.unwrap(),
+        after.all().unwrap().epe.unwrap()
     );
     assert!(
         out3(&after) <= 0.6 * out3(&before),

@@ -73,7 +73,7 @@ fn out3(m: &ValidationMetrics, region: Region) -> f64 {
 fn summary(name: &str, m: &ValidationMetrics) {
     println!(
         "{name:<28} EPE ALL {:.2}  Out-3 ALL {:5.2} %  NOC {:5.2} %  OCC {:5.2} %",
-        m.all().epe.unwrap(),
+        m.all().unwrap().epe.unwrap(),
         out3(m, Region::All),
         out3(m, Region::Noc),
         out3(m, Region::Occ)

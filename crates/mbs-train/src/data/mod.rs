@@ -23,6 +23,7 @@ pub use loader::BatchLoader;
 pub use mbs_batch::rng::{Stream, step_rng};
 pub use mbs_batch::samples::{TrainingSamples, ViewPaths};
 pub use mbs_batch::{HostBatch, MAX_BATCH_SIZE, MIN_CROP_SIDE};
+use mbs_eval::{Dataset, Protocol};
 pub use validation::{ValidationPair, ValidationSet};
 
 /// How batches are drawn and loaded.
@@ -54,6 +55,13 @@ pub struct DataConfig {
     /// truth is on the training samples (extrapolated KITTI).
     #[config(default = "None")]
     pub val_split: Option<Split>,
+    /// The protocol validation scores under: `s3`, the S3 paper's (per
+    /// image, ground truth in `(0, 191)`, as `benchmark` scores by
+    /// default), so a run's curves are on its published tables' scale; or
+    /// `pixels`, mbs's (every valid pixel, pooled, as `eval` scores by
+    /// default). The other protocols have no rules for a manifest's pairs.
+    #[config(default = "String::from(\"s3\")")]
+    pub val_protocol: String,
 }
 
 impl DataConfig {
@@ -65,8 +73,21 @@ impl DataConfig {
         }
     }
 
-    /// Checks the ranges.
+    /// The protocol validation scores under ([`DataConfig::val_protocol`]).
+    pub fn val_protocol(&self) -> Result<Protocol, TrainError> {
+        let protocol: Protocol = self
+            .val_protocol
+            .parse()
+            .map_err(|e| TrainError::Config(format!("data.val_protocol: {e}")))?;
+        protocol
+            .rules(Dataset::Other)
+            .map_err(|e| TrainError::Config(format!("data.val_protocol: {e}")))?;
+        Ok(protocol)
+    }
+
+    /// Checks the ranges and the validation protocol.
     pub fn validate(&self) -> Result<(), TrainError> {
+        self.val_protocol()?;
         let side = (MIN_CROP_SIDE, MAX_IMAGE_SIDE as usize);
         Ok(ranges::integers_in(&[
             ("batch_size", self.batch_size, (1, MAX_BATCH_SIZE)),
@@ -90,5 +111,23 @@ mod tests {
         );
         assert!(config.validate().is_ok());
         assert!(DataConfig::new().with_batch_size(0).validate().is_err());
+    }
+
+    #[test]
+    fn validation_scores_under_the_s3_protocol_unless_told_pixels() {
+        assert_eq!(DataConfig::new().val_protocol().unwrap(), Protocol::S3);
+        let pixels = DataConfig::new().with_val_protocol("pixels".into());
+        assert_eq!(pixels.val_protocol().unwrap(), Protocol::Pixels);
+        for (name, problem) in [("kitti", "no rules for"), ("evaldisp", "is not a protocol")] {
+            let error = DataConfig::new()
+                .with_val_protocol(name.into())
+                .validate()
+                .unwrap_err()
+                .to_string();
+            assert!(
+                error.contains("data.val_protocol") && error.contains(problem),
+                "{error}"
+            );
+        }
     }
 }

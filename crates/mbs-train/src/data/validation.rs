@@ -1,5 +1,7 @@
-//! Held-out pairs with ground truth, scored during training: EPE and Out-x
-//! over ALL, NOC and OCC pixels, pooled over the set (conventions §6).
+//! Held-out pairs with ground truth, scored during training under a named
+//! protocol (`data.val_protocol`, the S3 paper's by default), through
+//! `mbs-eval` as `eval` and `benchmark` score: EPE and Out-1, 2, 3 over
+//! ALL, NOC and OCC pixels.
 
 use std::path::{Path, PathBuf};
 
@@ -8,17 +10,14 @@ use mbs_core::formats::rgb::read_rgb;
 use mbs_core::{FloatImage, MaskImage, RgbImage, Side};
 use mbs_dataset::Manifest;
 use mbs_dataset::StereoPair;
-use mbs_dataset::ground_truth::GroundTruthFile;
+use mbs_dataset::ground_truth::{GroundTruth, GroundTruthFile};
 use mbs_dataset::manifest::Split;
 use mbs_dataset::pairs::{check_cameras, sample_pair, sample_view};
-use mbs_eval::{ErrorSums, Metrics, Region, RegionSums, evaluate};
+use mbs_eval::{Dataset, Metrics, Protocol, ProtocolReport, Region, Rules, rules_for, score_truth};
 
 use crate::error::TrainError;
 use mbs_nets::Backbone;
 use mbs_nets::inference::predict_image;
-
-/// Out-x thresholds tracked by validation.
-pub const THRESHOLDS: [f32; 3] = [1.0, 2.0, 3.0];
 
 /// One held-out pair with ground truth.
 #[derive(Debug, Clone, PartialEq)]
@@ -66,25 +65,30 @@ impl ValidationPair {
     }
 }
 
-/// The pairs validation scores.
-#[derive(Debug, Clone, PartialEq, Default)]
+/// The pairs validation scores, and the rules it scores them under.
+#[derive(Debug, Clone, PartialEq)]
 pub struct ValidationSet {
     /// In manifest order.
     pub pairs: Vec<ValidationPair>,
+    /// The protocol's rules for a manifest's pairs (`Dataset::Other`).
+    pub rules: Rules,
 }
 
 impl ValidationSet {
     /// Pairs `pairs` of the samples of `split` of a manifest read from
     /// `path` (`None`: the `val` split, or `test` when there is no `val`
-    /// sample); at most `limit` samples (0 = all). Samples without ground
-    /// truth for a pair are skipped, so the set may be empty.
+    /// sample); at most `limit` samples (0 = all), scored under `protocol`.
+    /// Samples without ground truth for a pair are skipped, so the set may
+    /// be empty.
     pub fn from_manifest(
         path: &Path,
         manifest: &Manifest,
         pairs: &[[usize; 2]],
-        split: Option<Split>,
-        limit: usize,
+        (split, limit): (Option<Split>, usize),
+        protocol: Protocol,
     ) -> Result<Self, TrainError> {
+        let rules = rules_for(protocol, Dataset::Other, &[])
+            .map_err(|e| TrainError::Config(format!("data.val_protocol: {e}")))?;
         let views = manifest.rig.num_views;
         let cameras: Vec<(usize, usize)> = pairs.iter().map(|&[r, t]| (r, t)).collect();
         check_cameras(path, manifest, &cameras)?;
@@ -95,7 +99,10 @@ impl ValidationSet {
             Split::Test
         });
         let limit = if limit == 0 { usize::MAX } else { limit };
-        let mut set = ValidationSet::default();
+        let mut set = ValidationSet {
+            pairs: Vec::new(),
+            rules,
+        };
         for sample in held_out(split).take(limit) {
             for &(reference, target) in &cameras {
                 let mut pair = sample_pair(path, sample, (reference, target))?;
@@ -122,31 +129,47 @@ impl ValidationSet {
         self.pairs.is_empty()
     }
 
-    /// Scores `net` on every pair, pooled over pixels.
+    /// Scores `net` on every pair under the set's rules (a pair whose
+    /// ground truth has no valid pixel is left out).
     pub fn evaluate<B: Backbone>(
         &self,
         net: &B,
         device: &Device,
     ) -> Result<ValidationMetrics, TrainError> {
-        let mut pooled = RegionSums::default();
+        let mut images = Vec::new();
         let (mut predicted, mut truth) = (Vec::new(), Vec::new());
         for pair in &self.pairs {
             let loaded = pair.load()?;
+            if !loaded.gt.iter().any(|d| d.is_finite()) {
+                continue;
+            }
             let prediction =
                 predict_image(net, &loaded.reference, &loaded.target, pair.side(), device)?;
-            let sums = evaluate(&prediction, &loaded.gt, loaded.noc.as_ref(), &THRESHOLDS)
-                .map_err(|e| TrainError::data(&pair.truth.disparity, e))?;
-            pooled.merge(&sums);
             for (p, t) in prediction.as_raw().iter().zip(loaded.gt.as_raw().iter()) {
                 if t.is_finite() && p.is_finite() {
                     predicted.push(*p);
                     truth.push(*t);
                 }
             }
+            let gt = GroundTruth {
+                disparity: loaded.gt,
+                noc: loaded.noc,
+            };
+            let at = &pair.truth.disparity;
+            let score = score_truth(
+                &gt,
+                at,
+                &prediction,
+                &pair.pair.reference,
+                None,
+                &self.rules,
+            )
+            .map_err(|e| TrainError::data(at, e))?;
+            images.push((pair.name.clone(), score));
         }
         Ok(ValidationMetrics {
             pairs: self.pairs.len(),
-            pooled,
+            report: ProtocolReport::new(self.rules.clone(), images),
             range: DisparityRange::of(predicted, truth),
         })
     }
@@ -184,26 +207,27 @@ fn percentile(mut values: Vec<f32>, p: f64) -> Option<f32> {
     Some(*values.select_nth_unstable_by(rank, f32::total_cmp).1)
 }
 
-/// Validation metrics pooled over pixels.
+/// Validation figures under the set's protocol.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ValidationMetrics {
     /// Pairs scored.
     pub pairs: usize,
-    /// The error sums of every region, over all pairs' pixels.
-    pub pooled: RegionSums,
+    /// Each pair's scores and the set's, under the protocol's rules.
+    pub report: ProtocolReport,
     /// How far the prediction and the ground truth reach (`None` without
     /// a scored pixel).
     pub range: Option<DisparityRange>,
 }
 
 impl ValidationMetrics {
-    /// The metrics of `region`, if tracked (NOC and OCC need masks).
+    /// The protocol's figures in `region`, if any pair has pixels there
+    /// (NOC and OCC need masks).
     pub fn region(&self, region: Region) -> Option<Metrics> {
-        self.pooled.get(region).map(ErrorSums::metrics)
+        self.report.summary(region).map(|summary| summary.metrics)
     }
 
-    /// The metrics over every valid ground-truth pixel.
-    pub fn all(&self) -> Metrics {
-        self.pooled.all.metrics()
+    /// The protocol's figures over every scored pixel (`None`: none).
+    pub fn all(&self) -> Option<Metrics> {
+        self.region(Region::All)
     }
 }

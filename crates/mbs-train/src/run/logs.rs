@@ -193,6 +193,7 @@ pub fn validation_json(steps: usize, metrics: &ValidationMetrics) -> Value {
     });
     json!({
         "step": steps,
+        "protocol": metrics.report.rules().protocol.name(),
         "pairs": metrics.pairs,
         "ALL": region(metrics.region(Region::All)),
         "NOC": region(metrics.region(Region::Noc)),

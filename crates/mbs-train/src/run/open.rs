@@ -42,8 +42,8 @@ pub(crate) fn load_data(
         manifest,
         &parsed,
         &config.data.val_pairs,
-        config.data.val_split,
-        config.data.val_samples,
+        (config.data.val_split, config.data.val_samples),
+        config.data.val_protocol()?,
     )?;
     Ok((samples, validation))
 }

@@ -189,8 +189,17 @@ impl RunReport {
             .iter()
             .map(|(name, key)| percent(series(&train, name, &["supervision", key])))
             .filter(|s| !s.points.is_empty());
+            // The protocol of the last validation (a line without one is
+            // from a run older than the setting, scored under `pixels`).
+            let protocol = val
+                .last()
+                .and_then(|line| line["protocol"].as_str())
+                .unwrap_or("pixels");
             LineChart {
-                title: "Teacher Out-3 on held-out pairs, and the supervision of training".into(),
+                title: format!(
+                    "Teacher Out-3 ({protocol} protocol) on held-out pairs, and the supervision \
+                     of training"
+                ),
                 x_label: "training step".into(),
                 y_label: "% of pixels".into(),
                 log_y: false,

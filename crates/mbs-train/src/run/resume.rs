@@ -49,7 +49,13 @@ pub fn computing_differences(from: &RunConfig, to: &RunConfig) -> Result<Vec<Str
             for key in OPERATIONAL_KEYS {
                 if key == "data" {
                     if let Some(Value::Object(data)) = map.get_mut("data") {
-                        for operational in ["workers", "val_pairs", "val_samples", "val_split"] {
+                        for operational in [
+                            "workers",
+                            "val_pairs",
+                            "val_samples",
+                            "val_split",
+                            "val_protocol",
+                        ] {
                             data.remove(operational);
                         }
                     }

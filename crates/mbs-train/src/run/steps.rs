@@ -106,7 +106,14 @@ impl TrainingRun {
             true => self.validate(observer)?,
             false => None,
         };
-        let validations = read_log(&self.out.join(VAL_LOG)).unwrap_or_default();
+        // Only the validations under this run's protocol compare with the
+        // next (a line without one is from before the setting: `pixels`).
+        let protocol = self.validation.rules.protocol.name();
+        let validations: Vec<_> = read_log(&self.out.join(VAL_LOG))
+            .unwrap_or_default()
+            .into_iter()
+            .filter(|line| line["protocol"].as_str().unwrap_or("pixels") == protocol)
+            .collect();
         let untrained_out3 = validations
             .iter()
             .find(|l| l["step"] == 0)
@@ -159,7 +166,7 @@ impl TrainingRun {
             return Ok(());
         }
         state.metrics = self.validate(observer)?;
-        let out3 = state.metrics.as_ref().and_then(|m| m.all().out(3.0));
+        let out3 = state.metrics.as_ref().and_then(|m| m.all()?.out(3.0));
         let Some(out3) = out3 else {
             return Ok(());
         };

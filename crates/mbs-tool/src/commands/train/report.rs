@@ -69,7 +69,12 @@ impl Report {
     pub fn summary(&self, last: Option<&ValidationMetrics>) {
         let val = read_log(&self.out.join(VAL_LOG)).unwrap_or_default();
         if let (Some(first), Some(_)) = (val.first(), last) {
-            eprintln!("\nteacher on held-out pairs   EPE ALL   Out-3 ALL   Out-3 NOC   Out-3 OCC");
+            let protocol = val.last().and_then(|l| l["protocol"].as_str());
+            eprintln!(
+                "\nteacher on held-out pairs ({} protocol)",
+                protocol.unwrap_or("pixels")
+            );
+            eprintln!("                           EPE ALL   Out-3 ALL   Out-3 NOC   Out-3 OCC");
             let final_line = val.last().unwrap_or(first);
             let best = best_validation(&val);
             let mut lines = vec![("", first)];
@@ -178,8 +183,10 @@ impl Observer for Report {
             .as_f64()
             .map_or("-".into(), |v| format!("{v:.3}"));
         self.line(&format!(
-            "step {steps}: validation on {} pairs: EPE {epe} px, Out-3 ALL {} NOC {} OCC {}",
+            "step {steps}: validation on {} pairs ({} protocol): EPE {epe} px, Out-3 ALL {} NOC \
+             {} OCC {}",
             metrics.pairs,
+            metrics.report.rules().protocol,
             out3("ALL"),
             out3("NOC"),
             out3("OCC")
