@@ -11,6 +11,7 @@ use crate::score::{ImageScore, Summary};
 use crate::sums::{Metrics, Region};
 
 /// Images scored under one protocol's rules.
+#[derive(Debug, Clone, PartialEq)]
 pub struct ProtocolReport {
     rules: Rules,
     images: Vec<(String, ImageScore)>,
