@@ -27,7 +27,6 @@ pub use protocol::{
     rules_for,
 };
 pub use protocol_report::ProtocolReport;
-pub use report::{MetricsReport, metrics_json};
 pub use run::{
     Item, Prediction, Predictor, Progress, Scored, SourceScores, items, score_items,
     score_predictions, score_truth,
