@@ -27,8 +27,10 @@ pub use protocol::{
     rules_for,
 };
 pub use protocol_report::ProtocolReport;
-pub use report::{MetricsReport, metrics_json};
-pub use run::{Item, Prediction, Predictor, Progress, Scored, items, score_items, score_truth};
+pub use run::{
+    Item, Prediction, Predictor, Progress, Scored, SourceScores, items, score_items,
+    score_predictions, score_truth,
+};
 pub use score::{Frame, ImageScore, Summary, Tally};
 pub use sums::{
     D1_ABS_PX, D1_REL, DEFAULT_OUT_THRESHOLDS, ErrorSums, MeanMetrics, Metrics, MetricsError,

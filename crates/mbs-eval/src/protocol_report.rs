@@ -1,7 +1,7 @@
 //! A set of images scored under one protocol: each image's figures and the
 //! set's, combined as the protocol combines them, as a text table or JSON.
-//! Under `pixels` it is [`MetricsReport`]'s table and JSON, with the
-//! protocol named.
+//! Under `pixels` it is the pooled and per-image report of
+//! conventions §6 (`report.rs`), with the protocol named.
 
 use serde_json::{Value, json};
 
@@ -65,8 +65,8 @@ impl ProtocolReport {
     }
 
     /// The report as JSON: the protocol and its rules, each image's
-    /// figures and the set's (`pixels`: [`MetricsReport::json`] with the
-    /// protocol named).
+    /// figures and the set's (`pixels`: per image, their mean and pooled,
+    /// with the protocol named).
     pub fn json(&self) -> Value {
         if self.rules.protocol == Protocol::Pixels {
             let mut value = self.pixels_report().json();
@@ -108,7 +108,8 @@ impl ProtocolReport {
     }
 
     /// The report as a text table after a line naming the protocol and its
-    /// rules (`pixels`: [`MetricsReport::table`] at the rules' thresholds).
+    /// rules (`pixels`: per image, their mean and pooled, at the rules'
+    /// thresholds).
     pub fn table(&self) -> String {
         let head = format!("protocol {}\n", self.rules.describe());
         if self.rules.protocol == Protocol::Pixels {

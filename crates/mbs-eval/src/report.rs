@@ -1,20 +1,20 @@
 //! Scores of a set of images: per image, averaged per image, and pooled
-//! over pixels (conventions §6), as a text table or JSON. `eval`, the demo and the
-//! trainer's validation report through it.
+//! over pixels (conventions §6), as a text table or JSON: the `pixels`
+//! protocol's report, which [`crate::ProtocolReport`] renders through it.
 
 use serde_json::{Value, json};
 
 use crate::sums::{MeanMetrics, Metrics, Region, RegionSums};
 
 /// Per-image sums with their per-image means and pixel-pooled totals.
-pub struct MetricsReport {
+pub(crate) struct MetricsReport {
     images: Vec<(String, RegionSums)>,
     pooled: RegionSums,
 }
 
 impl MetricsReport {
     /// Pools the images' sums.
-    pub fn new(images: Vec<(String, RegionSums)>) -> Self {
+    pub(crate) fn new(images: Vec<(String, RegionSums)>) -> Self {
         let mut pooled = RegionSums::default();
         for (_, sums) in &images {
             pooled.merge(sums);
@@ -22,13 +22,8 @@ impl MetricsReport {
         Self { pooled, images }
     }
 
-    /// The number of images.
-    pub fn images(&self) -> usize {
-        self.images.len()
-    }
-
     /// Per-image mean of `region` (images without the region are left out).
-    pub fn mean(&self, region: Region) -> Option<Metrics> {
+    fn mean(&self, region: Region) -> Option<Metrics> {
         let mut mean = MeanMetrics::new();
         for (_, sums) in &self.images {
             if let Some(s) = sums.get(region) {
@@ -38,13 +33,8 @@ impl MetricsReport {
         (mean.images() > 0).then(|| mean.mean())
     }
 
-    /// The sums pooled over every image.
-    pub fn pooled(&self) -> &RegionSums {
-        &self.pooled
-    }
-
     /// The report as JSON: per image, mean over images and pooled, per region.
-    pub fn json(&self) -> Value {
+    pub(crate) fn json(&self) -> Value {
         let regions = |get: &dyn Fn(Region) -> Option<Metrics>| {
             let mut map = serde_json::Map::new();
             for region in Region::EVERY {
@@ -66,7 +56,7 @@ impl MetricsReport {
     }
 
     /// The report as a text table.
-    pub fn table(&self, thresholds: &[f32]) -> String {
+    pub(crate) fn table(&self, thresholds: &[f32]) -> String {
         let count = self.images.len();
         let mean_label = format!("mean of {count} images");
         let width = self
@@ -123,7 +113,7 @@ impl MetricsReport {
 }
 
 /// One region's metrics as JSON: pixels, epe, d1, density and out<x>.
-pub fn metrics_json(m: &Metrics) -> Value {
+pub(crate) fn metrics_json(m: &Metrics) -> Value {
     let mut v = json!({
         "pixels": m.pixels,
         "epe": m.epe,
@@ -161,11 +151,11 @@ mod tests {
         )
         .unwrap();
         let report = MetricsReport::new(vec![("a".into(), a), ("b".into(), b)]);
-        assert_eq!(report.images(), 2);
+        assert_eq!(report.images.len(), 2);
         let mean = report.mean(Region::All).unwrap();
         assert_eq!(mean.epe, Some(2.0));
         assert_eq!(mean.out(3.0), Some(50.0));
-        let pooled = report.pooled().all.metrics();
+        let pooled = report.pooled.all.metrics();
         assert_eq!(pooled.epe, Some(1.0));
         assert_eq!(pooled.out(3.0), Some(25.0));
         let json = report.json();

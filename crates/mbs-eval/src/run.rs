@@ -11,10 +11,15 @@ use mbs_core::FloatImage;
 use mbs_core::formats::read_disparity;
 use mbs_dataset::StereoPair;
 use mbs_dataset::ground_truth::{GroundTruth, GroundTruthFile, find_map};
+use mbs_dataset::pairs::PairSource;
 use rayon::prelude::*;
+use serde_json::{Value, json};
 
 use crate::error::EvalError;
+use crate::frames::FrameList;
+use crate::listing::{Listing, check_listed};
 use crate::protocol::{ProtocolError, Rules};
+use crate::protocol_report::ProtocolReport;
 use crate::score::{Frame, ImageScore};
 
 /// One image to score.
@@ -205,4 +210,54 @@ fn predict(
         }
         (Prediction::Pair(pair), None) => Err(EvalError::NoSource(pair.reference.clone())),
     }
+}
+
+/// A source's predictions scored under one protocol's rules.
+#[derive(Debug)]
+pub struct SourceScores {
+    /// The images scored; `None` when none could be.
+    pub report: Option<ProtocolReport>,
+    /// Each failed image's name and error, in the source's order.
+    pub failed: Vec<(String, EvalError)>,
+    /// The frames without usable ground truth, not scored.
+    pub unscored: Vec<String>,
+}
+
+impl SourceScores {
+    /// The scores as `eval --json` prints them: the report's JSON (see
+    /// [`ProtocolReport::json`]) with the `unscored` frames; `None` when
+    /// no image was scored.
+    pub fn json(&self) -> Option<Value> {
+        let mut json = self.report.as_ref()?.json();
+        json["unscored"] = json!(self.unscored);
+        Some(json)
+    }
+}
+
+/// Scores the predictions in the folder `predictions` (`<name>.pfm`,
+/// `.png` or `.exr` per pair) of `source`'s pairs with ground truth (only
+/// those `frames` lists, each of which must be a frame of the source)
+/// under `rules`, as `eval PREDICTIONS --FLAG DIR` does. A source off its
+/// layout or an unreadable list is an error; an image that fails is in
+/// [`SourceScores::failed`] and the others are scored.
+pub fn score_predictions(
+    source: &PairSource,
+    predictions: &Path,
+    frames: Option<&FrameList>,
+    rules: &Rules,
+    progress: &(dyn Fn(Progress<'_>) + Sync),
+) -> Result<SourceScores, EvalError> {
+    let mut listing = Listing::of(source)?;
+    if let Some(list) = frames {
+        check_listed(list, &[&listing], &source.place().display().to_string())?;
+        listing = listing.keep(list);
+    }
+    let items = items(std::mem::take(&mut listing.pairs), Some(predictions));
+    let scored = score_items(&items, None, None, rules, progress);
+    Ok(SourceScores {
+        report: (!scored.images.is_empty())
+            .then(|| ProtocolReport::new(rules.clone(), scored.images)),
+        failed: scored.failed,
+        unscored: listing.unscored,
+    })
 }

@@ -15,7 +15,7 @@ use std::time::Instant;
 
 use mbs_core::FloatImage;
 use mbs_core::formats::rgb::read_rgb;
-use mbs_eval::evaluate;
+use mbs_eval::{Dataset, Frame, Metrics, Protocol, Region, rules_for};
 use mbs_infer::{Sgm, SgmConfig, SgmPaths, StereoMatcher};
 
 type BoxError = Box<dyn std::error::Error>;
@@ -42,6 +42,21 @@ fn read_gt(path: &Path, scale: f32) -> Result<FloatImage, BoxError> {
     };
     FloatImage::from_raw(image.width(), image.height(), values)
         .ok_or_else(|| "ground truth size mismatch".into())
+}
+
+/// The `pixels` protocol's figures over all valid ground truth, at Out-1,
+/// 2 and 3.
+fn pixels(prediction: &FloatImage, truth: &FloatImage) -> Result<Metrics, BoxError> {
+    let rules = rules_for(Protocol::Pixels, Dataset::Other, &[1.0, 2.0, 3.0])?;
+    let frame = Frame {
+        prediction,
+        gt: truth,
+        noc: None,
+        disparity_bound: None,
+    };
+    let score = rules.score(&frame)?;
+    let all = score.get(Region::All).ok_or("no ALL region")?;
+    Ok(rules.metrics(all))
 }
 
 fn main() -> Result<(), BoxError> {
@@ -72,9 +87,7 @@ fn main() -> Result<(), BoxError> {
     let mut json = format!("{{\"time_ms\": {median:.3}, \"min_ms\": {min:.3}");
     if let (Some(gt), Some(scale)) = (args.get(5), args.get(6)) {
         let truth = read_gt(Path::new(gt), scale.parse()?)?;
-        let m = evaluate(&prediction.disparity, &truth, None, &[1.0, 2.0, 3.0])?
-            .all
-            .metrics();
+        let m = pixels(&prediction.disparity, &truth)?;
         let num = |v: Option<f64>| v.map_or("null".to_string(), |v| format!("{v:.4}"));
         json += &format!(
             ", \"epe\": {}, \"out1\": {}, \"out2\": {}, \"out3\": {}",

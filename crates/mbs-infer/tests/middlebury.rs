@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use mbs_core::{FloatImage, RgbImage};
-use mbs_eval::{Metrics, evaluate};
+use mbs_eval::{Dataset, Frame, Metrics, Protocol, Region, rules_for};
 use mbs_infer::{BlockMatcher, Sgm, SgmConfig, SgmPaths, StereoMatcher, estimate_max_disparity};
 
 fn data(rel: &str) -> PathBuf {
@@ -22,14 +22,25 @@ fn gt(rel: &str, scale: f32) -> FloatImage {
     mbs_core::formats::read_disparity(&data(rel), Some(scale)).expect("test data is readable")
 }
 
+/// The `pixels` protocol's figures of `prediction` over ALL valid
+/// ground-truth pixels, at Out-1, 2 and 3.
+fn pixels(prediction: &FloatImage, truth: &FloatImage) -> Metrics {
+    let rules = rules_for(Protocol::Pixels, Dataset::Other, &[1.0, 2.0, 3.0]).expect("rules");
+    let frame = Frame {
+        prediction,
+        gt: truth,
+        noc: None,
+        disparity_bound: None,
+    };
+    let score = rules.score(&frame).expect("same size");
+    rules.metrics(score.get(Region::All).expect("ALL is scored"))
+}
+
 fn score(matcher: &dyn StereoMatcher, left: &str, right: &str, truth: &FloatImage) -> Metrics {
     let prediction = matcher
         .predict(&rgb(left), &rgb(right))
         .expect("matching runs");
-    let m = evaluate(&prediction.disparity, truth, None, &[1.0, 2.0, 3.0])
-        .expect("same size")
-        .all
-        .metrics();
+    let m = pixels(&prediction.disparity, truth);
     println!(
         "{:<16} EPE {:.3} px  Out-1 {:.2} %  Out-2 {:.2} %  Out-3 {:.2} %  density {:.1} %",
         matcher.name(),

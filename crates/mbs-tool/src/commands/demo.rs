@@ -8,7 +8,7 @@ use clap::Parser;
 use mbs_core::formats::{DisparityFormat, pfm, png16, rgb};
 use mbs_dataset::Manifest;
 use mbs_dataset::mbs20k::{Counts, decoded_disparity_file};
-use mbs_eval::{MetricsReport, evaluate};
+use mbs_eval::{Dataset, Frame, Protocol, ProtocolReport, Region};
 use mbs_image::quality::psnr;
 
 use super::{decode_depth, eval, extrapolate, synth, train, validate};
@@ -285,6 +285,7 @@ fn decoded_vs_ground_truth(
     data: &Path,
     decoded: &Path,
 ) -> anyhow::Result<(f64, usize)> {
+    let rules = Protocol::Pixels.rules(Dataset::Other)?;
     let mut images = Vec::with_capacity(manifest.samples.len());
     for sample in &manifest.samples {
         let mut gt = pfm::read_pfm_grey(
@@ -300,10 +301,19 @@ fn decoded_vs_ground_truth(
                 .join(decoded_disparity_file(0, 4, DisparityFormat::Png16)),
         )
         .with_context(|| format!("sample {}", sample.id))?;
-        images.push((sample.id.clone(), evaluate(&ours, &gt, None, &[])?));
+        let frame = Frame {
+            prediction: &ours,
+            gt: &gt,
+            noc: None,
+            disparity_bound: None,
+        };
+        images.push((sample.id.clone(), rules.score(&frame)?));
     }
-    // EPE is over the pixels the decoder kept (nearer than --max-depth).
-    let all = MetricsReport::new(images).pooled().all.metrics();
-    let kept = all.density.unwrap_or(0.0) / 100.0 * all.pixels as f64;
-    Ok((all.epe.unwrap_or(f64::NAN), kept.round() as usize))
+    // EPE is over the pixels the decoder kept (nearer than --max-depth),
+    // pooled over the samples (the pixels protocol).
+    let Some(all) = ProtocolReport::new(rules, images).summary(Region::All) else {
+        return Ok((f64::NAN, 0));
+    };
+    let kept = all.metrics.density.unwrap_or(0.0) / 100.0 * all.metrics.pixels as f64;
+    Ok((all.metrics.epe.unwrap_or(f64::NAN), kept.round() as usize))
 }

@@ -11,10 +11,9 @@ use mbs_dataset::ground_truth::{GroundTruthFile, NocSource};
 use mbs_dataset::pairs::PairSource;
 use mbs_eval::{
     Dataset, FrameList, Item, Listing, Prediction, Predictor, Protocol, ProtocolReport,
-    check_listed, items, rules_for,
+    SourceScores, check_listed, items, rules_for,
 };
 use mbs_infer::SgmConfig;
-use serde_json::json;
 
 use crate::cli::pairs::PairArgs;
 use crate::cli::scoring::{score_with_bar, warn_unscored};
@@ -123,15 +122,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if scored.images.is_empty() {
         bail!("no image could be scored (see above)");
     }
-    let report = ProtocolReport::new(rules, scored.images);
-    if args.json {
-        let mut json = report.json();
-        json["unscored"] = json!(unscored.unscored);
+    let scores = SourceScores {
+        report: Some(ProtocolReport::new(rules, scored.images)),
+        failed: scored.failed,
+        unscored: unscored.unscored,
+    };
+    if let (true, Some(json)) = (args.json, scores.json()) {
         println!("{json:#}");
-    } else {
+    } else if let Some(report) = &scores.report {
         print!("{}", report.table());
     }
-    warn_unscored(&place, &unscored.unscored);
+    warn_unscored(&place, &scores.unscored);
     summary.finish("eval", "images")
 }
 
