@@ -34,5 +34,5 @@ pub use run::{
 pub use score::{Frame, ImageScore, Summary, Tally};
 pub use sums::{
     D1_ABS_PX, D1_REL, DEFAULT_OUT_THRESHOLDS, ErrorSums, MeanMetrics, Metrics, MetricsError,
-    Region, RegionSums, evaluate,
+    Region, RegionSums,
 };

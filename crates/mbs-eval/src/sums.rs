@@ -24,6 +24,7 @@
 //! KITTI, ETH3D and Middlebury evaluators), scored through
 //! [`crate::Rules::score`] and combined by [`crate::ProtocolReport`].
 
+#[cfg(test)]
 use mbs_core::{FloatImage, MaskImage};
 
 /// The Out-x thresholds tracked by [`ErrorSums::new`] (pixels).
@@ -247,8 +248,10 @@ impl RegionSums {
 
 /// Compares a predicted disparity with ground truth over ALL valid GT
 /// pixels and, when `noc` is given (non-zero = non-occluded), over NOC and
-/// OCC. Tracks Out-x for each of `thresholds`.
-pub fn evaluate(
+/// OCC. Tracks Out-x for each of `thresholds`. The tests' way to the sums'
+/// arithmetic; the protocols score through [`crate::Rules::score`].
+#[cfg(test)]
+pub(crate) fn evaluate(
     prediction: &FloatImage,
     gt: &FloatImage,
     noc: Option<&MaskImage>,

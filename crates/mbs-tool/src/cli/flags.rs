@@ -14,9 +14,16 @@ pub struct Jobs {
 }
 
 impl Jobs {
-    /// Starts the worker threads asked for.
+    /// Starts the worker threads asked for (0 leaves rayon's one per core).
     pub fn start(self) -> anyhow::Result<()> {
-        super::set_threads(self.jobs)
+        let jobs = self.jobs;
+        if jobs > 0 {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(jobs)
+                .build_global()
+                .map_err(|e| anyhow::anyhow!("cannot start {jobs} worker threads: {e}"))?;
+        }
+        Ok(())
     }
 }
 

@@ -97,14 +97,3 @@ pub fn require_file(path: &std::path::Path, what: &str) -> anyhow::Result<()> {
         None => Ok(()),
     }
 }
-
-/// Sets the number of worker threads (0 = one per core).
-pub fn set_threads(jobs: usize) -> anyhow::Result<()> {
-    if jobs > 0 {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(jobs)
-            .build_global()
-            .map_err(|e| anyhow::anyhow!("cannot start {jobs} worker threads: {e}"))?;
-    }
-    Ok(())
-}

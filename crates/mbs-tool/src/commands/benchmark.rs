@@ -74,9 +74,9 @@ pub struct Args {
     /// Write every image's scores, per folder, to this JSON file.
     #[arg(long, value_name = "FILE")]
     pub per_image: Option<PathBuf>,
-    /// Worker threads (0 = one per core).
-    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
-    pub jobs: usize,
+    /// Worker threads.
+    #[command(flatten)]
+    pub threads: crate::cli::flags::Jobs,
 }
 
 /// One benchmark folder's scores.
@@ -95,7 +95,7 @@ struct Column {
 
 /// Runs `benchmark`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    crate::cli::set_threads(args.jobs)?;
+    args.threads.start()?;
     let (listed, inputs) = list_folders(&args)?;
     if let Some(path) = &args.per_image {
         inputs.refuse(path)?;

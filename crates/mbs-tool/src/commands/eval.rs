@@ -92,14 +92,14 @@ pub struct Args {
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
-    /// Worker threads (0 = one per core).
-    #[arg(long, default_value_t = 0, value_parser = crate::cli::values::jobs)]
-    pub jobs: usize,
+    /// Worker threads.
+    #[command(flatten)]
+    pub threads: crate::cli::flags::Jobs,
 }
 
 /// Runs `eval`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    crate::cli::set_threads(args.jobs)?;
+    args.threads.start()?;
     let source = args.pairs.source()?;
     let dataset = source.as_ref().map_or(Dataset::Other, PairSource::dataset);
     let place = source
