@@ -182,6 +182,77 @@ def score(
     return report
 
 
+def score_folder(
+    predictions: _Union[str, _PathLike[str]],
+    benchmark: str,
+    folder: _Union[str, _PathLike[str]],
+    *,
+    protocol: str = "s3",
+    frames: _Union[list[str], None] = None,
+    thresholds: _Union[list[float], None] = None,
+) -> dict[str, _Any]:
+    """Score a folder of predictions against a benchmark folder's ground truth.
+
+    As ``mbs-tool eval PREDICTIONS --BENCHMARK FOLDER [--frames FILE]
+    --protocol P --json``, with the same figures; the default protocol is
+    the S3 paper's, as ``mbs.score``'s (``eval``'s own default is
+    ``pixels``).
+
+    Parameters
+    ----------
+    predictions : str or os.PathLike
+        The folder of predictions, one ``<frame>.pfm``, ``.png`` or ``.exr``
+        per pair (KITTI ``000000_10``, a Middlebury or ETH3D scene...).
+    benchmark : str
+        The folder's layout, as ``eval``'s flag names it: ``kitti``,
+        ``middlebury``, ``eth3d``, ``drivingstereo`` or ``sceneflow``.
+    folder : str or os.PathLike
+        The benchmark folder (e.g. ``kitti2015/training``,
+        ``MiddEval3/trainingH``).
+    protocol : str, default "s3"
+        ``pixels``, ``s3``, ``raft-stereo``, ``igev-stereo``, ``kitti``,
+        ``eth3d`` or ``middlebury``.
+    frames : list of str, optional
+        Score only these frames (each must be one of the folder's).
+    thresholds : list of float, optional
+        Out-x thresholds in pixels (default: 1, 2, 3 under ``pixels``, the
+        protocol's own otherwise).
+
+    Returns
+    -------
+    dict
+        The command's JSON report (as :func:`score`'s, over the folder's
+        images, with ``unscored``: the frames without ground truth), and
+        ``failed``: each image that could not be scored, as ``[name,
+        reason]``; the others are scored.
+
+    Raises
+    ------
+    ValueError
+        An unknown benchmark or protocol, a protocol with no rules for the
+        benchmark, an empty frame list, or wrong thresholds.
+    OSError
+        The folder is off its layout, a listed frame is not one of its
+        frames, or no image could be scored.
+
+    Example::
+
+        report = mbs.score_folder("pred/", "kitti", "kitti2015/training")
+        print(report["score"]["ALL"]["out3"])            # the paper's KITTI 2015 figure
+    """
+    report: dict[str, _Any] = _json.loads(
+        _native.score_folder_json(
+            predictions,
+            benchmark,  # type: ignore[arg-type]
+            folder,
+            protocol=protocol,  # type: ignore[arg-type]
+            frames=frames,
+            thresholds=thresholds,
+        )
+    )
+    return report
+
+
 __all__ = [
     "decode_carla_depth",
     "depth_to_disparity",
@@ -193,6 +264,7 @@ __all__ = [
     "read_pfm",
     "read_rgb",
     "score",
+    "score_folder",
     "synth_scene",
     "validate",
     "write_exr",

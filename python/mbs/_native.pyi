@@ -31,6 +31,7 @@ __all__ = [
     "HostBatches",
     "synth_scene",
     "score_json",
+    "score_folder_json",
 ]
 
 # A file's path: pyo3 takes `str` and `os.PathLike` (`os.fspath` gives `str`).
@@ -567,6 +568,7 @@ def synth_scene(
     """
 
 _Protocol: TypeAlias = Literal["pixels", "s3", "raft-stereo", "igev-stereo", "kitti", "eth3d", "middlebury"]
+_Benchmark: TypeAlias = Literal["kitti", "middlebury", "eth3d", "drivingstereo", "sceneflow"]
 _Dataset: TypeAlias = Literal["kitti2015", "kitti2012", "middlebury", "eth3d", "drivingstereo", "sceneflow", "other"]
 
 def score_json(
@@ -621,4 +623,54 @@ def score_json(
         An unknown protocol or dataset, a protocol with no rules for the
         dataset, a wrong array, a ground truth with no valid pixel, or a
         prediction the rules cannot score (the message names the argument).
+    """
+
+def score_folder_json(
+    predictions: _Path,
+    benchmark: _Benchmark,
+    folder: _Path,
+    *,
+    protocol: _Protocol = "s3",
+    frames: list[str] | None = None,
+    thresholds: list[float] | None = None,
+) -> str:
+    """Scores a folder of predictions against a benchmark folder's ground truth.
+
+    As ``mbs-tool eval PREDICTIONS --BENCHMARK FOLDER [--frames FILE]
+    --protocol P --json``; ``mbs.score_folder`` parses what it returns.
+
+    Parameters
+    ----------
+    predictions : str or os.PathLike
+        The folder of predictions, one ``<frame>.pfm``, ``.png`` or ``.exr``
+        per pair (KITTI ``000000_10``, a Middlebury or ETH3D scene...).
+    benchmark : str
+        The folder's layout, as ``eval``'s flag names it: ``kitti``,
+        ``middlebury``, ``eth3d``, ``drivingstereo`` or ``sceneflow``.
+    folder : str or os.PathLike
+        The benchmark folder (e.g. ``kitti2015/training``,
+        ``MiddEval3/trainingH``).
+    protocol : str, default "s3"
+        ``pixels``, ``s3``, ``raft-stereo``, ``igev-stereo``, ``kitti``,
+        ``eth3d`` or ``middlebury``.
+    frames : list of str, optional
+        Score only these frames (each must be one of the folder's).
+    thresholds : list of float, optional
+        Out-x thresholds in pixels (default: 1, 2, 3 under ``pixels``,
+        the protocol's own otherwise).
+
+    Returns
+    -------
+    str
+        The command's report as JSON text, with ``failed``: each image that
+        could not be scored, as ``[name, reason]``.
+
+    Raises
+    ------
+    ValueError
+        An unknown benchmark or protocol, a protocol with no rules for the
+        benchmark, an empty frame list, or wrong thresholds.
+    OSError
+        The folder is off its layout, a listed frame is not one of its
+        frames, or no image could be scored.
     """

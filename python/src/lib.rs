@@ -730,5 +730,6 @@ fn _native(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_class::<batches::HostBatches>()?;
     module.add_function(wrap_pyfunction!(synth::synth_scene, module)?)?;
     module.add_function(wrap_pyfunction!(scoring::score_json, module)?)?;
+    module.add_function(wrap_pyfunction!(scoring::score_folder_json, module)?)?;
     Ok(())
 }

@@ -139,3 +139,70 @@ def test_wrong_arguments_are_named(teddy: dict[str, Any]) -> None:
         mbs.score(prediction, np.full_like(gt, np.inf))
     with pytest.raises(ValueError, match="prediction"):
         mbs.score(prediction[:, :-8].copy(), gt)
+
+
+@pytest.fixture(scope="module")
+def middlebury(teddy: dict[str, Any], tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """MiddEval3 `trainingH` with two Teddy scenes (one with calib.txt's
+    ndisp) and a folder of predictions for them."""
+    root = tmp_path_factory.mktemp("middlebury")
+    folder = root / "MiddEval3" / "trainingH"
+    predictions = root / "pred"
+    predictions.mkdir()
+    gt = teddy["gt"]
+    columns = np.arange(gt.shape[1])[None, :]
+    mask = np.where(np.isfinite(gt), np.where(columns < 100, 128, 255), 0).astype(np.uint8)
+    noisy = teddy["prediction"] + np.float32(0.7) * np.sin(columns).astype(np.float32)
+    for scene, prediction in [("Teddy", teddy["prediction"]), ("TeddyB", noisy.astype(np.float32))]:
+        (folder / scene).mkdir(parents=True)
+        for view, name in [("im2.png", "im0.png"), ("im6.png", "im1.png")]:
+            (folder / scene / name).write_bytes((TEDDY / view).read_bytes())
+        mbs.write_pfm(folder / scene / "disp0GT.pfm", gt)
+        write_grey_png(folder / scene / "mask0nocc.png", mask)
+        mbs.write_pfm(predictions / f"{scene}.pfm", prediction)
+    (folder / "Teddy" / "calib.txt").write_text("cam0=[375 0 100; 0 375 90; 0 0 1]\nbaseline=160\nndisp=60\n")
+    return {"folder": folder, "predictions": predictions, "root": root}
+
+
+@pytest.mark.parametrize("protocol", PROTOCOLS)
+def test_a_benchmark_folder_scores_as_eval_or_refuses_as_it(middlebury: dict[str, Path], protocol: str) -> None:
+    folder, predictions = middlebury["folder"], middlebury["predictions"]
+    args = [MBS_TOOL, "eval", predictions, "--middlebury", folder, "--protocol", protocol, "--json"]
+    done = subprocess.run([str(a) for a in args], capture_output=True, text=True)
+    if done.returncode != 0:
+        with pytest.raises(ValueError) as refused:
+            mbs.score_folder(predictions, "middlebury", folder, protocol=protocol)
+        reason = str(refused.value).split(": ", 1)[1]
+        assert reason in done.stderr, (reason, done.stderr)
+        return
+    ours = mbs.score_folder(predictions, "middlebury", folder, protocol=protocol)
+    assert ours.pop("failed") == []
+    agree(ours, json.loads(done.stdout))
+    assert len(ours["images"]) == 2
+
+
+def test_frames_keep_what_they_list(middlebury: dict[str, Path]) -> None:
+    folder, predictions = middlebury["folder"], middlebury["predictions"]
+    listed = middlebury["root"] / "frames.txt"
+    listed.write_text("# one scene\nTeddyB\n")
+    args = [MBS_TOOL, "eval", predictions, "--middlebury", folder, "--frames", listed, "--json"]
+    done = subprocess.run([str(a) for a in args], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    ours = mbs.score_folder(predictions, "middlebury", folder, protocol="pixels", frames=["TeddyB"])
+    ours.pop("failed")
+    agree(ours, json.loads(done.stdout))
+    assert [image["name"] for image in ours["images"]] == ["TeddyB"]
+    with pytest.raises(OSError, match="Teddy9"):
+        mbs.score_folder(predictions, "middlebury", folder, frames=["Teddy9"])
+    with pytest.raises(ValueError, match="^benchmark: `kitti2015` is not a benchmark"):
+        mbs.score_folder(predictions, "kitti2015", folder)
+
+
+def test_a_missing_prediction_is_failed_and_the_others_scored(middlebury: dict[str, Path]) -> None:
+    partial = middlebury["root"] / "partial"
+    partial.mkdir()
+    (partial / "Teddy.pfm").write_bytes((middlebury["predictions"] / "Teddy.pfm").read_bytes())
+    report = mbs.score_folder(partial, "middlebury", middlebury["folder"])
+    assert [image["name"] for image in report["images"]] == ["Teddy"]
+    assert [name for name, _ in report["failed"]] == ["TeddyB"]
+    assert "no prediction TeddyB" in report["failed"][0][1]
