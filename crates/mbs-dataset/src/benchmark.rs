@@ -138,7 +138,7 @@ pub struct UnknownName {
 
 impl UnknownName {
     /// `name`, which is none of `names` of `kind`.
-    fn new<const N: usize>(name: &str, kind: &'static str, names: [&str; N]) -> UnknownName {
+    pub fn new<const N: usize>(name: &str, kind: &'static str, names: [&str; N]) -> UnknownName {
         let choices = match names.split_last() {
             Some((last, [])) => last.to_string(),
             Some((last, rest)) => format!("{} or {last}", rest.join(", ")),

@@ -8,7 +8,7 @@
 use std::fmt;
 use std::str::FromStr;
 
-use mbs_dataset::benchmark::Dataset;
+use mbs_dataset::benchmark::{Dataset, UnknownName};
 
 use crate::sums::{DEFAULT_OUT_THRESHOLDS, Metrics, MetricsError};
 
@@ -128,18 +128,19 @@ impl FromStr for Protocol {
         Protocol::EVERY
             .into_iter()
             .find(|p| p.name() == text)
-            .ok_or_else(|| ProtocolError::Unknown(text.to_string()))
+            .ok_or_else(|| {
+                let names = Protocol::EVERY.map(Protocol::name);
+                ProtocolError::Unknown(UnknownName::new(text, "protocol", names))
+            })
     }
 }
 
 /// Why a protocol cannot score an image.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ProtocolError {
-    /// No such protocol name.
-    #[error(
-        "`{0}` is not a protocol: pixels, s3, raft-stereo, igev-stereo, kitti, eth3d or middlebury"
-    )]
-    Unknown(String),
+    /// No such protocol name (the message lists the protocols there are).
+    #[error(transparent)]
+    Unknown(UnknownName),
     /// The protocol has no rules for this data.
     #[error("protocol {protocol} has no rules for {dataset}; it scores {defined}")]
     Undefined {

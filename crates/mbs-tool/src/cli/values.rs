@@ -3,6 +3,7 @@
 //! work starts.
 
 use mbs_core::limits::{MAX_IMAGE_SIDE, MAX_JOBS, MAX_VIEWS};
+use mbs_eval::Protocol;
 use mbs_nets::BackboneKind;
 use mbs_nets::device::DeviceList;
 use mbs_train::precision::Precision;
@@ -113,6 +114,14 @@ pub fn size(text: &str) -> Result<(usize, usize), String> {
             .map_err(|_| format!("`{text}` is not HEIGHTxWIDTH, e.g. 256x512"))
     };
     Ok((number(h)?, number(w)?))
+}
+
+/// A scoring protocol's name, as `--protocol` takes it: `--help` lists
+/// [`Protocol::EVERY`]'s names, and a wrong one is refused with them.
+pub fn protocol() -> impl clap::builder::TypedValueParser<Value = Protocol> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(Protocol::EVERY.map(Protocol::name))
+        .try_map(|name| name.parse::<Protocol>())
 }
 
 #[cfg(test)]

@@ -58,9 +58,8 @@ pub struct Args {
     #[arg(long, value_name = "PX", value_parser = crate::cli::values::positive_f32)]
     pub threshold: Option<f32>,
     /// The scoring rules: s3 (the S3 paper's stereo_toolbox), pixels
-    /// (mbs's, pooled over pixels), raft-stereo, igev-stereo, kitti, eth3d
-    /// or middlebury (each project's own; docs/evaluation.md).
-    #[arg(long, default_value = "s3")]
+    /// (mbs's, pooled over pixels) or a project's own (docs/evaluation.md).
+    #[arg(long, default_value = "s3", value_parser = crate::cli::values::protocol())]
     pub protocol: Protocol,
     /// Score only the frames a file names, one a line (blank lines and #
     /// comments ignored): DIR=FILE for the folder DIR (one given to a

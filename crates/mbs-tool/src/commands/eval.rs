@@ -45,8 +45,8 @@ the density column says how many pixels had one. ALL = valid GT; NOC =
 valid non-occluded GT (KITTI disp_noc, Middlebury's and ETH3D's
 mask0nocc.png, a --noc mask, or the manifest's occlusion mask); OCC = ALL -
 NOC. DrivingStereo and SceneFlow have no occlusion masks: only ALL.
---protocol scores as a project does instead (s3, raft-stereo,
-igev-stereo, kitti, eth3d, middlebury: docs/evaluation.md); --frames FILE
+--protocol scores as a project does instead (its values below;
+docs/evaluation.md); --frames FILE
 scores only the frames it names. Frames without usable ground truth are
 named in a warning. `mbs-tool benchmark` scores several benchmarks at
 once.")]
@@ -79,10 +79,9 @@ pub struct Args {
     /// pixels, the protocol's own otherwise].
     #[arg(long, value_delimiter = ',', value_parser = crate::cli::values::positive_f32, allow_hyphen_values = true)]
     pub thresholds: Vec<f32>,
-    /// The scoring rules: pixels (mbs's), s3 (the S3 paper's
-    /// stereo_toolbox), raft-stereo, igev-stereo, kitti, eth3d or
-    /// middlebury (each project's own; docs/evaluation.md).
-    #[arg(long, default_value = "pixels")]
+    /// The scoring rules: pixels (mbs's, pooled over pixels), s3 (the S3
+    /// paper's stereo_toolbox) or a project's own (docs/evaluation.md).
+    #[arg(long, default_value = "pixels", value_parser = crate::cli::values::protocol())]
     pub protocol: Protocol,
     /// Score only the frames this file names, one a line (pair ids, e.g.
     /// KITTI 000000_10 or a Middlebury scene); blank lines and # comments
