@@ -53,6 +53,20 @@ impl Selection for OneWithServer {
     const REQUIRED: bool = true;
 }
 
+/// The flags of `S`'s benchmarks in words: `--kitti, --middlebury or
+/// --eth3d`, for messages that name them.
+pub fn flags_in_words<S: Selection>() -> String {
+    let flags: Vec<String> = S::BENCHMARKS
+        .iter()
+        .map(|b| format!("--{}", b.layout().flag))
+        .collect();
+    match flags.split_last() {
+        Some((last, [])) => last.clone(),
+        Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
+        None => String::new(),
+    }
+}
+
 /// The benchmark folders the flags give: by benchmark in table order,
 /// each flag's folders in the order given.
 pub struct BenchmarkFolders<S> {

@@ -161,8 +161,8 @@ fn list_items(args: &Args, source: Option<PairSource>) -> anyhow::Result<(Vec<It
         }
         (None, None) => {
             bail!(
-                "no ground truth: give a benchmark folder (--kitti, --middlebury, --eth3d, \
-                 --drivingstereo, --sceneflow DIR), --manifest FILE or --gt FILE"
+                "no ground truth: give a benchmark folder ({} DIR), --manifest FILE or --gt FILE",
+                crate::cli::folders::flags_in_words::<crate::cli::folders::AnyOne>()
             )
         }
     }

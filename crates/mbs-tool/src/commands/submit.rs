@@ -112,7 +112,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// without `--name` is a usage error.
 fn layout(args: &Args) -> anyhow::Result<(Benchmark, PathBuf, SubmissionLayout)> {
     let (benchmark, dir) = args.folders.first().ok_or_else(|| {
-        UsageError("nothing to submit: give --kitti, --middlebury or --eth3d DIR".into())
+        UsageError(format!(
+            "nothing to submit: give {} DIR",
+            crate::cli::folders::flags_in_words::<crate::cli::folders::OneWithServer>()
+        ))
     })?;
     if benchmark == Benchmark::Middlebury && args.name.is_none() {
         return Err(UsageError(
