@@ -180,7 +180,15 @@ impl Launched {
 
     /// Whether the run's checkpoints already hold every step.
     pub fn is_complete(&self) -> bool {
-        matches!(self.start, Start::Resumed(steps) if steps >= self.run.config().steps())
+        self.steps_complete().is_some()
+    }
+
+    /// The steps of the newest checkpoint, when it holds every step.
+    fn steps_complete(&self) -> Option<usize> {
+        match self.start {
+            Start::Resumed(steps) if steps >= self.run.config().steps() => Some(steps),
+            _ => None,
+        }
     }
 
     /// Trains the run to its end, or until `stop` is set (see
@@ -192,9 +200,7 @@ impl Launched {
         stop: &AtomicBool,
     ) -> Result<Ended, TrainError> {
         let total = self.run.config().steps();
-        if let Start::Resumed(steps) = self.start
-            && steps >= total
-        {
+        if let Some(steps) = self.steps_complete() {
             return Ok(Ended::Complete { steps, total });
         }
         let end = match self.run.is_writer() {
