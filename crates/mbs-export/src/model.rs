@@ -123,6 +123,7 @@ pub fn stereo_card(name: &str, notes: &str, height: usize, width: usize) -> Mode
             sign: 1.0,
             scale: 1.0,
             channel: 0,
+            kind: None,
         },
         mask: None,
     }

@@ -31,7 +31,7 @@ fn shipped_cards_follow_the_schema() {
         json_files(&root().join("testdata/onnx")),
     ]
     .concat();
-    assert_eq!(cards.len(), 11);
+    assert_eq!(cards.len(), 12);
     for path in cards {
         let document: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();

@@ -23,6 +23,9 @@ pub enum Task {
     Stereo,
     /// An image and a hole mask in, the filled image out.
     Inpaint,
+    /// One image in, a map of its depth or inverse depth out
+    /// ([`OutputSpec::kind`] says which).
+    Depth,
 }
 
 impl Task {
@@ -31,6 +34,7 @@ impl Task {
         match self {
             Task::Stereo => "stereo",
             Task::Inpaint => "inpainting",
+            Task::Depth => "monocular depth",
         }
     }
 }
@@ -123,6 +127,19 @@ pub enum SizePolicy {
     },
 }
 
+/// What a depth model's output map holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum OutputKind {
+    /// Depth in metres (after `scale`): FastDepth, metric Depth Anything.
+    MetricDepth,
+    /// Inverse depth up to an unknown scale and shift (an affine-invariant
+    /// disparity): relative Depth Anything, MiDaS.
+    InverseRelative,
+    /// Disparity in pixels of the image it was computed for.
+    Disparity,
+}
+
 /// The output tensor and how to read it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -140,6 +157,10 @@ pub struct OutputSpec {
     /// (CREStereo outputs the flow's x and y).
     #[serde(default)]
     pub channel: usize,
+    /// Depth: what the map holds (required for depth cards, refused on
+    /// the others).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kind: Option<OutputKind>,
 }
 
 /// Inpainting: the mask values the model expects.
@@ -218,6 +239,10 @@ const BUILTIN: &[(&str, &str)] = &[
         include_str!("../../models/cards/raft-stereo.json"),
     ),
     ("igev", include_str!("../../models/cards/igev.json")),
+    (
+        "fastdepth",
+        include_str!("../../models/cards/fastdepth.json"),
+    ),
 ];
 
 impl ModelCard {
@@ -278,6 +303,7 @@ impl ModelCard {
         let expected: &[&[&str]] = match self.task {
             Task::Stereo => &[&["left", "right"], &["stacked"]],
             Task::Inpaint => &[&["image", "mask"]],
+            Task::Depth => &[&["image"]],
         };
         if !expected.contains(&roles.as_slice()) {
             return Err(format!(
@@ -308,12 +334,27 @@ impl ModelCard {
                 self.output.sign
             ));
         }
+        match (self.task, self.output.kind) {
+            (Task::Depth, None) => {
+                return Err(
+                    "a depth card needs output.kind: metric-depth, inverse-relative \
+                            or disparity"
+                        .into(),
+                );
+            }
+            (Task::Stereo | Task::Inpaint, Some(_)) => {
+                return Err(format!("a {} card has no output.kind", self.task.noun()));
+            }
+            _ => {}
+        }
         match (self.task, self.mask) {
             (Task::Inpaint, None) => Err("an inpaint card needs mask.hole and mask.keep".into()),
             (Task::Inpaint, Some(m)) if m.hole == m.keep => {
                 Err("mask.hole and mask.keep are equal".into())
             }
-            (Task::Stereo, Some(_)) => Err("a stereo card has no mask".into()),
+            (Task::Stereo | Task::Depth, Some(_)) => {
+                Err(format!("a {} card has no mask", self.task.noun()))
+            }
             _ => Ok(()),
         }
     }
@@ -358,6 +399,43 @@ mod tests {
     }
 
     #[test]
+    fn a_depth_card_takes_one_image_and_says_what_its_output_is() {
+        let card = |output: &str, inputs: &str| {
+            format!(
+                r#"{{"name": "t", "task": "depth", "inputs": {inputs},
+                   "size": {{"mode": "fixed", "width": 224, "height": 224}}, "output": {output}}}"#
+            )
+        };
+        let image = r#"{"image": "0"}"#;
+        let parsed = ModelCard::from_json(
+            "ok",
+            &card(r#"{"name": "d", "kind": "inverse-relative"}"#, image),
+        );
+        assert_eq!(
+            parsed.unwrap().output.kind,
+            Some(OutputKind::InverseRelative)
+        );
+        let err = |output: &str, inputs: &str| {
+            ModelCard::from_json("d.json", &card(output, inputs))
+                .unwrap_err()
+                .to_string()
+        };
+        assert!(err(r#"{"name": "d"}"#, image).contains("a depth card needs output.kind"));
+        assert!(err(r#"{"name": "d", "kind": "depth"}"#, image).contains("unknown variant"));
+        let two = r#"{"image": "0", "mask": "1"}"#;
+        assert!(err(r#"{"name": "d", "kind": "disparity"}"#, two).contains("inputs has roles"));
+        let fastdepth = ModelCard::load("fastdepth").unwrap();
+        assert_eq!(fastdepth.output.kind, Some(OutputKind::MetricDepth));
+        assert_eq!(
+            fastdepth.size,
+            SizePolicy::Fixed {
+                width: 224,
+                height: 224
+            }
+        );
+    }
+
+    #[test]
     fn unknown_names_list_the_builtins() {
         let err = ModelCard::load("nope").unwrap_err().to_string();
         assert!(err.contains("nope") && err.contains("crestereo"), "{err}");
@@ -380,6 +458,16 @@ mod tests {
         assert!(err(r#", "std": [1, 0, 1]"#).contains("std has a zero"));
         assert!(err(r#", "mask": {"hole": 1, "keep": 0}"#).contains("no mask"));
         assert!(err(r#", "colour": "RGB""#).contains("unknown field"));
+        let stereo_kind = ModelCard::from_json(
+            "k.json",
+            &card("").replace(r#""name": "d""#, r#""name": "d", "kind": "disparity""#),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            stereo_kind.contains("a stereo card has no output.kind"),
+            "{stereo_kind}"
+        );
         let wrong_roles = ModelCard::from_json(
             "y.json",
             &card("").replace(r#""left": "l""#, r#""image": "l""#),
