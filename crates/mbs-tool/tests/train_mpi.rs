@@ -19,6 +19,7 @@ use std::time::{Duration, Instant};
 use burn::tensor::Device;
 use common::{SMALL, lines, synth, text};
 use mbs_nets::checkpoint::TrainedNetworks;
+use mbs_test_support::files::complete_lines;
 
 /// Settings of every run here: SMALL's tiny compact network at batch 3,
 /// so that 2 ranks share it unevenly (2 + 1 items) and 3 ranks evenly.
@@ -139,8 +140,11 @@ fn weight_difference(a: &Path, b: &Path, steps: usize) -> f32 {
 
 /// The losses a run logged, step by step.
 fn losses(run: &Path) -> Vec<(u64, f64)> {
-    lines(&run.join("train.jsonl"))
+    // The ranks may be writing the log: a last line still being written is
+    // left out (reading it half-written failed a CI run under load).
+    complete_lines(&run.join("train.jsonl"))
         .iter()
+        .map(|line| serde_json::from_str::<serde_json::Value>(line).expect("a JSON line"))
         .map(|line| {
             (
                 line["step"].as_u64().expect("step"),
