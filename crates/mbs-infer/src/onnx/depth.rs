@@ -75,10 +75,12 @@ impl OnnxDepth {
         };
         let scale = card.output.scale;
         values.iter_mut().for_each(|v| {
-            *v = match (*v * scale).is_finite() {
-                true => *v * scale,
-                false => f32::INFINITY,
-            }
+            let scaled = *v * scale;
+            *v = if scaled.is_finite() {
+                scaled
+            } else {
+                f32::INFINITY
+            };
         });
         let kind = card
             .output

@@ -172,6 +172,12 @@ impl Interval {
     }
 }
 
+/// The protocol a `val.jsonl` line was scored under; a line without one
+/// is from a run older than `data.val_protocol`, scored under `pixels`.
+pub fn validation_protocol(line: &Value) -> &str {
+    line["protocol"].as_str().unwrap_or("pixels")
+}
+
 /// A `val.jsonl` line.
 pub fn validation_json(steps: usize, metrics: &ValidationMetrics) -> Value {
     let region = |m: Option<Metrics>| {

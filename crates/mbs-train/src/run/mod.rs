@@ -43,7 +43,7 @@ mod report;
 mod resume;
 mod steps;
 
-pub use logs::{TRAIN_LOG, VAL_LOG, read_log, validation_json};
+pub use logs::{TRAIN_LOG, VAL_LOG, read_log, validation_json, validation_protocol};
 use logs::{open_log, write_line};
 pub use placement::{Devices, Ranks, Strategy, place};
 use report::RunReport;

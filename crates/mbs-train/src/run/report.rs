@@ -15,7 +15,7 @@ use mbs_viz::{
 use serde_json::Value;
 
 use super::Visual;
-use super::logs::{TRAIN_LOG, VAL_LOG, read_log};
+use super::logs::{TRAIN_LOG, VAL_LOG, read_log, validation_protocol};
 use crate::error::TrainError;
 use crate::losses::Term;
 use crate::tensorboard::EventWriter;
@@ -189,12 +189,8 @@ impl RunReport {
             .iter()
             .map(|(name, key)| percent(series(&train, name, &["supervision", key])))
             .filter(|s| !s.points.is_empty());
-            // The protocol of the last validation (a line without one is
-            // from a run older than the setting, scored under `pixels`).
-            let protocol = val
-                .last()
-                .and_then(|line| line["protocol"].as_str())
-                .unwrap_or("pixels");
+            // The protocol of the last validation.
+            let protocol = val.last().map_or("pixels", validation_protocol);
             LineChart {
                 title: format!(
                     "Teacher Out-3 ({protocol} protocol) on held-out pairs, and the supervision \

@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use mbs_batch::HostBatch;
 
-use super::logs::{Interval, open_log, write_line};
+use super::logs::{Interval, open_log, validation_protocol, write_line};
 use super::{End, Observer, TRAIN_LOG, TrainingRun, VAL_LOG, read_log, warn};
 use crate::checkpoint;
 use crate::data::validation::ValidationMetrics;
@@ -112,7 +112,7 @@ impl TrainingRun {
         let validations: Vec<_> = read_log(&self.out.join(VAL_LOG))
             .unwrap_or_default()
             .into_iter()
-            .filter(|line| line["protocol"].as_str().unwrap_or("pixels") == protocol)
+            .filter(|line| validation_protocol(line) == protocol)
             .collect();
         let untrained_out3 = validations
             .iter()

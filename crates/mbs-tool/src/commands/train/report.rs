@@ -13,6 +13,7 @@ use mbs_train::data::validation::ValidationMetrics;
 use mbs_train::drift::DRIFT_POINTS;
 use mbs_train::run::{
     LOSS_PLOT, Observer, TENSORBOARD_DIR, TRAIN_LOG, VAL_LOG, VAL_PLOT, VISUALS_DIR, read_log,
+    validation_protocol,
 };
 use mbs_train::step::StepReport;
 use mbs_train::{RunConfig, TrainError};
@@ -69,11 +70,8 @@ impl Report {
     pub fn summary(&self, last: Option<&ValidationMetrics>) {
         let val = read_log(&self.out.join(VAL_LOG)).unwrap_or_default();
         if let (Some(first), Some(_)) = (val.first(), last) {
-            let protocol = val.last().and_then(|l| l["protocol"].as_str());
-            eprintln!(
-                "\nteacher on held-out pairs ({} protocol)",
-                protocol.unwrap_or("pixels")
-            );
+            let protocol = val.last().map_or("pixels", validation_protocol);
+            eprintln!("\nteacher on held-out pairs ({protocol} protocol)");
             eprintln!("                           EPE ALL   Out-3 ALL   Out-3 NOC   Out-3 OCC");
             let final_line = val.last().unwrap_or(first);
             let best = best_validation(&val);
