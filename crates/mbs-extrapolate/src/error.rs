@@ -33,16 +33,20 @@ pub enum ExtrapolateError {
     /// fill from.
     #[error("{view}: every pixel is masked, nothing is left to inpaint from: {cause}")]
     AllMasked {
-        /// The new view: `image_1` or `image_4`.
-        view: &'static str,
+        /// The new view's name (`image_1`, `image_4`...).
+        view: String,
         /// What masked them: the warp or the dilation.
         cause: String,
     },
+    /// A depth map cannot become a virtual rig's disparity (NaN values, a
+    /// metric depth of zero, a scaling its kind does not allow).
+    #[error("depth map: {0}")]
+    Depth(String),
     /// Inpainting one of the new views failed.
     #[error("inpainting {view}: {source}")]
     Inpaint {
-        /// The new view: `image_1` or `image_4`.
-        view: &'static str,
+        /// The new view's name (`image_1`, `image_4`...).
+        view: String,
         /// The inpainter's error.
         source: mbs_infer::inpaint::InpaintError,
     },

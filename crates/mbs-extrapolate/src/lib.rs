@@ -26,10 +26,11 @@ pub mod error;
 pub mod evaluation;
 pub mod frame;
 pub mod manifest;
+pub mod mono;
 pub mod pipeline;
 
 pub use disparity::{Disparities, DisparitySource, load_disparity};
 pub use error::ExtrapolateError;
 pub use frame::{Frame, kitti_frames, pair_frame};
 pub use manifest::{FourViewFiles, four_view_manifest};
-pub use pipeline::{Extrapolator, NewViews};
+pub use pipeline::{Extrapolator, NewView, NewViews};

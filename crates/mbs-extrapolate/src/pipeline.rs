@@ -24,6 +24,17 @@ pub struct NewViews {
     pub holes_4: MaskImage,
 }
 
+/// One synthesised view and what was synthesised in it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NewView {
+    /// The view, inpainted.
+    pub image: RgbImage,
+    /// Pixels that were inpainted (255): holes and dilation.
+    pub mask: MaskImage,
+    /// Pixels no source pixel landed on (before dilation).
+    pub holes: MaskImage,
+}
+
 /// Extrapolates pairs with one mask dilation and one inpainter.
 pub struct Extrapolator {
     /// How hole masks grow before inpainting.
@@ -49,17 +60,6 @@ impl Extrapolator {
         right: &RgbImage,
         disparities: &Disparities,
     ) -> Result<NewViews, ExtrapolateError> {
-        let one = |view: &RgbImage, disparity, side, name| {
-            let warped = extrapolate_view(view, disparity, side, self.dilation)?;
-            if warped.mask.iter().all(|&m| m > 0) {
-                return Err(all_masked(name, &warped.holes, disparity, self.dilation));
-            }
-            let filled = self
-                .inpainter
-                .inpaint(&warped.image, &warped.mask, Some(&warped.disparity))
-                .map_err(|source| ExtrapolateError::Inpaint { view: name, source })?;
-            Ok::<_, ExtrapolateError>((filled, warped.mask, warped.holes))
-        };
         if left.dimensions() != right.dimensions() {
             return Err(ExtrapolateError::Warp(mbs_warp::WarpError::SizeMismatch {
                 what: "the right view",
@@ -67,15 +67,45 @@ impl Extrapolator {
                 found: right.dimensions(),
             }));
         }
-        let (image_1, mask_1, holes_1) = one(left, &disparities.left, Side::Left, "image_1")?;
-        let (image_4, mask_4, holes_4) = one(right, &disparities.right, Side::Right, "image_4")?;
+        let first = self.synthesize(left, &disparities.left, Side::Left, "image_1")?;
+        let last = self.synthesize(right, &disparities.right, Side::Right, "image_4")?;
         Ok(NewViews {
-            image_1,
-            image_4,
-            mask_1,
-            mask_4,
-            holes_1,
-            holes_4,
+            image_1: first.image,
+            image_4: last.image,
+            mask_1: first.mask,
+            mask_4: last.mask,
+            holes_1: first.holes,
+            holes_4: last.holes,
+        })
+    }
+
+    /// The view one `disparity` away from `view` towards `side` (the
+    /// disparity of `view`, in pixels, against the new camera): `view`
+    /// forward-warped, its holes masked and dilated, then inpainted. Every
+    /// new view of `extrapolate` and of single-image sets comes from here;
+    /// `name` names the new view in errors.
+    pub fn synthesize(
+        &self,
+        view: &RgbImage,
+        disparity: &FloatImage,
+        side: Side,
+        name: &str,
+    ) -> Result<NewView, ExtrapolateError> {
+        let warped = extrapolate_view(view, disparity, side, self.dilation)?;
+        if warped.mask.iter().all(|&m| m > 0) {
+            return Err(all_masked(name, &warped.holes, disparity, self.dilation));
+        }
+        let image = self
+            .inpainter
+            .inpaint(&warped.image, &warped.mask, Some(&warped.disparity))
+            .map_err(|source| ExtrapolateError::Inpaint {
+                view: name.to_string(),
+                source,
+            })?;
+        Ok(NewView {
+            image,
+            mask: warped.mask,
+            holes: warped.holes,
         })
     }
 }
@@ -84,7 +114,7 @@ impl Extrapolator {
 /// (disparities about as wide as the view), or the dilation covered the
 /// rest.
 fn all_masked(
-    view: &'static str,
+    view: &str,
     holes: &MaskImage,
     disparity: &FloatImage,
     dilation: Dilation,
@@ -105,7 +135,10 @@ fn all_masked(
             "the mask dilation {dilation:?} (radius in pixels) covers the whole {width} px wide view"
         )
     };
-    ExtrapolateError::AllMasked { view, cause }
+    ExtrapolateError::AllMasked {
+        view: view.to_string(),
+        cause,
+    }
 }
 
 #[cfg(test)]

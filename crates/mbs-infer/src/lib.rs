@@ -12,6 +12,7 @@
 //! ([`StereoMatcher::predict_right`]).
 
 pub mod block;
+pub mod depth;
 pub mod error;
 pub mod inpaint;
 pub mod matcher;
@@ -21,6 +22,7 @@ pub mod postprocess;
 pub mod sgm;
 
 pub use block::BlockMatcher;
+pub use depth::DepthKind;
 pub use error::InferError;
 pub use matcher::{Disparity, StereoMatcher};
 pub use sgm::{MAX_ESTIMATED_DISPARITY, Sgm, SgmConfig, SgmPaths, estimate_max_disparity};

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use mbs_core::formats::read_disparity;
 use mbs_core::formats::rgb::read_rgb;
-use mbs_infer::onnx::card::OutputKind;
+use mbs_infer::DepthKind;
 use mbs_infer::onnx::{ModelCard, OnnxDepth, RuntimeOptions};
 
 /// The model: `MBS_DEPTH_MODEL`, or where the set-up script puts it.
@@ -62,7 +62,7 @@ fn fastdepth_ranks_teddy_as_its_true_disparity() {
     let model = OnnxDepth::open(&fastdepth(), card, &RuntimeOptions::default()).unwrap();
     let image = read_rgb(&teddy("im2.png")).unwrap();
     let depth = model.predict(&image).unwrap();
-    assert_eq!(depth.kind, OutputKind::MetricDepth);
+    assert_eq!(depth.kind, DepthKind::MetricDepth);
     assert_eq!(depth.values.dimensions(), image.dimensions());
     assert!(depth.values.iter().all(|d| d.is_finite() && *d > 0.0));
     // Teddy's quarter-size ground truth: 8-bit, 4 codes a pixel, 0 unknown.

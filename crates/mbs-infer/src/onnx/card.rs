@@ -14,6 +14,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::error::{OnnxError, Result};
+use crate::DepthKind;
 
 /// What a model does.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -127,19 +128,6 @@ pub enum SizePolicy {
     },
 }
 
-/// What a depth model's output map holds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum OutputKind {
-    /// Depth in metres (after `scale`): FastDepth, metric Depth Anything.
-    MetricDepth,
-    /// Inverse depth up to an unknown scale and shift (an affine-invariant
-    /// disparity): relative Depth Anything, MiDaS.
-    InverseRelative,
-    /// Disparity in pixels of the image it was computed for.
-    Disparity,
-}
-
 /// The output tensor and how to read it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -160,7 +148,7 @@ pub struct OutputSpec {
     /// Depth: what the map holds (required for depth cards, refused on
     /// the others).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub kind: Option<OutputKind>,
+    pub kind: Option<DepthKind>,
 }
 
 /// Inpainting: the mask values the model expects.
@@ -413,7 +401,7 @@ mod tests {
         );
         assert_eq!(
             parsed.unwrap().output.kind,
-            Some(OutputKind::InverseRelative)
+            Some(DepthKind::InverseRelative)
         );
         let err = |output: &str, inputs: &str| {
             ModelCard::from_json("d.json", &card(output, inputs))
@@ -425,7 +413,7 @@ mod tests {
         let two = r#"{"image": "0", "mask": "1"}"#;
         assert!(err(r#"{"name": "d", "kind": "disparity"}"#, two).contains("inputs has roles"));
         let fastdepth = ModelCard::load("fastdepth").unwrap();
-        assert_eq!(fastdepth.output.kind, Some(OutputKind::MetricDepth));
+        assert_eq!(fastdepth.output.kind, Some(DepthKind::MetricDepth));
         assert_eq!(
             fastdepth.size,
             SizePolicy::Fixed {

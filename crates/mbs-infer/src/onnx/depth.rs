@@ -1,28 +1,29 @@
 //! [`OnnxDepth`]: a monocular depth network (FastDepth, Depth Anything,
 //! MiDaS) run through ONNX Runtime as its card says: one image in, a map on
 //! the image's grid out, with what the map holds (the card's
-//! [`OutputKind`]).
+//! [`DepthKind`]).
 
 use std::path::Path;
 
 use image::imageops::{self, FilterType};
 use mbs_core::{FloatImage, RgbImage};
 
-use super::card::{ElementType, ModelCard, OutputKind, SizePolicy, Task};
+use super::card::{ElementType, ModelCard, SizePolicy, Task};
 use super::error::Result;
 use super::model::Model;
 use super::resize::resize_bilinear;
 use super::runtime::{Device, RuntimeOptions};
 use super::tensor::{Element, OutputMaps, Padding, Source, input_shape, write_item};
+use crate::DepthKind;
 
 /// A depth network's map of one image.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DepthMap {
-    /// The map on the image's grid, times the card's `output.scale`; `+inf`
-    /// where the network gave no finite value.
+    /// The map on the image's grid, times the card's `output.scale`: every
+    /// value finite, and as its kind allows ([`DepthKind::problem`]).
     pub values: FloatImage,
     /// What the values are.
-    pub kind: OutputKind,
+    pub kind: DepthKind,
 }
 
 /// A monocular depth network run through ONNX Runtime, fed as its
@@ -52,7 +53,8 @@ impl OnnxDepth {
         self.model.card()
     }
 
-    /// The map of `image`.
+    /// The map of `image`; an error naming the model when the map is not
+    /// of the kind its card says (NaN, a metric depth of zero...).
     pub fn predict(&self, image: &RgbImage) -> Result<DepthMap> {
         let card = self.model.card();
         let size = image.dimensions();
@@ -73,19 +75,15 @@ impl OnnxDepth {
             true => map,
             false => resize_bilinear(&map, size.0, size.1),
         };
-        let scale = card.output.scale;
-        values.iter_mut().for_each(|v| {
-            let scaled = *v * scale;
-            *v = if scaled.is_finite() {
-                scaled
-            } else {
-                f32::INFINITY
-            };
-        });
         let kind = card
             .output
             .kind
             .ok_or_else(|| self.model.run_error("the depth card has no output.kind"))?;
+        let scale = card.output.scale;
+        values.iter_mut().for_each(|v| *v *= scale);
+        if let Some(problem) = kind.problem(&values) {
+            return Err(self.model.run_error(format!("the card's output {problem}")));
+        }
         Ok(DepthMap { values, kind })
     }
 
