@@ -15,6 +15,7 @@ pub mod geometry;
 pub mod inputs;
 pub mod layered;
 pub mod limits;
+pub mod list_file;
 pub mod lock;
 pub mod out_dir;
 pub mod regular;

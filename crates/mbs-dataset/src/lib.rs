@@ -11,6 +11,7 @@ pub mod kitti;
 pub mod manifest;
 pub mod mbs20k;
 pub mod pairs;
+pub mod photos;
 pub mod probe;
 pub mod scene_flow;
 pub mod schema;

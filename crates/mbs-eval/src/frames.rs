@@ -26,7 +26,7 @@ impl FrameList {
                 path: path.to_path_buf(),
                 source,
             })?;
-        FrameList::from_names(path.to_path_buf(), parse_frame_names(&text))
+        FrameList::from_names(path.to_path_buf(), mbs_core::list_file::list_entries(&text))
     }
 
     /// A list of `names` (blanks trimmed, empty names dropped) that
@@ -52,15 +52,6 @@ impl FrameList {
     }
 }
 
-/// The names of a frame list's text (see [`FrameList::read`]).
-fn parse_frame_names(text: &str) -> Vec<String> {
-    text.lines()
-        .map(|line| line.split('#').next().unwrap_or_default().trim())
-        .filter(|name| !name.is_empty())
-        .map(str::to_string)
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -68,7 +59,10 @@ mod tests {
     #[test]
     fn frame_lists_skip_blanks_and_comments() {
         let text = "# KITTI 2012 train_all\n000000_10\n\n  000001_10  # second\r\n#000002_10\n";
-        assert_eq!(parse_frame_names(text), ["000000_10", "000001_10"]);
+        assert_eq!(
+            mbs_core::list_file::list_entries(text),
+            ["000000_10", "000001_10"]
+        );
         let dir = tempfile::tempdir().unwrap();
         let empty = dir.path().join("empty.txt");
         std::fs::write(&empty, "# nothing\n\n").unwrap();

@@ -12,7 +12,7 @@ use mbs_dataset::StereoPair;
 use mbs_dataset::ground_truth::find_map;
 use mbs_viz::extrapolation_sheet;
 
-use crate::{Disparities, DisparitySource, ExtrapolateError, Extrapolator, FourViewFiles};
+use crate::{Disparities, DisparitySource, ExtrapolateError, Extrapolator, ViewFiles};
 
 /// The input and output files of one frame. The output folder holds a
 /// complete four-view set: the input views (and ground truth) are linked
@@ -211,12 +211,21 @@ impl Frame {
     }
 
     /// The frame's files as a manifest entry (its outputs need not exist).
-    pub fn files(&self) -> FourViewFiles<'_> {
-        FourViewFiles {
+    pub fn files(&self) -> ViewFiles<'_> {
+        ViewFiles {
             id: &self.id,
-            views: [&self.image_1, &self.image_2, &self.image_3, &self.image_4],
-            masks: [&self.mask_1, &self.mask_4],
-            ground_truth: self.ground_truth.as_ref().map(|(_, copy)| copy.as_path()),
+            views: [&self.image_1, &self.image_2, &self.image_3, &self.image_4]
+                .map(PathBuf::as_path)
+                .to_vec(),
+            real: 1,
+            masks: vec![Some(&self.mask_1), None, None, Some(&self.mask_4)]
+                .into_iter()
+                .map(|mask| mask.map(PathBuf::as_path))
+                .collect(),
+            ground_truth: self
+                .ground_truth
+                .as_ref()
+                .map(|(_, copy)| (1, 2, copy.as_path(), 1.0)),
         }
     }
 

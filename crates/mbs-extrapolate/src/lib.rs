@@ -27,10 +27,11 @@ pub mod evaluation;
 pub mod frame;
 pub mod manifest;
 pub mod mono;
+pub mod photo_set;
 pub mod pipeline;
 
 pub use disparity::{Disparities, DisparitySource, load_disparity};
 pub use error::ExtrapolateError;
 pub use frame::{Frame, kitti_frames, pair_frame};
-pub use manifest::{FourViewFiles, four_view_manifest};
+pub use manifest::{SetKind, ViewFiles, four_view_manifest, views_manifest};
 pub use pipeline::{Extrapolator, NewView, NewViews};

@@ -1,9 +1,26 @@
-//! What a monocular depth map holds ([`DepthKind`]) and the checks a map
+//! Monocular depth: what a map holds ([`DepthKind`]), the checks a map
 //! must pass before it becomes a disparity, whoever computed it (an ONNX
-//! network, a file, a Python caller's own network).
+//! network, a file, a Python caller's own network), and the trait of the
+//! networks that compute one ([`DepthEstimator`]).
 
-use mbs_core::FloatImage;
+use mbs_core::{FloatImage, RgbImage};
 use serde::{Deserialize, Serialize};
+
+/// A depth network's map of one image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DepthMap {
+    /// The map on the image's grid: every value finite, and as its kind
+    /// allows ([`DepthKind::problem`]).
+    pub values: FloatImage,
+    /// What the values are.
+    pub kind: DepthKind,
+}
+
+/// A monocular depth network: one image in, its [`DepthMap`] out.
+pub trait DepthEstimator: Send + Sync {
+    /// The map of `image`; an error names the network.
+    fn estimate(&self, image: &RgbImage) -> crate::error::Result<DepthMap>;
+}
 
 /// What a monocular depth map holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

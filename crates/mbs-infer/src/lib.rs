@@ -22,7 +22,7 @@ pub mod postprocess;
 pub mod sgm;
 
 pub use block::BlockMatcher;
-pub use depth::DepthKind;
+pub use depth::{DepthEstimator, DepthKind, DepthMap};
 pub use error::InferError;
 pub use matcher::{Disparity, StereoMatcher};
 pub use sgm::{MAX_ESTIMATED_DISPARITY, Sgm, SgmConfig, SgmPaths, estimate_max_disparity};

@@ -41,6 +41,8 @@ enum Command {
     Predict(commands::predict::Args),
     /// Synthesise two extra views of stereo pairs (one baseline further left and right).
     Extrapolate(commands::extrapolate::Args),
+    /// Make multi-baseline sets from single photos through a monocular depth network.
+    Mono(commands::mono::Args),
     /// Scan an MBS20K folder into a manifest and print its statistics.
     Scan(commands::scan::Args),
     /// Check a dataset manifest against its schema and the files on disk.
@@ -81,6 +83,7 @@ fn main() -> std::process::ExitCode {
         Command::Submit(args) => commands::submit::run(args),
         Command::Predict(args) => commands::predict::run(args),
         Command::Extrapolate(args) => commands::extrapolate::run(args),
+        Command::Mono(args) => commands::mono::run(args),
         Command::Scan(args) => commands::scan::run(args),
         Command::Validate(args) => commands::validate::run(args),
         Command::Train(args) => commands::train::run(args),

@@ -14,5 +14,5 @@ pub use chart::{LineChart, Series};
 pub use colormap::{colorize_disparity, disparity_scale, turbo};
 pub use error::VizError;
 pub use labelled::{Key, Panel, labelled_grid, labelled_row};
-pub use sheet::extrapolation_sheet;
+pub use sheet::{extrapolation_sheet, photo_set_sheet};
 pub use weight_map::{weight_map_image, weight_map_key};

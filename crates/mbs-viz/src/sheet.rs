@@ -1,5 +1,6 @@
-//! The captioned two-row contact sheet of an extrapolated frame (four
-//! views, synthesised pixels, disparities and their colour bar).
+//! The captioned two-row contact sheets of synthesised sets: an
+//! extrapolated frame (four views, synthesised pixels, disparities and
+//! their colour bar) and a set made from one photo.
 
 use image::Rgb;
 use mbs_core::{FloatImage, MaskImage, RgbImage};
@@ -65,6 +66,72 @@ pub fn extrapolation_sheet(
     labelled_grid(&[&top, &bottom], &[key])
 }
 
+/// The contact sheet of a set made from one photo, two rows of one
+/// captioned panel per camera: every view (the photo at `reference`),
+/// then each synthesised view tinted red where `masks` marks synthesised
+/// pixels, with the photo's `disparity` (one baseline's) in the
+/// reference's place; below them, its colour bar. Every input has the
+/// photo's size; another size, or a mask list of another length, is an
+/// error.
+pub fn photo_set_sheet(
+    views: &[&RgbImage],
+    reference: usize,
+    masks: &[Option<&MaskImage>],
+    disparity: &FloatImage,
+) -> Result<RgbImage, VizError> {
+    let size = disparity.dimensions();
+    let sizes = views
+        .iter()
+        .map(|v| v.dimensions())
+        .chain(masks.iter().flatten().map(|m| m.dimensions()));
+    if let Some(other) = sizes.into_iter().find(|s| *s != size) {
+        return Err(VizError::Input(format!(
+            "a tile is {other:?} but the disparity is {size:?} (width, height)"
+        )));
+    }
+    if masks.len() != views.len() || reference >= views.len() {
+        return Err(VizError::Input(format!(
+            "{} views, {} masks and reference {reference} do not make one set",
+            views.len(),
+            masks.len()
+        )));
+    }
+    let max = disparity_scale([disparity]);
+    let coloured = colorize_disparity(disparity, max);
+    let lower: Vec<RgbImage> = views
+        .iter()
+        .zip(masks)
+        .map(|(view, mask)| mask.map_or_else(|| coloured.clone(), |m| tint(view, m)))
+        .collect();
+    let captions: Vec<(String, String)> = (0..views.len())
+        .map(|k| match k == reference {
+            true => (
+                format!("photo image_{}", k + 1),
+                format!("disparity image_{} (px)", k + 1),
+            ),
+            false => (
+                format!("new view image_{}", k + 1),
+                format!("image_{}: synthesised (red)", k + 1),
+            ),
+        })
+        .collect();
+    let top: Vec<Panel> = views
+        .iter()
+        .zip(&captions)
+        .map(|(view, (caption, _))| Panel::new(view, caption))
+        .collect();
+    let bottom: Vec<Panel> = lower
+        .iter()
+        .zip(&captions)
+        .map(|(image, (_, caption))| Panel::new(image, caption))
+        .collect();
+    let key = Key::DisparityBar {
+        title: format!("disparity of image_{}, one baseline (px)", reference + 1),
+        max,
+    };
+    labelled_grid(&[&top, &bottom], &[key])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -97,6 +164,30 @@ mod tests {
             .flat_map(|y| (x..x + w).map(move |x| (x, y)))
             .filter(|&(x, y)| image.get_pixel(x, y).0.iter().all(|&c| c < 110))
             .count()
+    }
+
+    #[test]
+    fn photo_set_tiles_are_each_camera_and_its_mask() {
+        let (w, h) = (96, 40);
+        let views: Vec<RgbImage> = (0..3).map(|i| picture(w, h, 60 * i)).collect();
+        let mut mask = MaskImage::new(w, h);
+        mask.put_pixel(3, 4, image::Luma([255]));
+        let disparity = FloatImage::from_fn(w, h, |x, _| image::Luma([0.2 * x as f32]));
+        let refs: Vec<&RgbImage> = views.iter().collect();
+        let masks = [Some(&mask), None, Some(&mask)];
+        let sheet = photo_set_sheet(&refs, 1, &masks, &disparity).unwrap();
+        for view in &views {
+            find(&sheet, view);
+        }
+        find(&sheet, &tint(&views[0], &mask));
+        find(&sheet, &tint(&views[2], &mask));
+        let max = disparity_scale([&disparity]);
+        find(&sheet, &colorize_disparity(&disparity, max));
+        let err = photo_set_sheet(&refs, 3, &masks, &disparity).unwrap_err();
+        assert!(
+            err.to_string().contains("reference 3 do not make one set"),
+            "{err}"
+        );
     }
 
     #[test]

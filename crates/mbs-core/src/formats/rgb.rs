@@ -28,6 +28,27 @@ pub fn read_rgb8_strict(path: &Path) -> Result<RgbImage> {
     }
 }
 
+/// Reads a photo that must be 8-bit colour (RGB, or RGBA with the alpha
+/// ignored): the reference view of a set made from one image, which is kept
+/// as it is. A grey or 16-bit (or float) image is an error naming the file
+/// and saying what to do, since a set's views are 8-bit colour.
+pub fn read_colour_photo(path: &Path) -> Result<RgbImage> {
+    use image::ColorType;
+    let image = super::open_image(path)?;
+    let colour = image.color();
+    let problem = match colour {
+        ColorType::Rgb8 | ColorType::Rgba8 => return Ok(image.into_rgb8()),
+        ColorType::L8 | ColorType::La8 => {
+            "a grey image; a set's views are colour: convert it to 8-bit RGB first".to_string()
+        }
+        other => format!(
+            "{other:?} ({} bits a channel); a set's views are 8-bit colour: convert it to 8-bit RGB first",
+            other.bits_per_pixel() / u16::from(other.channel_count())
+        ),
+    };
+    Err(FormatError::invalid(path, problem))
+}
+
 /// Encodes `image` as an 8-bit RGB PNG into `writer`.
 fn encode_rgb<W: std::io::Write>(writer: W, image: &RgbImage) -> std::io::Result<()> {
     super::png_encoder(writer)
@@ -85,6 +106,33 @@ pub fn read_mask(path: &Path) -> Result<MaskImage> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn photos_must_be_8_bit_colour() {
+        let dir = tempfile::tempdir().unwrap();
+        let rgba = dir.path().join("rgba.png");
+        image::RgbaImage::from_pixel(3, 2, image::Rgba([1, 2, 3, 0]))
+            .save(&rgba)
+            .unwrap();
+        let read = read_colour_photo(&rgba).unwrap();
+        assert_eq!(read, RgbImage::from_pixel(3, 2, image::Rgb([1, 2, 3])));
+        let grey = dir.path().join("grey.png");
+        write_mask_png(&grey, &MaskImage::new(2, 2)).unwrap();
+        let err = read_colour_photo(&grey).unwrap_err().to_string();
+        assert!(
+            err.contains("grey.png") && err.contains("a grey image"),
+            "{err}"
+        );
+        let deep = dir.path().join("deep.png");
+        image::ImageBuffer::<image::Rgb<u16>, _>::from_pixel(2, 2, image::Rgb([9u16, 9, 9]))
+            .save(&deep)
+            .unwrap();
+        let err = read_colour_photo(&deep).unwrap_err().to_string();
+        assert!(
+            err.contains("deep.png") && err.contains("Rgb16 (16 bits a channel)"),
+            "{err}"
+        );
+    }
 
     #[test]
     fn rgb_png_round_trip_and_strict_read() {

@@ -14,17 +14,7 @@ use super::model::Model;
 use super::resize::resize_bilinear;
 use super::runtime::{Device, RuntimeOptions};
 use super::tensor::{Element, OutputMaps, Padding, Source, input_shape, write_item};
-use crate::DepthKind;
-
-/// A depth network's map of one image.
-#[derive(Debug, Clone, PartialEq)]
-pub struct DepthMap {
-    /// The map on the image's grid, times the card's `output.scale`: every
-    /// value finite, and as its kind allows ([`DepthKind::problem`]).
-    pub values: FloatImage,
-    /// What the values are.
-    pub kind: DepthKind,
-}
+use crate::depth::{DepthEstimator, DepthMap};
 
 /// A monocular depth network run through ONNX Runtime, fed as its
 /// [`ModelCard`] says. A fixed-size model sees the image resized to its
@@ -124,5 +114,11 @@ impl OnnxDepth {
             Ok(maps.crop(values, (0, 0), pw, pad, size))
         };
         self.model.run::<T, _>(inputs, read)
+    }
+}
+
+impl DepthEstimator for OnnxDepth {
+    fn estimate(&self, image: &RgbImage) -> std::result::Result<DepthMap, crate::InferError> {
+        self.predict(image).map_err(super::stereo::backend)
     }
 }

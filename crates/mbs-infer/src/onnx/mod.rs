@@ -23,7 +23,7 @@ pub mod stereo;
 pub mod tensor;
 
 pub use card::ModelCard;
-pub use depth::{DepthMap, OnnxDepth};
+pub use depth::OnnxDepth;
 pub use error::OnnxError;
 pub use inpaint::OnnxInpainter;
 pub use runtime::{Device, RuntimeOptions};

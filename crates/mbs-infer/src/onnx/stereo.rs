@@ -231,7 +231,7 @@ fn to_disparity(mut map: FloatImage, scale: f32) -> Disparity {
     }
 }
 
-fn backend(e: super::OnnxError) -> InferError {
+pub(super) fn backend(e: super::OnnxError) -> InferError {
     InferError::Backend(e.to_string())
 }
 

@@ -12,6 +12,7 @@ pub mod report_error;
 pub mod rig;
 pub mod scoring;
 pub mod source;
+pub mod synthesis;
 
 use std::path::{Path, PathBuf};
 

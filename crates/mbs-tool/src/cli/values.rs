@@ -116,6 +116,19 @@ pub fn size(text: &str) -> Result<(usize, usize), String> {
     Ok((number(h)?, number(w)?))
 }
 
+/// A `LOW:HIGH` range of fractions, `0 < LOW <= HIGH < 1`, such as
+/// `0.05:0.15`.
+pub fn fraction_range(text: &str) -> Result<(f32, f32), String> {
+    let usage = || format!("`{text}` is not LOW:HIGH with 0 < LOW <= HIGH < 1, e.g. 0.05:0.15");
+    let (low, high) = text.split_once(':').ok_or_else(usage)?;
+    let number = |s: &str| s.trim().parse::<f32>().map_err(|_| usage());
+    let (low, high) = (number(low)?, number(high)?);
+    if !(0.0 < low && low <= high && high < 1.0) {
+        return Err(usage());
+    }
+    Ok((low, high))
+}
+
 /// A scoring protocol's name, as `--protocol` takes it: `--help` lists
 /// [`Protocol::EVERY`]'s names, and a wrong one is refused with them.
 pub fn protocol() -> impl clap::builder::TypedValueParser<Value = Protocol> {
@@ -127,6 +140,18 @@ pub fn protocol() -> impl clap::builder::TypedValueParser<Value = Protocol> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fraction_ranges_are_ordered_and_inside_0_1() {
+        assert_eq!(fraction_range("0.05:0.15"), Ok((0.05, 0.15)));
+        assert_eq!(fraction_range("0.1:0.1"), Ok((0.1, 0.1)));
+        for bad in ["0.2:0.1", "0:0.1", "0.1:1", "0.1", "a:b", "NaN:0.1"] {
+            assert!(
+                fraction_range(bad).unwrap_err().contains("LOW:HIGH"),
+                "{bad}"
+            );
+        }
+    }
 
     #[test]
     fn values_outside_their_range_are_refused_with_the_range() {

@@ -4,8 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
-use clap::{Parser, ValueEnum};
+use anyhow::bail;
+use clap::Parser;
 use mbs_core::inputs::InputFiles;
 use mbs_dataset::kitti::KittiFrames;
 use mbs_dataset::kitti::KittiVersion;
@@ -14,12 +14,10 @@ use mbs_extrapolate::disparity::warping_sgm_config;
 use mbs_extrapolate::{
     DisparitySource, Extrapolator, Frame, four_view_manifest, kitti_frames, pair_frame,
 };
-use mbs_infer::inpaint::{BackgroundFill, Inpainter, IsotropicFill};
-use mbs_infer::onnx::{ModelCard, OnnxInpainter};
-use mbs_warp::Dilation;
 
 use crate::cli::batch::{self, Outcome};
 use crate::cli::source::{StereoSource, StereoSourceArgs};
+use crate::cli::synthesis::SynthesisArgs;
 
 /// The manifest of the four-view samples, in the output folder.
 const MANIFEST_FILE: &str = "manifest.json";
@@ -92,22 +90,9 @@ pub struct Args {
     /// Where the disparities of frames without disparity files come from.
     #[command(flatten)]
     pub source: StereoSourceArgs,
-    /// How the hole masks are grown before inpainting (none measured best on
-    /// Middlebury Tsukuba, also with disparities that bleed across edges).
-    #[arg(long, value_enum, default_value_t = DilationKind::None)]
-    pub dilation: DilationKind,
-    /// Radius in pixels of the dilation.
-    #[arg(long, default_value_t = 2)]
-    pub dilate_radius: u32,
-    /// Inpainting of the masked pixels: `background` (fill each hole from
-    /// its background side, guided by the warped disparity), `isotropic`
-    /// (from the whole rim inwards, Telea-like) or `onnx:MODEL.onnx` (an
-    /// inpainting network such as LaMa or MI-GAN, fed as --inpaint-card says).
-    #[arg(long, value_name = "background|isotropic|onnx:MODEL", default_value = "background", value_parser = parse_inpaint)]
-    pub inpaint: InpaintKind,
-    /// How to feed `--inpaint onnx:MODEL`: a built-in card name (lama, migan) or a card FILE.json.
-    #[arg(long, value_name = "NAME|FILE.json")]
-    pub inpaint_card: Option<String>,
+    /// How views are synthesised.
+    #[command(flatten)]
+    pub synthesis: SynthesisArgs,
     /// Also write a contact sheet per frame (preview/NAME.png): the four
     /// views, synthesised pixels tinted red, and the disparities used.
     #[arg(long)]
@@ -123,43 +108,6 @@ pub struct Args {
     pub batch: crate::cli::flags::Batch,
 }
 
-/// Mask dilations (see `mbs_warp::Dilation`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum DilationKind {
-    /// Inpaint the holes only.
-    None,
-    /// A square of side 2r + 1.
-    Square,
-    /// A disc of radius r.
-    Ellipse,
-    /// Grow holes at depth edges by r pixels into the background.
-    BackgroundSide,
-    /// Grow holes at depth edges by r pixels into the foreground.
-    ForegroundSide,
-}
-
-/// Inpainters: the built-ins (see `mbs_infer::inpaint`) or an ONNX network.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum InpaintKind {
-    /// Fill each hole from its background side, guided by the warped disparity.
-    Background,
-    /// Fill holes from their whole rim inwards (Telea-like).
-    Isotropic,
-    /// An ONNX inpainting network (`onnx:MODEL.onnx`).
-    Onnx(PathBuf),
-}
-
-fn parse_inpaint(s: &str) -> Result<InpaintKind, String> {
-    match (s, s.strip_prefix("onnx:")) {
-        ("background", _) => Ok(InpaintKind::Background),
-        ("isotropic", _) => Ok(InpaintKind::Isotropic),
-        (_, Some(model)) if !model.is_empty() => Ok(InpaintKind::Onnx(model.into())),
-        _ => Err(format!(
-            "invalid inpainter {s:?}: expected background, isotropic or onnx:MODEL.onnx"
-        )),
-    }
-}
-
 /// Runs `extrapolate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     args.batch.threads.start()?;
@@ -169,7 +117,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     // Models and networks are opened before anything is written, so a bad
     // source leaves no output folder behind.
-    let extrapolator = Extrapolator::new(dilation(&args), inpainter(&args)?);
+    let extrapolator = Extrapolator::new(
+        args.synthesis.dilation(),
+        args.synthesis.inpainter(&args.source.runtime)?,
+    );
     let source = disparity_source(&args)?;
     let selected: Vec<&Frame> = match args.batch.shard {
         Some(shard) => shard.select(frames.iter().collect()),
@@ -207,6 +158,7 @@ fn files(
     let mut inputs = InputFiles::new();
     inputs.extend(frames.iter().flat_map(Frame::inputs));
     args.source.add_files_to(&mut inputs);
+    inputs.extend(args.synthesis.model_file());
     let mut outputs: Vec<PathBuf> = selected
         .iter()
         .flat_map(|frame| frame.written(args.preview))
@@ -293,36 +245,6 @@ fn warn_if_ground_truth(dir: &Path) {
             dir.display()
         );
     }
-}
-
-/// The mask dilation the flags ask for.
-fn dilation(args: &Args) -> Dilation {
-    let r = args.dilate_radius;
-    match args.dilation {
-        DilationKind::None => Dilation::None,
-        DilationKind::Square => Dilation::Square(r),
-        DilationKind::Ellipse => Dilation::Ellipse(r),
-        DilationKind::BackgroundSide => Dilation::BackgroundSide(r),
-        DilationKind::ForegroundSide => Dilation::ForegroundSide(r),
-    }
-}
-
-/// The inpainter the flags ask for (an ONNX network is opened here).
-fn inpainter(args: &Args) -> anyhow::Result<Box<dyn Inpainter>> {
-    Ok(match &args.inpaint {
-        InpaintKind::Background => Box::new(BackgroundFill::default()),
-        InpaintKind::Isotropic => Box::new(IsotropicFill),
-        InpaintKind::Onnx(model) => {
-            let card = args
-                .inpaint_card
-                .as_deref()
-                .context("--inpaint onnx:MODEL needs --inpaint-card NAME|FILE.json")?;
-            let runtime = &args.source.runtime;
-            let net = OnnxInpainter::open(model, ModelCard::load(card)?, &runtime.options()?)?;
-            runtime.report_fallback(&model.display().to_string(), net.device());
-            Box::new(net)
-        }
-    })
 }
 
 /// The disparity source for frames without files: the built-in matcher

@@ -6,6 +6,7 @@ pub mod demo;
 pub mod eval;
 pub mod export;
 pub mod extrapolate;
+pub mod mono;
 pub mod predict;
 pub mod scan;
 pub mod submit;
