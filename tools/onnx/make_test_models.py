@@ -15,6 +15,14 @@ resizing, mask conventions) against real ONNX Runtime:
   mask (1 x 1 float, 1 = hole); output = (image * (1 - mask) + 0.5 * mask) * 255.
 - inpaint_migan.onnx   MI-GAN style, any size, uint8: image (1 x 3), mask
   (1 x 1, 255 = keep, 0 = hole); result = image where kept, 77 in holes.
+- depth_metric.onnx    monocular depth, any size: image (1 x 3 float) -> depth
+  (1 x 1) = 1 + mean_c image (positive: fits a metric-depth card).
+- depth_negative.onnx  the same, depth = mean_c image - 0.5 (zero or negative
+  values a card claiming metric depth must refuse).
+- depth_nan.onnx       depth = sqrt(mean_c image - 2): NaN everywhere for
+  inputs in 0..1.
+- depth_half.onnx      depth = 1 + mean_c image, average-pooled to half the
+  size: an output that does not fit its card.
 
 Usage: python3 tools/onnx/make_test_models.py [OUT_DIR]  (needs `pip install onnx`)
 """
@@ -118,6 +126,49 @@ def migan_graph():
     )
 
 
+def depth_graph(name, tail):
+    """image -> mean over channels, then the nodes of `tail` -> depth."""
+    nodes = [helper.make_node("ReduceMean", ["image"], ["mean"], axes=[1], keepdims=1)]
+    consts = {
+        "one": 1.0,
+        "half": 0.5,
+        "two": 2.0,
+    }
+    nodes += tail
+    return helper.make_graph(
+        nodes,
+        name,
+        [helper.make_tensor_value_info("image", TensorProto.FLOAT, [1, 3, "H", "W"])],
+        [helper.make_tensor_value_info("depth", TensorProto.FLOAT, [1, 1, None, None])],
+        [numpy_helper.from_array(np.array(v, np.float32), k) for k, v in consts.items()],
+    )
+
+
+def depth_models():
+    """The depth test models: name -> graph."""
+    plus_one = helper.make_node("Add", ["mean", "one"], ["depth"])
+    return {
+        "depth_metric": depth_graph("depth_metric", [plus_one]),
+        "depth_negative": depth_graph(
+            "depth_negative", [helper.make_node("Sub", ["mean", "half"], ["depth"])]
+        ),
+        "depth_nan": depth_graph(
+            "depth_nan",
+            [
+                helper.make_node("Sub", ["mean", "two"], ["below"]),
+                helper.make_node("Sqrt", ["below"], ["depth"]),
+            ],
+        ),
+        "depth_half": depth_graph(
+            "depth_half",
+            [
+                helper.make_node("Add", ["mean", "one"], ["full"]),
+                helper.make_node("AveragePool", ["full"], ["depth"], kernel_shape=[2, 2], strides=[2, 2]),
+            ],
+        ),
+    }
+
+
 def main():
     out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[2] / "testdata/onnx"
     out.mkdir(parents=True, exist_ok=True)
@@ -127,7 +178,9 @@ def main():
     save(stereo_graph("stereo_fixed", [1, 3, 32, 48], "disparity", False), out / "stereo_fixed.onnx")
     save(lama_graph(), out / "inpaint_lama.onnx")
     save(migan_graph(), out / "inpaint_migan.onnx")
-    print(f"wrote 5 models to {out}")
+    for name, graph in depth_models().items():
+        save(graph, out / f"{name}.onnx")
+    print(f"wrote 9 models to {out}")
 
 
 if __name__ == "__main__":

@@ -89,7 +89,12 @@ pub struct Args {
     #[arg(long)]
     pub out: PathBuf,
     /// A monocular depth network (ONNX), fed as --card says.
-    #[arg(long, value_name = "FILE.onnx", group = "depth_source", requires = "card")]
+    #[arg(
+        long,
+        value_name = "FILE.onnx",
+        group = "depth_source",
+        requires = "card"
+    )]
     pub model: Option<PathBuf>,
     /// The depth network's card: a built-in name (fastdepth,
     /// depth-anything-v2-small...) or a card FILE.json.
