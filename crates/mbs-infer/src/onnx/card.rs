@@ -243,6 +243,22 @@ const BUILTIN: &[(&str, &str)] = &[
         "fastdepth",
         include_str!("../../models/cards/fastdepth.json"),
     ),
+    (
+        "depth-anything-v2-small",
+        include_str!("../../models/cards/depth-anything-v2-small.json"),
+    ),
+    (
+        "depth-anything-v2-base",
+        include_str!("../../models/cards/depth-anything-v2-base.json"),
+    ),
+    (
+        "depth-anything-v2-large",
+        include_str!("../../models/cards/depth-anything-v2-large.json"),
+    ),
+    (
+        "midas-v21-small",
+        include_str!("../../models/cards/midas-v21-small.json"),
+    ),
 ];
 
 impl ModelCard {
