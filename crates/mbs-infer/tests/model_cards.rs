@@ -1,5 +1,6 @@
 //! Every shipped model card (built-in and test fixtures) satisfies
-//! `schemas/model-card.schema.json` and parses into a checked `ModelCard`.
+//! `schemas/model-card.schema.json` and parses into a checked `ModelCard`,
+//! and every card file in `models/cards` is built in under its file name.
 
 use std::path::{Path, PathBuf};
 
@@ -31,7 +32,9 @@ fn shipped_cards_follow_the_schema() {
         json_files(&root().join("testdata/onnx")),
     ]
     .concat();
-    assert_eq!(cards.len(), 12);
+    // 11 built-in cards (6 stereo and inpainting, FastDepth, Depth Anything
+    // V2 small, base and large, MiDaS v2.1 small) and 5 test fixtures.
+    assert_eq!(cards.len(), 16);
     for path in cards {
         let document: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
@@ -46,4 +49,17 @@ fn shipped_cards_follow_the_schema() {
     let bad = serde_json::json!({"name": "x", "task": "stereo", "inputs": {"left": "l"},
         "size": {"mode": "dynamic", "multiple": 0}, "output": {"name": "d", "sign": 2}});
     assert_eq!(validator.iter_errors(&bad).count(), 2);
+}
+
+#[test]
+fn every_card_file_is_built_in_under_its_name() {
+    let dir = root().join("crates/mbs-infer/models/cards");
+    let mut files: Vec<String> = json_files(&dir)
+        .iter()
+        .map(|p| p.file_stem().unwrap().to_string_lossy().into_owned())
+        .collect();
+    let mut builtin: Vec<String> = ModelCard::builtin_names().map(String::from).collect();
+    files.sort();
+    builtin.sort();
+    assert_eq!(files, builtin);
 }

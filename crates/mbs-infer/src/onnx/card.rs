@@ -231,6 +231,22 @@ const BUILTIN: &[(&str, &str)] = &[
         "fastdepth",
         include_str!("../../models/cards/fastdepth.json"),
     ),
+    (
+        "depth-anything-v2-small",
+        include_str!("../../models/cards/depth-anything-v2-small.json"),
+    ),
+    (
+        "depth-anything-v2-base",
+        include_str!("../../models/cards/depth-anything-v2-base.json"),
+    ),
+    (
+        "depth-anything-v2-large",
+        include_str!("../../models/cards/depth-anything-v2-large.json"),
+    ),
+    (
+        "midas-v21-small",
+        include_str!("../../models/cards/midas-v21-small.json"),
+    ),
 ];
 
 impl ModelCard {
@@ -421,6 +437,59 @@ mod tests {
                 height: 224
             }
         );
+    }
+
+    /// The ImageNet mean and standard deviation.
+    const IMAGENET: [[f32; 3]; 2] = [[0.485, 0.456, 0.406], [0.229, 0.224, 0.225]];
+
+    /// Checks that the built-in card `name` takes RGB / 255 normalised by
+    /// `[mean, std]` into tensor `io.0` as a fixed `side` x `side` NCHW
+    /// float32 image, gives an inverse relative depth in tensor `io.1`, and
+    /// names `licence` in its notes.
+    fn assert_relative_depth(
+        name: &str,
+        io: (&str, &str),
+        side: u32,
+        norm: [[f32; 3]; 2],
+        licence: &str,
+    ) {
+        let card = ModelCard::load(name).unwrap();
+        assert_eq!(card.task, Task::Depth, "{name}");
+        let kind = Some(OutputKind::InverseRelative);
+        assert_eq!(
+            (card.input("image"), card.output.kind),
+            (Some(io.0), kind),
+            "{name}"
+        );
+        assert_eq!(card.output.name, io.1, "{name}");
+        let fixed = SizePolicy::Fixed {
+            width: side,
+            height: side,
+        };
+        assert_eq!(card.size, fixed, "{name}");
+        assert_eq!(
+            (card.layout, card.color_order),
+            (Layout::Nchw, ColorOrder::Rgb),
+            "{name}"
+        );
+        assert_eq!(card.dtype, ElementType::Float32, "{name}");
+        assert!((card.scale * 255.0 - 1.0).abs() < 1e-6, "{name}: RGB / 255");
+        assert_eq!([card.mean, card.std], norm, "{name}");
+        assert_eq!((card.output.sign, card.output.scale), (1.0, 1.0), "{name}");
+        assert!(card.notes.contains(licence), "{name} states its licence");
+    }
+
+    /// The conventions each relative depth card's notes cite (see
+    /// docs/depth-models.md): an edit that changes one fails here.
+    #[test]
+    fn relative_depth_cards_keep_their_sources_conventions() {
+        let da = ("image", "depth");
+        assert_relative_depth("depth-anything-v2-small", da, 518, IMAGENET, "Apache-2.0");
+        assert_relative_depth("depth-anything-v2-base", da, 518, IMAGENET, "CC-BY-NC-4.0");
+        assert_relative_depth("depth-anything-v2-large", da, 518, IMAGENET, "CC-BY-NC-4.0");
+        // MiDaS's ONNX export normalises inside the graph: RGB in 0..1 only.
+        let none = [[0.0; 3], [1.0; 3]];
+        assert_relative_depth("midas-v21-small", ("0", "797"), 256, none, "MIT");
     }
 
     #[test]
