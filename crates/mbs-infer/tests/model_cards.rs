@@ -33,8 +33,8 @@ fn shipped_cards_follow_the_schema() {
     ]
     .concat();
     // 11 built-in cards (6 stereo and inpainting, FastDepth, Depth Anything
-    // V2 small, base and large, MiDaS v2.1 small) and 5 test fixtures.
-    assert_eq!(cards.len(), 16);
+    // V2 small, base and large, MiDaS v2.1 small) and 6 test fixtures.
+    assert_eq!(cards.len(), 17);
     for path in cards {
         let document: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();

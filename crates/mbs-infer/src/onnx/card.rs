@@ -455,7 +455,7 @@ mod tests {
     ) {
         let card = ModelCard::load(name).unwrap();
         assert_eq!(card.task, Task::Depth, "{name}");
-        let kind = Some(OutputKind::InverseRelative);
+        let kind = Some(DepthKind::InverseRelative);
         assert_eq!(
             (card.input("image"), card.output.kind),
             (Some(io.0), kind),
