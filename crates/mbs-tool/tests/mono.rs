@@ -406,3 +406,46 @@ fn the_disparity_is_the_models_inverse_depth_scaled(photo: &Path, set: &Path) {
         );
     }
 }
+
+#[test]
+fn shards_share_a_folder_and_a_manifest_camera_is_a_photo_source() {
+    let dir = tempfile::tempdir().unwrap();
+    let (photos, depths) = (dir.path().join("photos"), dir.path().join("depths"));
+    broken_batch(&photos, &depths);
+    for name in ["grey", "deep", "nan", "nodepth"] {
+        std::fs::remove_file(photos.join(format!("{name}.png"))).unwrap();
+    }
+    let out = dir.path().join("out");
+    let line = format!(
+        "mono --images {} --depth-dir {} --depth-kind inverse-relative --out {}",
+        s(&photos),
+        s(&depths),
+        s(&out)
+    );
+    for shard in ["0/2", "1/2"] {
+        let sharded = run_line(&format!("{line} --shard {shard}"));
+        assert!(sharded.status.success(), "{}", text(&sharded));
+        assert!(text(&sharded).contains("1 done"), "{}", text(&sharded));
+    }
+    assert!(!out.join("manifest.json").exists());
+    let whole = run_line(&line);
+    assert!(
+        text(&whole).contains("0 done, 2 skipped, 0 failed"),
+        "{}",
+        text(&whole)
+    );
+    // The sets' camera 1 (the photos, linked) are photos of another run,
+    // named by the samples' ids.
+    let again = dir.path().join("again");
+    let from_manifest = run_line(&format!(
+        "mono --manifest {} --camera 1 --depth-dir {} --depth-kind inverse-relative --out {}",
+        s(&out.join("manifest.json")),
+        s(&depths),
+        s(&again)
+    ));
+    assert!(from_manifest.status.success(), "{}", text(&from_manifest));
+    for id in ["good", "odd"] {
+        let view = format!("image_1/{id}.png");
+        assert!(same_pixels(&out.join(&view), &again.join(&view)), "{id}");
+    }
+}
