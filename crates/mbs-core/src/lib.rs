@@ -8,6 +8,7 @@
 //! and `0` in integer files.
 
 pub mod atomic;
+pub mod batch_settings;
 pub mod confine;
 pub mod error;
 pub mod formats;

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::bail;
 use clap::{Parser, ValueEnum};
+use mbs_core::batch_settings;
 use mbs_core::inputs::InputFiles;
 use mbs_dataset::Split;
 use mbs_dataset::manifest::Provenance;
@@ -198,7 +199,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => sets.iter().collect(),
     };
     let (inputs, outputs) = files(&args, &sets, &selected);
+    let settings = settings(&args, scaling, kind)?;
+    batch_settings::check(&args.out, "mono", &settings)?;
     let _out = crate::cli::take_out(&args.out, args.batch.shard, "mono", &inputs, &outputs)?;
+    batch_settings::keep(&args.out, "mono", &settings)?;
     let summary = batch::run(
         &selected,
         "photos",
@@ -213,7 +217,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     let result = summary.finish("mono", "photos");
     if args.batch.shard.is_none() {
-        write_manifest(&args, &sets, scaling, kind)?;
+        write_manifest(&args, &sets, settings)?;
     }
     result
 }
@@ -316,8 +320,11 @@ fn files(args: &Args, sets: &[PhotoSet], selected: &[&PhotoSet]) -> (InputFiles,
     (inputs, outputs)
 }
 
-/// What the manifest records of how the sets were made.
-fn provenance(args: &Args, scaling: Scaling, kind: DepthKind) -> anyhow::Result<Provenance> {
+/// The settings the sets' files are made with: the depth (model file
+/// name, its sha256 and card, or the files' kind), the scaling, the
+/// cameras and the synthesis. A rerun into the same folder must repeat
+/// them, and the manifest's provenance records them.
+fn settings(args: &Args, scaling: Scaling, kind: DepthKind) -> anyhow::Result<serde_json::Value> {
     let depth = match (&args.model, &args.card) {
         (Some(model), Some(card)) => serde_json::json!({
             "model": model.file_name().map(|n| n.to_string_lossy()),
@@ -325,9 +332,7 @@ fn provenance(args: &Args, scaling: Scaling, kind: DepthKind) -> anyhow::Result<
             "card": ModelCard::load(card)?,
             "kind": kind,
         }),
-        _ => {
-            serde_json::json!({ "files": args.depth.as_ref().or(args.depth_dir.as_ref()), "kind": kind })
-        }
+        _ => serde_json::json!({ "files": true, "kind": kind }),
     };
     let scaling = match scaling {
         Scaling::Range { low, high, seed } => serde_json::json!({
@@ -345,19 +350,28 @@ fn provenance(args: &Args, scaling: Scaling, kind: DepthKind) -> anyhow::Result<
         }
         Scaling::AsIs => serde_json::json!({ "mode": "as-is" }),
     };
+    Ok(serde_json::json!({
+        "depth": depth,
+        "scaling": scaling,
+        "views": args.views,
+        "reference": args.reference,
+        "synthesis": args.synthesis.provenance(),
+    }))
+}
+
+/// What the manifest records of how the sets were made: the `settings`,
+/// where the depth files were, and whether the rig is nominal.
+fn provenance(args: &Args, mut settings: serde_json::Value) -> Provenance {
     let nominal = args.focal.is_none() || args.baseline.is_none();
-    Ok(Provenance {
+    settings["rig"] = serde_json::json!(if nominal { "nominal" } else { "given" });
+    if let Some(files) = args.depth.as_ref().or(args.depth_dir.as_ref()) {
+        settings["depth"]["files"] = serde_json::json!(files);
+    }
+    Provenance {
         tool: "mbs-tool mono".into(),
         version: env!("CARGO_PKG_VERSION").into(),
-        settings: serde_json::json!({
-            "depth": depth,
-            "scaling": scaling,
-            "views": args.views,
-            "reference": args.reference,
-            "synthesis": args.synthesis.provenance(),
-            "rig": if nominal { "nominal" } else { "given" },
-        }),
-    })
+        settings,
+    }
 }
 
 /// Writes `OUT/manifest.json`, the complete sets (none: nothing is
@@ -365,8 +379,7 @@ fn provenance(args: &Args, scaling: Scaling, kind: DepthKind) -> anyhow::Result<
 fn write_manifest(
     args: &Args,
     sets: &[PhotoSet],
-    scaling: Scaling,
-    kind: DepthKind,
+    settings: serde_json::Value,
 ) -> anyhow::Result<()> {
     let done: Vec<_> = sets
         .iter()
@@ -381,7 +394,7 @@ fn write_manifest(
         name: "mono",
         focal: args.focal.unwrap_or(NOMINAL_FOCAL_PX),
         baseline: args.baseline.unwrap_or(NOMINAL_BASELINE_M),
-        provenance: provenance(args, scaling, kind)?,
+        provenance: provenance(args, settings),
     };
     let manifest = views_manifest(&done, &args.out, set_kind)?;
     let path = args.out.join(MANIFEST_FILE);
