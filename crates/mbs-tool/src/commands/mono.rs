@@ -32,7 +32,7 @@ const NOMINAL_BASELINE_M: f64 = 0.54;
 /// Arguments of `mono`.
 #[derive(Parser)]
 #[command(after_help = "Examples:
-  mbs-tool mono --images photos/ --model depth_anything_v2_vits.onnx \\
+  mbs-tool mono --images photos/ --model depth_anything_v2_vits_dynamic.onnx \\
       --card depth-anything-v2-small --out sets/
   mbs-tool mono --image street.jpg --model fastdepth_7.onnx --card fastdepth --preview --out set/
   mbs-tool mono --list train.txt --model midas.onnx --card midas-v21-small --views 5 \\
@@ -46,8 +46,8 @@ camera --reference (default: 4 cameras, the photo at the second, as the
 paper's sets: one further left, the photo, its right partner, one further
 right). The depth map (a network's, through ONNX Runtime as its card says,
 or a file) becomes the disparity of one baseline: --scale range (default for
-depth and relative maps) takes it as inverse depth, shifts it to start at 0
-and scales it so its largest value is a fraction of the width drawn per photo
+depth and relative maps) takes it as inverse depth, shifted to start at 0
+if it has negative values, and scales it so its largest value is a fraction of the width drawn per photo
 in --max-disparity from --seed and the photo's id (Watson et al.'s rule, so
 the network sees many rigs; the default 0.05:0.15 of the width is about what
 one baseline of KITTI or MBS20K shows, and the outer views of 4 reach 0.3);
@@ -65,8 +65,9 @@ preview/ID.png with --preview, and OUT/manifest.json naming the model, the
 card, the scaling and the seed. The same inputs and seed give the same bytes.
 A photo that cannot be used (grey, 16-bit, a depth map with NaN...) is
 reported and the others go on; the exit status is then non-zero. Finished
-photos are skipped, so an interrupted run resumes where it stopped; nothing
-is written outside OUT, and no output replaces an input.")]
+photos are skipped, so an interrupted run resumes where it stopped (with the
+same settings: a run with others into the same OUT is refused); nothing is
+written outside OUT, and no output replaces an input.")]
 pub struct Args {
     /// One photo.
     #[arg(long, group = "photos", value_name = "FILE")]
