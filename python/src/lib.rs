@@ -577,7 +577,6 @@ fn extrapolate<'py>(
     disparity_right: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let max_disparity = self::max_disparity(max_disparity)?;
-    let dilate_radius = dilate_radius.within("dilate_radius", 0..=MAX_SIDE as i128)?;
     let dilation = parse_dilation(dilation, dilate_radius)?;
     let inpainter = parse_inpainter(inpaint)?;
     let (left, right) = (rgb_image("left", left)?, rgb_image("right", right)?);
@@ -621,8 +620,10 @@ fn extrapolate<'py>(
     Ok(out)
 }
 
-/// The `dilation` argument of [`extrapolate`] with its radius.
-fn parse_dilation(dilation: &str, radius: u32) -> PyResult<Dilation> {
+/// The `dilation` argument of [`extrapolate`] with its radius,
+/// `dilate_radius`.
+fn parse_dilation(dilation: &str, radius: Integer) -> PyResult<Dilation> {
+    let radius = radius.within("dilate_radius", 0..=MAX_SIDE as i128)?;
     match dilation {
         "none" => Ok(Dilation::None),
         "square" => Ok(Dilation::Square(radius)),
