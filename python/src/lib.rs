@@ -8,6 +8,7 @@
 
 mod batches;
 mod integer;
+mod mono;
 mod scoring;
 mod synth;
 
@@ -620,8 +621,8 @@ fn extrapolate<'py>(
     Ok(out)
 }
 
-/// The `dilation` argument of [`extrapolate`] with its radius,
-/// `dilate_radius`.
+/// The `dilation` argument of [`extrapolate`] and [`mono::mono_views`]
+/// with its radius, `dilate_radius`.
 fn parse_dilation(dilation: &str, radius: Integer) -> PyResult<Dilation> {
     let radius = radius.within("dilate_radius", 0..=MAX_SIDE as i128)?;
     match dilation {
@@ -637,7 +638,7 @@ fn parse_dilation(dilation: &str, radius: Integer) -> PyResult<Dilation> {
     }
 }
 
-/// The `inpaint` argument of [`extrapolate`].
+/// The `inpaint` argument of [`extrapolate`] and [`mono::mono_views`].
 fn parse_inpainter(inpaint: &str) -> PyResult<Box<dyn Inpainter>> {
     let inpainter: Box<dyn Inpainter> = match inpaint {
         "background" => Box::new(BackgroundFill::default()),
@@ -732,5 +733,6 @@ fn _native(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(synth::synth_scene, module)?)?;
     module.add_function(wrap_pyfunction!(scoring::score_json, module)?)?;
     module.add_function(wrap_pyfunction!(scoring::score_folder_json, module)?)?;
+    module.add_function(wrap_pyfunction!(mono::mono_views, module)?)?;
     Ok(())
 }
