@@ -718,7 +718,9 @@ def mono_views(
         ``uint8``, shape ``(H, W, 3)``, RGB.
     depth : numpy.ndarray
         ``float32``, shape ``(H, W)``: the image's map, of kind ``kind``;
-        every value finite.
+        every value finite, but that a disparity may have ``inf`` where
+        unknown (filled from the background side, as :func:`extrapolate`
+        and ``mbs-tool mono`` fill it).
     kind : str
         What ``depth`` holds: ``"metric-depth"`` (metres, positive),
         ``"inverse-relative"`` (inverse depth up to scale and shift, as
@@ -740,7 +742,7 @@ def mono_views(
     max_disparity : tuple of float, default (0.05, 0.15)
         With ``"range"``: ``(low, high)``, the largest disparity is a
         fraction of the width drawn uniformly from it per image, from
-        ``seed`` and ``sample_id`` only; ``0 < low <= high <= 1``.
+        ``seed`` and ``sample_id`` only; ``0 < low <= high < 1``.
     seed : int, default 0
         The draw's seed, 0 to ``2**64 - 1``.
     sample_id : str, default ""
@@ -771,11 +773,11 @@ def mono_views(
     ------
     ValueError
         An array is not as above or the two differ in size, the map has a
-        value its kind cannot hold (NaN or infinite, a depth of zero or
-        below, a negative disparity, one value only), a setting is unknown,
-        out of range or not allowed with the kind or scale, or every pixel of
-        a view would be synthesised (the message begins with the argument's
-        name).
+        value its kind cannot hold (NaN; ``inf`` but in a disparity; a depth
+        of zero or below; a negative disparity; one value only, or none
+        known), a setting is unknown, out of range or not allowed with the
+        kind or scale, or every pixel of a view would be synthesised (the
+        message begins with the argument's name).
     TypeError
         An integer argument is not an integer (the message begins with its
         name).

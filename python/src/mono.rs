@@ -4,19 +4,21 @@
 //! baseline's disparity, every other camera warped, masked and inpainted by
 //! the same `synthesize` as `extrapolate`.
 
+use std::path::Path;
+
 use image::RgbImage;
 use mbs_core::FloatImage;
+use mbs_core::limits::MAX_VIEWS;
+use mbs_extrapolate::disparity::checked_disparity;
 use mbs_extrapolate::mono::{MonoViews, Scaling, ViewLayout, virtual_disparity};
 use mbs_extrapolate::{Extrapolator, NewView};
 use mbs_infer::DepthKind;
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use crate::integer::Integer;
 use crate::{float_map, parse_dilation, parse_inpainter, rgb_image, to_numpy, value_error};
-
-/// The most cameras a set may have here.
-const MAX_VIEWS: usize = 64;
 
 /// The views of a virtual rig from one image and its depth or disparity.
 ///
@@ -33,7 +35,9 @@ const MAX_VIEWS: usize = 64;
 ///     ``uint8``, shape ``(H, W, 3)``, RGB.
 /// depth : numpy.ndarray
 ///     ``float32``, shape ``(H, W)``: the image's map, of kind ``kind``;
-///     every value finite.
+///     every value finite, but that a disparity may have ``inf`` where
+///     unknown (filled from the background side, as :func:`extrapolate`
+///     and ``mbs-tool mono`` fill it).
 /// kind : str
 ///     What ``depth`` holds: ``"metric-depth"`` (metres, positive),
 ///     ``"inverse-relative"`` (inverse depth up to scale and shift, as
@@ -55,7 +59,7 @@ const MAX_VIEWS: usize = 64;
 /// max_disparity : tuple of float, default (0.05, 0.15)
 ///     With ``"range"``: ``(low, high)``, the largest disparity is a
 ///     fraction of the width drawn uniformly from it per image, from
-///     ``seed`` and ``sample_id`` only; ``0 < low <= high <= 1``.
+///     ``seed`` and ``sample_id`` only; ``0 < low <= high < 1``.
 /// seed : int, default 0
 ///     The draw's seed, 0 to ``2**64 - 1``.
 /// sample_id : str, default ""
@@ -86,11 +90,11 @@ const MAX_VIEWS: usize = 64;
 /// ------
 /// ValueError
 ///     An array is not as above or the two differ in size, the map has a
-///     value its kind cannot hold (NaN or infinite, a depth of zero or
-///     below, a negative disparity, one value only), a setting is unknown,
-///     out of range or not allowed with the kind or scale, or every pixel of
-///     a view would be synthesised (the message begins with the argument's
-///     name).
+///     value its kind cannot hold (NaN; ``inf`` but in a disparity; a depth
+///     of zero or below; a negative disparity; one value only, or none
+///     known), a setting is unknown, out of range or not allowed with the
+///     kind or scale, or every pixel of a view would be synthesised (the
+///     message begins with the argument's name).
 /// TypeError
 ///     An integer argument is not an integer (the message begins with its
 ///     name).
@@ -158,9 +162,12 @@ fn view_layout(views: Integer, reference: Integer) -> PyResult<ViewLayout> {
 }
 
 /// The `depth` argument, of `image`'s size and holding values of `kind`
-/// (the library's check, with its message).
+/// (the library's check, with its message). A disparity is first checked
+/// and filled as `mbs-tool mono` reads a disparity file and `extrapolate`
+/// takes a disparity array: `inf` marks an unknown pixel, filled from the
+/// background side; NaN and negative values are refused.
 fn depth_map(value: &Bound<'_, PyAny>, image: &RgbImage, kind: DepthKind) -> PyResult<FloatImage> {
-    let map = float_map("depth", value)?;
+    let mut map = float_map("depth", value)?;
     if map.dimensions() != image.dimensions() {
         return Err(value_error(
             "depth",
@@ -172,6 +179,10 @@ fn depth_map(value: &Bound<'_, PyAny>, image: &RgbImage, kind: DepthKind) -> PyR
                 image.width()
             ),
         ));
+    }
+    if kind == DepthKind::Disparity {
+        map = checked_disparity(map, image.dimensions(), Path::new("depth"))
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
     }
     match kind.problem(&map) {
         Some(problem) => Err(value_error("depth", problem)),
@@ -225,7 +236,8 @@ fn scaling(
     }
 }
 
-/// The `max_disparity` argument: `(low, high)`, `0 < low <= high <= 1`.
+/// The `max_disparity` argument: `(low, high)`, `0 < low <= high < 1`, as
+/// `mbs-tool mono --max-disparity LOW:HIGH` takes it.
 fn fractions(max_disparity: &[f64]) -> PyResult<(f32, f32)> {
     let &[low, high] = max_disparity else {
         return Err(value_error(
@@ -233,10 +245,10 @@ fn fractions(max_disparity: &[f64]) -> PyResult<(f32, f32)> {
             format!("expected (low, high), got {} values", max_disparity.len()),
         ));
     };
-    if !(low > 0.0 && low <= high && high <= 1.0) {
+    if !(low > 0.0 && low <= high && high < 1.0) {
         return Err(value_error(
             "max_disparity",
-            format!("({low}, {high}): expected fractions of the width with 0 < low <= high <= 1"),
+            format!("({low}, {high}): expected fractions of the width with 0 < low <= high < 1"),
         ));
     }
     Ok((low as f32, high as f32))

@@ -5,7 +5,7 @@ one's true disparity).
 
 Each synthesised camera is, byte for byte, what `mbs.extrapolate` makes
 from the same image with that camera's disparity (both call the library's
-one `synthesize`); the synthesised neighbours are closer to the real ones
+one `synthesize`, and fill a disparity's unknown pixels alike); the synthesised neighbours are closer to the real ones
 than the image itself is; the range scaling's largest disparity is the
 drawn fraction of the width, the same for the same seed and id and another
 for another id; the metric scaling is exactly f B / Z.
@@ -32,13 +32,20 @@ def column(k: int) -> npt.NDArray[np.uint8]:
 
 
 @pytest.fixture(scope="module")
-def disparity() -> npt.NDArray[np.float32]:
-    """Column 3's true disparity (the file's value / 16) against its
-    neighbours, its unknown border filled from the nearest known pixel."""
-    truth = mbs.read_rgb(TSUKUBA / "truedisp.row3.col3.pgm")[..., 0].astype(np.float32) / 16
-    inner = truth[BORDER:-BORDER, BORDER:-BORDER]
-    assert inner.min() > 0 and (truth == 0).sum() == truth.size - inner.size, "only the border is unknown"
-    return np.pad(inner, BORDER, mode="edge")
+def truth() -> npt.NDArray[np.float32]:
+    """Column 3's true disparity against its neighbours (the file's value /
+    16), ``inf`` where unknown (0 in the file: an 18 px border)."""
+    values = mbs.read_rgb(TSUKUBA / "truedisp.row3.col3.pgm")[..., 0].astype(np.float32) / 16
+    inner = values[BORDER:-BORDER, BORDER:-BORDER]
+    assert inner.min() > 0 and (values == 0).sum() == values.size - inner.size, "only the border is unknown"
+    return np.where(values > 0, values, np.float32(np.inf))
+
+
+@pytest.fixture(scope="module")
+def disparity(truth: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+    """The true disparity with its unknown border filled from the nearest
+    known pixel: what the fill from the background side makes of it."""
+    return np.pad(truth[BORDER:-BORDER, BORDER:-BORDER], BORDER, mode="edge")
 
 
 def psnr(a: npt.NDArray[np.uint8], b: npt.NDArray[np.uint8]) -> float:
@@ -46,17 +53,22 @@ def psnr(a: npt.NDArray[np.uint8], b: npt.NDArray[np.uint8]) -> float:
     return float(10 * np.log10(255.0**2 / error))
 
 
-def test_each_camera_is_extrapolate_at_its_baselines(disparity: npt.NDArray[np.float32]) -> None:
+def test_each_camera_is_extrapolate_at_its_baselines(
+    truth: npt.NDArray[np.float32], disparity: npt.NDArray[np.float32]
+) -> None:
+    """With ``inf`` where unknown, as the library, ``mbs.extrapolate`` and
+    ``mbs-tool mono`` take a disparity: filled from the background side."""
     image = column(3)
-    rig = mbs.mono_views(image, disparity, "disparity", views=5, reference=2)
+    rig = mbs.mono_views(image, truth, "disparity", views=5, reference=2)
     assert len(rig["views"]) == len(rig["masks"]) == 5
     np.testing.assert_array_equal(rig["views"][2], image)
     assert rig["masks"][2] is None
     np.testing.assert_array_equal(rig["disparity"], disparity)
     assert rig["drawn_fraction"] is None
     for steps in (1, 2):
-        scaled = disparity * np.float32(steps)
+        scaled = truth * np.float32(steps)
         pair = mbs.extrapolate(image, image, disparity_left=scaled, disparity_right=scaled)
+        np.testing.assert_array_equal(pair["disparity_2"], disparity * np.float32(steps))
         for k, view, mask in (
             (2 - steps, pair["image_1"], pair["mask_1"]),
             (2 + steps, pair["image_4"], pair["mask_4"]),
@@ -67,6 +79,9 @@ def test_each_camera_is_extrapolate_at_its_baselines(disparity: npt.NDArray[np.f
     for k in (0, 1, 3, 4):
         synthesised = rig["masks"][k]
         assert synthesised is not None and set(np.unique(synthesised)) == {0, 255}, f"camera {k}"
+    filled = mbs.mono_views(image, disparity, "disparity", views=5, reference=2)
+    for ours, theirs in zip(rig["views"] + rig["masks"], filled["views"] + filled["masks"]):
+        np.testing.assert_array_equal(ours, theirs)
 
 
 # PSNR (dB) of each synthesised camera (0 to 4: columns 1 to 5) against the
@@ -76,9 +91,9 @@ def test_each_camera_is_extrapolate_at_its_baselines(disparity: npt.NDArray[np.f
 MEASURED = {0: 26.88, 1: 30.34, 3: 30.01, 4: 26.19}
 
 
-def test_synthesised_cameras_are_close_to_the_real_ones(disparity: npt.NDArray[np.float32]) -> None:
+def test_synthesised_cameras_are_close_to_the_real_ones(truth: npt.NDArray[np.float32]) -> None:
     image = column(3)
-    rig = mbs.mono_views(image, disparity, "disparity", views=5, reference=2)
+    rig = mbs.mono_views(image, truth, "disparity", views=5, reference=2)
     for k, measured in MEASURED.items():
         real = column(k + 1)
         ours, unwarped = psnr(rig["views"][k], real), psnr(image, real)
