@@ -1,6 +1,7 @@
 """mbs from Python: stereo files, CARLA depth, the built-in matcher and more.
 
 Disparity and depth files, CARLA depth, the built-in matcher, extrapolation,
+the views of a virtual rig from one image and your own network's depth,
 procedural scenes with exact ground truth, manifests (and in ``mbs.torch``,
 S3 for PyTorch networks). The package is typed (``py.typed``, with stubs for
 its native module).
@@ -22,6 +23,7 @@ Example::
     mbs.write_kitti_disparity("disp.png", disparity)
     predicted = mbs.match_stereo(left, right, max_disparity=128)
     views = mbs.extrapolate(left, right)                  # image_1, image_4, masks, disparities
+    rig = mbs.mono_views(image, net(image), "inverse-relative")  # views, masks from one image
     scene = mbs.synth_scene(seed=3, views=5)              # views, depth, disparity per camera
     report = mbs.score(predicted, gt)                     # the S3 paper's protocol, as eval
 """
@@ -37,6 +39,7 @@ from mbs._native import (
     depth_to_disparity,
     extrapolate,
     match_stereo,
+    mono_views,
     read_exr,
     read_kitti_disparity,
     read_pfm,
@@ -259,6 +262,7 @@ __all__ = [
     "extrapolate",
     "load_manifest",
     "match_stereo",
+    "mono_views",
     "read_exr",
     "read_kitti_disparity",
     "read_pfm",

@@ -32,6 +32,7 @@ __all__ = [
     "synth_scene",
     "score_json",
     "score_folder_json",
+    "mono_views",
 ]
 
 # A file's path: pyo3 takes `str` and `os.PathLike` (`os.fspath` gives `str`).
@@ -42,6 +43,8 @@ _Bytes: TypeAlias = npt.NDArray[np.uint8]
 _Map: TypeAlias = npt.NDArray[np.float32]
 _Dilation: TypeAlias = Literal["none", "square", "ellipse", "background-side", "foreground-side"]
 _Inpaint: TypeAlias = Literal["background", "isotropic"]
+_DepthKind: TypeAlias = Literal["metric-depth", "inverse-relative", "disparity"]
+_Scale: TypeAlias = Literal["as-is", "metric", "range"]
 _Weather: TypeAlias = Literal["ClearNoon", "ClearNight", "ClearSunset", "CloudyNoon", "MidRainyNoon"]
 
 class _Extrapolated(TypedDict):
@@ -60,6 +63,14 @@ class _SynthScene(TypedDict):
     views: list[_Bytes]
     depth: list[_Map]
     disparity: list[_Map]
+
+class _MonoViews(TypedDict):
+    """What :func:`mono_views` returns: one entry per camera in the lists."""
+
+    views: list[_Bytes]
+    masks: list[_Bytes | None]
+    disparity: _Map
+    drawn_fraction: float | None
 
 class _HostBatch(TypedDict):
     """What :meth:`HostBatches.batch` returns."""
@@ -673,4 +684,108 @@ def score_folder_json(
     OSError
         The folder is off its layout, a listed frame is not one of its
         frames, or no image could be scored.
+    """
+
+def mono_views(
+    image: _Bytes,
+    depth: _Map,
+    kind: _DepthKind,
+    *,
+    views: SupportsIndex = 4,
+    reference: SupportsIndex = 1,
+    scale: _Scale | None = None,
+    max_disparity: tuple[float, float] = (0.05, 0.15),
+    seed: SupportsIndex = 0,
+    sample_id: str = "",
+    focal: float | None = None,
+    baseline: float | None = None,
+    dilation: _Dilation = "none",
+    dilate_radius: SupportsIndex = 2,
+    inpaint: _Inpaint = "background",
+) -> _MonoViews:
+    """The views of a virtual rig from one image and its depth or disparity.
+
+    For a depth network of your own (a single-image *Learning Stereo from
+    Single Images* set): the map becomes one baseline's disparity of a
+    virtual rig (``scale``), and every camera but the image's is the image
+    forward-warped by ``|k - reference|`` times that disparity, its holes
+    grown by ``dilation`` and inpainted, as :func:`extrapolate` makes its
+    views.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        ``uint8``, shape ``(H, W, 3)``, RGB.
+    depth : numpy.ndarray
+        ``float32``, shape ``(H, W)``: the image's map, of kind ``kind``;
+        every value finite, but that a disparity may have ``inf`` where
+        unknown (filled from the background side, as :func:`extrapolate`
+        and ``mbs-tool mono`` fill it).
+    kind : str
+        What ``depth`` holds: ``"metric-depth"`` (metres, positive),
+        ``"inverse-relative"`` (inverse depth up to scale and shift, as
+        MiDaS or relative Depth Anything give) or ``"disparity"`` (pixels,
+        non-negative).
+    views : int, default 4
+        The number of cameras, one baseline apart, 2 to 64.
+    reference : int, default 1
+        The image's camera, 0 to ``views - 1`` (the default is the paper's:
+        one camera left of the image, two right).
+    scale : str, optional
+        How the map becomes one baseline's disparity: ``"as-is"`` (a
+        disparity in pixels, kind ``"disparity"`` only), ``"metric"``
+        (``focal * baseline / depth``, kind ``"metric-depth"`` only) or
+        ``"range"`` (any kind: the map as inverse depth, shifted so that its
+        least value is 0 if negative, scaled so that its largest is a fraction
+        of the width drawn from ``max_disparity``). The default is
+        ``"as-is"`` for a disparity, ``"range"`` otherwise.
+    max_disparity : tuple of float, default (0.05, 0.15)
+        With ``"range"``: ``(low, high)``, the largest disparity is a
+        fraction of the width drawn uniformly from it per image, from
+        ``seed`` and ``sample_id`` only; ``0 < low <= high < 1``.
+    seed : int, default 0
+        The draw's seed, 0 to ``2**64 - 1``.
+    sample_id : str, default ""
+        The image's id in the draw (``mbs-tool`` uses its file stem).
+    focal, baseline : float, optional
+        With ``"metric"`` (and only then): the virtual rig's focal length in
+        pixels and baseline in metres, positive.
+    dilation : str, default "none"
+        How holes grow: ``"none"``, ``"square"``, ``"ellipse"``,
+        ``"background-side"`` or ``"foreground-side"``.
+    dilate_radius : int, default 2
+        By how many pixels, 0 to 32768.
+    inpaint : str, default "background"
+        How holes are filled: ``"background"`` or ``"isotropic"``.
+
+    Returns
+    -------
+    dict
+        ``views``: one ``uint8`` ``(H, W, 3)`` array per camera (``image``
+        itself at ``reference``); ``masks``: per camera, ``None`` at
+        ``reference``, else ``uint8`` ``(H, W)``, 255 where synthesised;
+        ``disparity``: ``float32`` ``(H, W)``, the image's disparity against
+        a camera one baseline away (camera ``k`` is warped by ``|k -
+        reference|`` times it); ``drawn_fraction``: with ``"range"``, the
+        drawn largest disparity as a fraction of the width, else ``None``.
+
+    Raises
+    ------
+    ValueError
+        An array is not as above or the two differ in size, the map has a
+        value its kind cannot hold (NaN; ``inf`` but in a disparity; a depth
+        of zero or below; a negative disparity; one value only, or none
+        known), a setting is unknown, out of range or not allowed with the
+        kind or scale, or every pixel of a view would be synthesised (the
+        message begins with the argument's name).
+    TypeError
+        An integer argument is not an integer (the message begins with its
+        name).
+
+    Example::
+
+        depth = my_network(image)                     # your PyTorch model's float32 HxW
+        rig = mbs.mono_views(image, depth, "inverse-relative", seed=7, sample_id="0001")
+        left, image, right, far_right = rig["views"]  # the paper's four cameras
+        synthesised = rig["masks"][2]                 # 255 where right was inpainted
     """

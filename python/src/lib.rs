@@ -8,6 +8,7 @@
 
 mod batches;
 mod integer;
+mod mono;
 mod scoring;
 mod synth;
 
@@ -577,7 +578,6 @@ fn extrapolate<'py>(
     disparity_right: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let max_disparity = self::max_disparity(max_disparity)?;
-    let dilate_radius = dilate_radius.within("dilate_radius", 0..=MAX_SIDE as i128)?;
     let dilation = parse_dilation(dilation, dilate_radius)?;
     let inpainter = parse_inpainter(inpaint)?;
     let (left, right) = (rgb_image("left", left)?, rgb_image("right", right)?);
@@ -621,8 +621,10 @@ fn extrapolate<'py>(
     Ok(out)
 }
 
-/// The `dilation` argument of [`extrapolate`] with its radius.
-fn parse_dilation(dilation: &str, radius: u32) -> PyResult<Dilation> {
+/// The `dilation` argument of [`extrapolate`] and [`mono::mono_views`]
+/// with its radius, `dilate_radius`.
+fn parse_dilation(dilation: &str, radius: Integer) -> PyResult<Dilation> {
+    let radius = radius.within("dilate_radius", 0..=MAX_SIDE as i128)?;
     match dilation {
         "none" => Ok(Dilation::None),
         "square" => Ok(Dilation::Square(radius)),
@@ -636,7 +638,7 @@ fn parse_dilation(dilation: &str, radius: u32) -> PyResult<Dilation> {
     }
 }
 
-/// The `inpaint` argument of [`extrapolate`].
+/// The `inpaint` argument of [`extrapolate`] and [`mono::mono_views`].
 fn parse_inpainter(inpaint: &str) -> PyResult<Box<dyn Inpainter>> {
     let inpainter: Box<dyn Inpainter> = match inpaint {
         "background" => Box::new(BackgroundFill::default()),
@@ -731,5 +733,6 @@ fn _native(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(synth::synth_scene, module)?)?;
     module.add_function(wrap_pyfunction!(scoring::score_json, module)?)?;
     module.add_function(wrap_pyfunction!(scoring::score_folder_json, module)?)?;
+    module.add_function(wrap_pyfunction!(mono::mono_views, module)?)?;
     Ok(())
 }

@@ -1,7 +1,7 @@
 """The Python package against the command line: file round trips, CARLA
 depth and disparity equal to `mbs-tool decode-depth`'s files, the matcher
 equal to `mbs-tool predict`, extrapolation equal to `mbs-tool extrapolate`,
-manifests and validation reports as the command's, and the errors every
+sets from one image equal to `mbs-tool mono`'s, manifests and validation reports as the command's, and the errors every
 function promises.
 
 `tools/test.sh` builds the package and runs these with MBS_TOOL set to the
@@ -25,6 +25,7 @@ import pytest
 import mbs
 
 MBS_TOOL = os.environ.get("MBS_TOOL", "target/debug/mbs-tool")
+TSUKUBA = Path(__file__).resolve().parents[2] / "testdata" / "middlebury-tsukuba-row3"
 
 
 def mbs_tool(*args: object) -> subprocess.CompletedProcess[str]:
@@ -199,6 +200,67 @@ def test_bad_disparity_arrays_are_named(scene: Path) -> None:
     ]:
         with pytest.raises(ValueError, match=expected):
             mbs.extrapolate(left, right, **{name: value})  # type: ignore[arg-type]  # a float64 array on purpose
+
+
+@pytest.mark.parametrize(
+    "kind, options, flags",
+    [
+        ("disparity", {"views": 5, "reference": 2}, ["--views", "5", "--reference", "2"]),
+        ("inverse-relative", {"seed": 7}, ["--seed", "7"]),
+        (
+            "inverse-relative",
+            {
+                "seed": 3,
+                "max_disparity": (0.2, 0.25),
+                "dilation": "ellipse",
+                "dilate_radius": 1,
+                "inpaint": "isotropic",
+            },
+            ["--seed", "3", "--max-disparity", "0.2:0.25", "--dilation", "ellipse", "--dilate-radius", "1"]
+            + ["--inpaint", "isotropic"],
+        ),
+        (
+            "metric-depth",
+            {"scale": "metric", "focal": 615.0, "baseline": 0.16, "views": 3, "reference": 0},
+            ["--scale", "metric", "--focal", "615", "--baseline", "0.16", "--views", "3", "--reference", "0"],
+        ),
+    ],
+)
+def test_mono_views_equals_the_mono_command(
+    tmp_path: Path, kind: str, options: dict[str, Any], flags: list[str]
+) -> None:
+    """`mbs.mono_views` of an image and a map equals `mbs-tool mono --image
+    --depth` of the same image and the map as a PFM: every view and mask
+    pixel for pixel, and the disparity (so, under `range`, the fraction
+    drawn from the seed and the photo's id, its file stem)."""
+    photo = TSUKUBA / "scene1.row3.col3.ppm"
+    truth = mbs.read_rgb(TSUKUBA / "truedisp.row3.col3.pgm")[..., 0].astype(np.float32) / 16
+    depth = {
+        "disparity": np.where(truth > 0, truth, np.float32(np.inf)),  # inf: unknown, filled alike
+        "inverse-relative": truth - np.float32(3),  # negative values, shifted to 0 alike
+        "metric-depth": np.float32(50) / (truth + np.float32(1)),
+    }[kind]
+    mbs.write_pfm(tmp_path / "depth.pfm", depth)
+    out = tmp_path / "set"
+    mbs_tool("mono", "--image", photo, "--depth", tmp_path / "depth.pfm", "--depth-kind", kind, "--out", out, *flags)
+    ident = photo.stem
+    rig = mbs.mono_views(mbs.read_rgb(photo), depth, kind, sample_id=ident, **options)  # type: ignore[arg-type]
+    reference = options.get("reference", 1)
+    for k, (view, mask) in enumerate(zip(rig["views"], rig["masks"])):
+        if k == reference:
+            assert mask is None
+            np.testing.assert_array_equal(view, mbs.read_rgb(out / f"image_{k + 1}" / photo.name))
+            continue
+        assert mask is not None and mask.any(), k
+        np.testing.assert_array_equal(view, mbs.read_rgb(out / f"image_{k + 1}" / f"{ident}.png"), err_msg=str(k))
+        np.testing.assert_array_equal(mask, mbs.read_rgb(out / f"mask_{k + 1}" / f"{ident}.png")[..., 0])
+    written = mbs.read_pfm(out / f"disparity_{reference + 1}" / f"{ident}.pfm")
+    np.testing.assert_array_equal(rig["disparity"], written)
+    if options.get("scale", "as-is" if kind == "disparity" else "range") == "range":
+        low, high = options.get("max_disparity", (0.05, 0.15))
+        fraction = rig["drawn_fraction"]
+        assert fraction is not None and low <= fraction <= high
+        assert abs(float(written.max()) - fraction * truth.shape[1]) <= 1e-4 * fraction * truth.shape[1]
 
 
 def test_a_manifest_loads_with_its_rig_and_samples(scene: Path) -> None:

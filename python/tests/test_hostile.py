@@ -1,9 +1,11 @@
 """Hostile and careless input to the Python API: every writer refuses a
 target that is not a regular file (a device, a FIFO, a socket, a folder)
 and leaves it as it was; every integer argument is checked for type and
-range with an error that begins with its name; every public function of
-``mbs.torch`` checks what it is given; non-finite disparities are invalid
-pixels of the loss and never reach an index.
+range with an error that begins with its name; `mbs.mono_views` names
+the argument at fault for every array, map value, kind, scale and setting
+it cannot take; every public function of ``mbs.torch`` checks what it is
+given; non-finite disparities are invalid pixels of the loss and never
+reach an index.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+import numpy.typing as npt
 import pytest
 import torch
 
@@ -41,6 +44,8 @@ from mbs.torch import (
 MBS_TOOL = os.environ.get("MBS_TOOL", "target/debug/mbs-tool")
 IMAGE = np.zeros((8, 8, 3), np.uint8)
 MAP = np.ones((4, 4), np.float32)
+# A map of IMAGE's size that every kind can hold: 1 to 2.
+DEPTH: npt.NDArray[np.float32] = (1 + np.arange(64).reshape(8, 8) / 64).astype(np.float32)
 
 
 @pytest.fixture
@@ -133,6 +138,16 @@ def test_a_link_to_a_device_is_refused_and_a_link_to_nothing_replaced(
         (lambda: mbs.synth_scene(width=-8), "width", ValueError),
         (lambda: mbs.synth_scene(height=None), "height", TypeError),  # type: ignore[arg-type]
         (lambda: mbs.synth_scene(supersample=2**40), "supersample", ValueError),
+        (lambda: mbs.mono_views(IMAGE, DEPTH, "disparity", views=1), "views", ValueError),
+        (lambda: mbs.mono_views(IMAGE, DEPTH, "disparity", views=2**70), "views", ValueError),
+        (lambda: mbs.mono_views(IMAGE, DEPTH, "disparity", views=4.0), "views", TypeError),  # type: ignore[arg-type]
+        (lambda: mbs.mono_views(IMAGE, DEPTH, "disparity", views=4, reference=4), "reference", ValueError),
+        (lambda: mbs.mono_views(IMAGE, DEPTH, "disparity", reference=-1), "reference", ValueError),
+        (lambda: mbs.mono_views(IMAGE, DEPTH, "disparity", reference=True), "reference", TypeError),
+        (lambda: mbs.mono_views(IMAGE, DEPTH, "disparity", seed=-1), "seed", ValueError),
+        (lambda: mbs.mono_views(IMAGE, DEPTH, "disparity", seed=2**64), "seed", ValueError),
+        (lambda: mbs.mono_views(IMAGE, DEPTH, "disparity", seed=0.5), "seed", TypeError),  # type: ignore[arg-type]
+        (lambda: mbs.mono_views(IMAGE, DEPTH, "disparity", dilate_radius=-1), "dilate_radius", ValueError),
     ],
 )
 def test_integer_arguments_are_checked_with_their_names(
@@ -142,6 +157,77 @@ def test_integer_arguments_are_checked_with_their_names(
         call()
     assert type(raised.value) is error, repr(raised.value)
     assert str(raised.value).startswith(f"{argument}: "), str(raised.value)
+
+
+def with_value(value: float, at: tuple[int, int] = (3, 5), base: npt.NDArray[np.float32] = DEPTH) -> Any:
+    """``base`` with one value changed."""
+    out = base.copy()
+    out[at] = value
+    return out
+
+
+@pytest.mark.parametrize(
+    "arguments, kwargs, message",
+    [
+        ((IMAGE.astype(np.float32), DEPTH, "disparity"), {}, "image: expected a uint8 HxWx3 RGB array"),
+        ((IMAGE[:0], DEPTH, "disparity"), {}, "image: 0x8 pixels"),
+        ((IMAGE, DEPTH.astype(np.float64), "disparity"), {}, "depth: expected a float32 HxW array"),
+        ((IMAGE, DEPTH[None], "disparity"), {}, "depth: expected a float32 HxW array"),
+        ((IMAGE, DEPTH[:, :7], "disparity"), {}, "depth: 8x7 pixels, but image is 8x8"),
+        ((IMAGE, DEPTH, "metric"), {}, 'kind: unknown depth kind "metric": expected metric-depth'),
+        ((IMAGE, DEPTH, "disparity"), {"scale": "linear"}, 'scale: "linear" is not as-is, metric or range'),
+        (
+            (IMAGE, DEPTH, "metric-depth"),
+            {"scale": "as-is"},
+            "scale: depth map: the as-is scaling cannot take a map of kind metric-depth",
+        ),
+        (
+            (IMAGE, DEPTH, "inverse-relative"),
+            {"scale": "metric", "focal": 500.0, "baseline": 0.1},
+            "scale: depth map: the metric scaling cannot take a map of kind inverse-relative",
+        ),
+        ((IMAGE, DEPTH, "metric-depth"), {"scale": "metric"}, "focal: the metric scale needs focal and baseline"),
+        ((IMAGE, DEPTH, "metric-depth"), {"scale": "metric", "focal": 500.0}, "baseline: the metric scale needs"),
+        (
+            (IMAGE, DEPTH, "metric-depth"),
+            {"scale": "metric", "focal": 500.0, "baseline": 0.0},
+            "baseline: 0 is not a positive number",
+        ),
+        (
+            (IMAGE, DEPTH, "metric-depth"),
+            {"scale": "metric", "focal": math.inf, "baseline": 0.1},
+            "focal: inf is not a positive number",
+        ),
+        ((IMAGE, DEPTH, "metric-depth"), {"focal": 500.0}, "focal: only the metric scale takes focal and baseline"),
+        ((IMAGE, DEPTH, "disparity"), {"baseline": 0.1}, "baseline: only the metric scale takes"),
+        ((IMAGE, DEPTH, "metric-depth"), {"max_disparity": (0.2, 0.1)}, r"max_disparity: \(0.2, 0.1\): expected"),
+        ((IMAGE, DEPTH, "metric-depth"), {"max_disparity": (0.0, 0.1)}, "max_disparity: "),
+        ((IMAGE, DEPTH, "metric-depth"), {"max_disparity": (0.1, 1.5)}, "max_disparity: "),
+        ((IMAGE, DEPTH, "metric-depth"), {"max_disparity": (0.1, 1.0)}, "max_disparity: "),
+        ((IMAGE, DEPTH, "metric-depth"), {"max_disparity": (math.nan, 0.1)}, "max_disparity: "),
+        ((IMAGE, DEPTH, "metric-depth"), {"max_disparity": (0.1,)}, r"max_disparity: expected \(low, high\), got 1"),
+        ((IMAGE, with_value(math.nan), "inverse-relative"), {}, "depth: 1 of 64 values are NaN or infinite"),
+        ((IMAGE, with_value(math.inf), "metric-depth"), {}, "depth: 1 of 64 values are NaN or infinite"),
+        ((IMAGE, with_value(math.nan), "disparity"), {}, "depth: 1 NaN or negative disparities"),
+        ((IMAGE, np.full((8, 8), np.inf, np.float32), "disparity"), {}, "depth: no valid disparity at all"),
+        (
+            (IMAGE, with_value(0.0), "metric-depth"),
+            {},
+            "depth: 1 of 64 values are a zero or negative depth for a map of kind metric-depth: "
+            "a relative model\\? its kind is inverse-relative",
+        ),
+        ((IMAGE, with_value(-1.0), "disparity"), {}, "depth: 1 NaN or negative disparities"),
+        ((IMAGE, np.ones((8, 8), np.float32), "inverse-relative"), {}, "depth: every value is 1: a constant map"),
+        ((IMAGE, DEPTH * 100, "disparity"), {}, "depth: image_1: every pixel is masked"),
+        ((IMAGE, DEPTH, "disparity"), {"dilation": "disc"}, "dilation: "),
+        ((IMAGE, DEPTH, "disparity"), {"inpaint": "lama"}, "inpaint: "),
+    ],
+)
+def test_mono_views_names_what_it_cannot_take(
+    arguments: tuple[Any, Any, Any], kwargs: dict[str, Any], message: str
+) -> None:
+    with pytest.raises(ValueError, match=f"^{message}"):
+        mbs.mono_views(*arguments, **kwargs)
 
 
 def test_numpy_integers_are_integers() -> None:

@@ -148,7 +148,8 @@ def declared(typed_dict: str) -> dict[str, str]:
 
 def assert_matches(typed_dict: str, value: dict[str, Any]) -> None:
     """``value`` has exactly the keys of the stub's ``typed_dict``; each array
-    has its declared dtype, and each list holds what its annotation says."""
+    has its declared dtype, each list holds what its annotation says, and
+    ``None`` is only where the annotation allows it."""
     keys = declared(typed_dict)
     assert set(value) == set(keys), typed_dict
     for key, annotation in keys.items():
@@ -156,11 +157,15 @@ def assert_matches(typed_dict: str, value: dict[str, Any]) -> None:
         items = value[key] if annotation.startswith("list[") else [value[key]]
         if annotation.startswith("list["):
             assert isinstance(value[key], list), where
+        if annotation.removesuffix("]").endswith(" | None"):
+            items = [item for item in items if item is not None]
         if "npt.NDArray[np." in annotation:
             dtype = np.dtype(getattr(np, annotation.split("npt.NDArray[np.")[1].split("]")[0]))
             assert items, where
             for item in items:
                 assert isinstance(item, np.ndarray) and item.dtype == dtype, where
+        elif annotation == "float | None":
+            assert all(isinstance(item, float) for item in items), where
         elif annotation == "list[str]":
             assert all(isinstance(item, str) for item in items), where
         elif annotation == "list[tuple[str, str]]":
@@ -177,6 +182,12 @@ def test_result_dicts_have_the_stubs_keys_and_dtypes(tmp_path: Path) -> None:
     assert_matches("_SynthScene", dict(scene))
     left, right = scene["views"]
     assert_matches("_Extrapolated", dict(mbs.extrapolate(left, right, max_disparity=16)))
+    ranged = mbs.mono_views(left, scene["depth"][0], "metric-depth")
+    assert isinstance(ranged["drawn_fraction"], float) and ranged["masks"][1] is None
+    assert_matches("_MonoViews", dict(ranged))
+    as_is = mbs.mono_views(left, scene["disparity"][0], "disparity", views=3, reference=0)
+    assert as_is["drawn_fraction"] is None and as_is["masks"][0] is None
+    assert_matches("_MonoViews", dict(as_is))
     done = subprocess.run(
         [MBS_TOOL, "synth", "--out", str(tmp_path), "--weathers", "ClearNoon", "--no-checksums", "--seed", "2"]
         + ["--frames", "1", "--towns", "Town01", "--width", "64", "--height", "32", "--focal", "32"],
