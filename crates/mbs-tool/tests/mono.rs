@@ -128,10 +128,11 @@ fn views_at_the_real_baselines_are_extrapolates_and_score_against_the_real_views
     }
 }
 
-/// `mono` on `photos` with FastDepth and `seed` into `out`.
-fn fastdepth_sets(photos: &Path, out: &Path, seed: &str) {
+/// `mono` on `photos` with FastDepth, `seed` and `jobs` worker threads
+/// into `out`.
+fn fastdepth_sets(photos: &Path, out: &Path, seed: &str, jobs: &str) {
     let output = run_line(&format!(
-        "mono --images {} --model {} --card fastdepth --seed {seed} --preview --out {}",
+        "mono --images {} --model {} --card fastdepth --seed {seed} --jobs {jobs} --preview --out {}",
         s(photos),
         s(&fastdepth()),
         s(out)
@@ -191,12 +192,15 @@ fn fastdepth_sets_from_real_photos_are_deterministic_valid_and_train() {
         dir.path().join("b"),
         dir.path().join("c"),
     );
-    fastdepth_sets(&photos, &first, "7");
-    fastdepth_sets(&photos, &second, "7");
-    fastdepth_sets(&photos, &other, "8");
+    fastdepth_sets(&photos, &first, "7", "2");
+    fastdepth_sets(&photos, &second, "7", "1");
+    fastdepth_sets(&photos, &other, "8", "2");
     let files = contents(&first);
     assert_eq!(files.len(), 4 * (4 + 3 + 1 + 1) + 1); // views, masks, PFM, preview; manifest
-    assert!(files == contents(&second), "the same seed gave other bytes");
+    assert!(
+        files == contents(&second),
+        "the same seed (with 1 and 2 threads) gave other bytes"
+    );
     for id in ["teddy", "tsukuba", "baby2", "laundry"] {
         let pfm = format!("disparity_2/{id}.pfm");
         let a = read_float_map(&first.join(&pfm)).unwrap();
