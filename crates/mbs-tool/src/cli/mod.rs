@@ -91,6 +91,29 @@ pub fn take_out(
     Ok(out)
 }
 
+/// [`take_out`] for a command whose files depend on `settings`: a folder
+/// whose files were written with other settings is refused, naming what
+/// differs, before anything is written (unless `overwrite`: every output is
+/// then recomputed), and the settings are kept in the folder
+/// ([`mbs_core::batch_settings`]). A resumed run skips the files that
+/// exist, so without this a rerun with another model or seed would mix
+/// two kinds of file in one folder.
+pub fn take_out_settled(
+    dir: &Path,
+    shard: Option<mbs_core::shard::Shard>,
+    command: &str,
+    (inputs, outputs): (&InputFiles, &[PathBuf]),
+    settings: &serde_json::Value,
+    overwrite: bool,
+) -> anyhow::Result<OutDir> {
+    if !overwrite {
+        mbs_core::batch_settings::check(dir, command, settings)?;
+    }
+    let out = take_out(dir, shard, command, inputs, outputs)?;
+    mbs_core::batch_settings::keep(dir, command, settings)?;
+    Ok(out)
+}
+
 /// Checks that an input `path` given as `what` (e.g. "left view") is a file.
 pub fn require_file(path: &std::path::Path, what: &str) -> anyhow::Result<()> {
     match mbs_core::regular::not_a_file(path, what) {

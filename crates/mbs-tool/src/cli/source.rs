@@ -172,6 +172,44 @@ impl StereoSourceArgs {
         }
     }
 
+    /// The source as a rerun into the same output folder must repeat it
+    /// (`mbs_core::batch_settings`): each file it reads, by name and
+    /// sha256 (so a run's newer teacher is another source), and its other
+    /// flags.
+    pub fn settings(&self) -> anyhow::Result<serde_json::Value> {
+        let card = self
+            .card
+            .as_ref()
+            .map(PathBuf::from)
+            .filter(|p| p.is_file());
+        let mut files: Vec<PathBuf> = [&self.model, &card, &self.weights]
+            .into_iter()
+            .flatten()
+            .cloned()
+            .collect();
+        if let Some(checkpoint) = &self.checkpoint {
+            files.extend(TrainedNetworks::files_read_from(checkpoint));
+        }
+        let files = files
+            .iter()
+            .map(|file| {
+                let name = file.file_name().map(|n| n.to_string_lossy().into_owned());
+                let sha256 = mbs_dataset::checksum::sha256_file(file)
+                    .with_context(|| format!("{}: cannot read it", file.display()))?;
+                Ok(serde_json::json!({ "file": name, "sha256": sha256 }))
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        Ok(serde_json::json!({
+            "files": files,
+            "card": self.card,
+            "backbone": self.backbone.map(|b| format!("{b:?}")),
+            "set": self.set,
+            "max_disparity": self.max_disparity,
+            "paths": self.paths.map(|p| format!("{p:?}")),
+            "no_fill": self.no_fill,
+        }))
+    }
+
     /// Whether a network (ONNX, a run, weights) predicts, not the built-in
     /// matcher.
     fn uses_network(&self) -> bool {

@@ -127,7 +127,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => frames.iter().collect(),
     };
     let (inputs, outputs) = files(&args, &frames, &selected, &out);
-    let _out = crate::cli::take_out(&out, args.batch.shard, "extrapolate", &inputs, &outputs)?;
+    let settings = serde_json::json!({
+        "source": args.source.settings()?,
+        "synthesis": args.synthesis.provenance(),
+    });
+    let _out = crate::cli::take_out_settled(
+        &out,
+        args.batch.shard,
+        "extrapolate",
+        (&inputs, &outputs),
+        &settings,
+        false,
+    )?;
     let summary = batch::run(
         &selected,
         "frames",

@@ -5,7 +5,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::bail;
 use clap::{Parser, ValueEnum};
-use mbs_core::batch_settings;
 use mbs_core::inputs::InputFiles;
 use mbs_dataset::Split;
 use mbs_dataset::manifest::Provenance;
@@ -201,9 +200,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let (inputs, outputs) = files(&args, &sets, &selected);
     let settings = settings(&args, scaling, kind)?;
-    batch_settings::check(&args.out, "mono", &settings)?;
-    let _out = crate::cli::take_out(&args.out, args.batch.shard, "mono", &inputs, &outputs)?;
-    batch_settings::keep(&args.out, "mono", &settings)?;
+    let _out = crate::cli::take_out_settled(
+        &args.out,
+        args.batch.shard,
+        "mono",
+        (&inputs, &outputs),
+        &settings,
+        false,
+    )?;
     let summary = batch::run(
         &selected,
         "photos",

@@ -84,7 +84,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let outputs = every_output(&args, &pairs)?;
     args.source.refuse_unused_device()?;
     let matcher = args.source.matcher(SgmConfig::default())?;
-    let _out = crate::cli::take_out(&args.out, args.batch.shard, "predict", &inputs, &outputs)?;
+    let settings = serde_json::json!({ "source": args.source.settings()?, "color": args.color });
+    let _out = crate::cli::take_out_settled(
+        &args.out,
+        args.batch.shard,
+        "predict",
+        (&inputs, &outputs),
+        &settings,
+        args.overwrite.overwrite,
+    )?;
     let summary = batch::run(
         &pairs,
         "pairs",

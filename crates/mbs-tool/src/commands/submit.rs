@@ -77,7 +77,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     args.source.add_files_to(&mut inputs);
     let outputs = layout.outputs(&args.out, &ids);
     let matcher = args.source.matcher(SgmConfig::default())?;
-    let out = crate::cli::take_out(&args.out, None, "submit", &inputs, &outputs)?;
+    let settings = serde_json::json!({ "source": args.source.settings()? });
+    let out = crate::cli::take_out_settled(
+        &args.out,
+        None,
+        "submit",
+        (&inputs, &outputs),
+        &settings,
+        args.overwrite.overwrite,
+    )?;
     let seconds = std::sync::Mutex::new(Vec::new());
     let summary = batch::run_in_order(
         &pairs,
