@@ -165,18 +165,13 @@ impl StereoSourceArgs {
     /// replaces one: the model, the card file, the weights file, and the
     /// files of the run's or checkpoint's newest checkpoint.
     pub fn add_files_to(&self, inputs: &mut InputFiles) {
-        let card = self.card.as_ref().map(PathBuf::from);
-        inputs.extend([&self.model, &card, &self.weights].into_iter().flatten());
-        if let Some(checkpoint) = &self.checkpoint {
-            inputs.extend(TrainedNetworks::files_read_from(checkpoint));
-        }
+        inputs.extend(self.files_read());
     }
 
-    /// The source as a rerun into the same output folder must repeat it
-    /// (`mbs_core::batch_settings`): each file it reads, by name and
-    /// sha256 (so a run's newer teacher is another source), and its other
-    /// flags.
-    pub fn settings(&self) -> anyhow::Result<serde_json::Value> {
+    /// The files the source reads: the model, the card file (a built-in
+    /// card's name is none), the weights file, and the files of the run's
+    /// or checkpoint's newest checkpoint.
+    fn files_read(&self) -> Vec<PathBuf> {
         let card = self
             .card
             .as_ref()
@@ -190,7 +185,16 @@ impl StereoSourceArgs {
         if let Some(checkpoint) = &self.checkpoint {
             files.extend(TrainedNetworks::files_read_from(checkpoint));
         }
-        let files = files
+        files
+    }
+
+    /// The source as a rerun into the same output folder must repeat it
+    /// (`mbs_core::batch_settings`): each file it reads, by name and
+    /// sha256 (so a run's newer teacher is another source), and its other
+    /// flags.
+    pub fn settings(&self) -> anyhow::Result<serde_json::Value> {
+        let files = self
+            .files_read()
             .iter()
             .map(|file| {
                 let name = file.file_name().map(|n| n.to_string_lossy().into_owned());

@@ -199,7 +199,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => sets.iter().collect(),
     };
     let (inputs, outputs) = files(&args, &sets, &selected);
-    let settings = settings(&args, scaling, kind)?;
+    let settings = settings(&args, network.as_ref(), scaling, kind)?;
     let _out = crate::cli::take_out_settled(
         &args.out,
         args.batch.shard,
@@ -329,12 +329,17 @@ fn files(args: &Args, sets: &[PhotoSet], selected: &[&PhotoSet]) -> (InputFiles,
 /// name, its sha256 and card, or the files' kind), the scaling, the
 /// cameras and the synthesis. A rerun into the same folder must repeat
 /// them, and the manifest's provenance records them.
-fn settings(args: &Args, scaling: Scaling, kind: DepthKind) -> anyhow::Result<serde_json::Value> {
-    let depth = match (&args.model, &args.card) {
-        (Some(model), Some(card)) => serde_json::json!({
+fn settings(
+    args: &Args,
+    network: Option<&OnnxDepth>,
+    scaling: Scaling,
+    kind: DepthKind,
+) -> anyhow::Result<serde_json::Value> {
+    let depth = match (&args.model, network) {
+        (Some(model), Some(network)) => serde_json::json!({
             "model": model.file_name().map(|n| n.to_string_lossy()),
             "model_sha256": mbs_dataset::checksum::sha256_file(model)?,
-            "card": ModelCard::load(card)?,
+            "card": network.card(),
             "kind": kind,
         }),
         _ => serde_json::json!({ "files": true, "kind": kind }),
